@@ -1,0 +1,41 @@
+//! `ptm-fit`: the occlusion PTM itself — polynomial bases, per-texel least squares, the PTM EXR
+//! format, `Ptm::load` and CPU evaluation of K(u, v).
+//!
+//! This crate is the boundary every other crate meets at, and all a render pipeline that only
+//! loads PTM files needs: it depends on neither Embree nor wgpu.
+//!
+//! Conventions (docs/FORMAT.md): one tile spans [0, W]×[0, H] with z up; tangent +X, bitangent
+//! +Y; images have column 0 at x = 0 and **row 0 at the far edge y = H**; K is the fraction of a
+//! texel's footprint that cannot see the light (0 = lit, 1 = occluded); (u, v) = (l·X, l·Y) for
+//! the unit vector l towards the light.
+
+pub mod atomic;
+pub mod basis;
+pub mod lights;
+pub mod ptm;
+
+pub use basis::{Basis, Monomial};
+pub use lights::LightSet;
+pub use ptm::Ptm;
+
+/// Errors of the fit crate. Messages name the input and, where there is something to do, what.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}: line {line}: {reason}")]
+    LightFile {
+        path: String,
+        line: usize,
+        reason: String,
+    },
+    #[error("{path}: {reason}")]
+    Format { path: String, reason: String },
+    #[error("{0}")]
+    Invalid(String),
+}
+
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,58 @@
+#!/usr/bin/env bash
+# Idempotent fresh-machine setup for ptm: system packages (libclang for bindgen, lavapipe
+# software Vulkan for wgpu) and Embree 4.4 from the pinned PyPI wheel `embreex`, unpacked into
+# the ignored folder `.deps/embree`. Safe to run any number of times; quiet when nothing to do.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+say() { printf 'setup: %s\n' "$*" >&2; }
+
+# --- system packages -------------------------------------------------------------------------
+need_pkgs=()
+for p in libclang-dev mesa-vulkan-drivers libvulkan1; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
+done
+if ((${#need_pkgs[@]})); then
+    if [ "$(id -u)" -eq 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else
+        say "missing Debian packages: ${need_pkgs[*]}; run as root or install them: apt-get install -y ${need_pkgs[*]}"
+        exit 1
+    fi
+    say "installing ${need_pkgs[*]}"
+    export DEBIAN_FRONTEND=noninteractive
+    $SUDO apt-get update -qq >/dev/null
+    $SUDO apt-get install -y -qq --no-install-recommends "${need_pkgs[@]}" >/dev/null
+fi
+
+# --- Embree 4 ----------------------------------------------------------------------------------
+# EMBREE_DIR=/path/to/embree4 (with lib/libembree4.so) skips the wheel entirely.
+if [ -n "${EMBREE_DIR:-}" ]; then
+    ls "$EMBREE_DIR"/lib*/libembree4.so* >/dev/null 2>&1 || { say "EMBREE_DIR=$EMBREE_DIR has no lib/libembree4.so*"; exit 1; }
+else
+    dest=.deps/embree
+    if [ ! -e "$dest/lib/libembree4.so" ]; then
+        say "fetching Embree 4.4 from the PyPI wheel embreex==4.4.0.post1"
+        tmp=$(mktemp -d)
+        trap 'rm -rf "$tmp"' EXIT
+        PY=${PYTHON:-python3}
+        command -v "$PY" >/dev/null || { say "python3 with pip is needed to fetch Embree (or set EMBREE_DIR)"; exit 1; }
+        "$PY" -m pip download -q --no-deps --only-binary=:all: --platform manylinux_2_28_x86_64 \
+            --platform manylinux_2_17_x86_64 --platform manylinux2014_x86_64 \
+            --python-version 3.11 -d "$tmp" embreex==4.4.0.post1
+        "$PY" - "$tmp" <<'PYEOF'
+import sys, zipfile, glob, os
+tmp = sys.argv[1]
+whl = glob.glob(os.path.join(tmp, "*.whl"))[0]
+with zipfile.ZipFile(whl) as z:
+    for n in z.namelist():
+        if n.startswith("embreex.libs/"):
+            z.extract(n, tmp)
+PYEOF
+        rm -rf "$dest.tmp" && mkdir -p "$dest.tmp/lib"
+        cp "$tmp"/embreex.libs/* "$dest.tmp/lib/"
+        emb=$(cd "$dest.tmp/lib" && ls libembree4-*.so.4 | head -1)
+        # The wheel's soname is mangled (libembree4-<hash>.so.4); the linker needs libembree4.so.
+        ln -sf "$emb" "$dest.tmp/lib/libembree4.so"
+        rm -rf "$dest" && mv "$dest.tmp" "$dest"
+        say "Embree 4.4 in $dest/lib"
+    fi
+fi

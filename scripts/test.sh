@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# The whole test suite on a fresh machine: setup (idempotent), formatting and lint gates, the
+# dependency-boundary check, then every test of the workspace (GPU tests on lavapipe).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/setup.sh
+export CARGO_TERM_COLOR=${CARGO_TERM_COLOR:-never}
+
+echo "== cargo fmt --check" >&2
+cargo fmt --all -- --check
+
+echo "== ptm-fit depends on neither Embree nor wgpu" >&2
+if cargo tree -p ptm-fit -e normal --prefix none | grep -E '^(embree4-sys|wgpu|wgpu-core|wgpu-hal|naga) ' ; then
+    echo "ptm-fit must not depend on Embree or wgpu (see ARCHITECTURE.md)" >&2
+    exit 1
+fi
+
+echo "== cargo clippy --all-targets" >&2
+cargo clippy --workspace --all-targets -- -D warnings
+
+echo "== cargo test" >&2
+cargo test --workspace

@@ -1,0 +1,62 @@
+//! `ptm`: bake, fit and render occlusion polynomial texture maps of cloth swatches.
+//!
+//! Glue only: one module per subcommand over the library crates. Only this binary knows clap,
+//! stdout and exit codes. With `--json` a subcommand prints exactly one JSON object on stdout;
+//! human-readable progress and messages always go to stderr.
+
+mod bake;
+mod fit;
+mod preview;
+mod swatch;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "ptm",
+    version,
+    about = "Bake, fit and render occlusion PTMs of cloth swatches"
+)]
+struct Cli {
+    /// Print one JSON object with timings, counts and diagnostics on stdout.
+    #[arg(long, global = true)]
+    json: bool,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Ray-trace a tileable swatch from a dome of lights: per-texel occluded fraction K.
+    Bake(bake::Args),
+    /// Least-squares fit of a PTM (K as a polynomial in the light's (u, v)) per texel.
+    Fit(fit::Args),
+    /// Render the swatch plane under area lights with the GPU runtime, modulated by 1 − K.
+    Preview(preview::Args),
+    /// Generate a procedural tileable swatch as an OBJ file.
+    Swatch(swatch::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match &cli.command {
+        Command::Bake(a) => bake::run(a),
+        Command::Fit(a) => fit::run(a),
+        Command::Preview(a) => preview::run(a),
+        Command::Swatch(a) => swatch::run(a),
+    };
+    match result {
+        Ok(report) => {
+            if cli.json {
+                println!("{report}");
+            }
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("ptm: error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,8 @@
+//! `ptm swatch`.
+
+#[derive(clap::Args)]
+pub struct Args {}
+
+pub fn run(_args: &Args) -> anyhow::Result<serde_json::Value> {
+    anyhow::bail!("`ptm swatch` is not implemented yet")
+}
