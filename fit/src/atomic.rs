@@ -1,7 +1,7 @@
 //! Atomic file output: write to a temporary file beside the target, fsync, then rename, so a
 //! crash never leaves a half-written file where a good one was.
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::BufWriter;
 use std::path::Path;
 
 use crate::{Error, Result};

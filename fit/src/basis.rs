@@ -68,7 +68,8 @@ impl Basis {
         }
     }
 
-    /// Number of coefficients.
+    /// Number of coefficients (a basis is never empty).
+    #[allow(clippy::len_without_is_empty)]
     pub fn len(self) -> usize {
         self.monomials().len()
     }

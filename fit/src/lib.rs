@@ -11,12 +11,15 @@
 
 pub mod atomic;
 pub mod basis;
+mod exrio;
 pub mod lights;
 pub mod ptm;
+pub mod stack;
 
 pub use basis::{Basis, Monomial};
 pub use lights::LightSet;
 pub use ptm::Ptm;
+pub use stack::SampleStack;
 
 /// Errors of the fit crate. Messages name the input and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]

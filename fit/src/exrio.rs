@@ -1,0 +1,193 @@
+//! Thin layer over the `exr` crate shared by the sample stack and the PTM file: single-part
+//! scanline files, ZIP compression, named flat channels, portable header attributes (text, text
+//! vector, f64, i32), written atomically.
+use std::collections::HashMap;
+use std::path::Path;
+
+use exr::meta::attribute::AttributeValue;
+use exr::prelude::*;
+
+use crate::{Error, Result};
+
+/// Samples of one channel as stored: f32 or half.
+pub(crate) enum Samples {
+    F32(Vec<f32>),
+    F16(Vec<f16>),
+}
+
+/// A header attribute of one of the portable types.
+#[derive(Clone, Debug, PartialEq)]
+pub(crate) enum Attr {
+    Text(String),
+    Texts(Vec<String>),
+    F64(f64),
+    I32(i32),
+}
+
+/// EXR `Text` holds bytes (Latin-1); characters outside it are written as `?`.
+fn text(s: &str) -> Text {
+    Text::from_bytes_unchecked(
+        s.chars()
+            .map(|c| u8::try_from(c as u32).unwrap_or(b'?'))
+            .collect(),
+    )
+}
+
+fn string(t: &Text) -> String {
+    t.bytes().iter().map(|&b| b as char).collect()
+}
+
+/// Writes a width×height single-part EXR with ZIP (16 scanlines per block) compression.
+/// Row 0 of every channel is the first scanline (the top of the image).
+pub(crate) fn write(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Samples)>,
+    attrs: Vec<(&str, Attr)>,
+) -> Result<()> {
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+        .into_iter()
+        .map(|(name, s)| {
+            let data = match s {
+                Samples::F32(v) => FlatSamples::F32(v),
+                Samples::F16(v) => FlatSamples::F16(v),
+            };
+            AnyChannel::new(text(&name), data)
+        })
+        .collect();
+    let mut la = LayerAttributes::default();
+    for (name, a) in attrs {
+        let value = match a {
+            Attr::Text(s) => AttributeValue::Text(text(&s)),
+            Attr::Texts(v) => AttributeValue::TextVector(v.iter().map(|s| text(s)).collect()),
+            Attr::F64(x) => AttributeValue::F64(x),
+            Attr::I32(x) => AttributeValue::I32(x),
+        };
+        la.other.insert(text(name), value);
+    }
+    let layer = Layer::new(
+        (width, height),
+        la,
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list),
+    );
+    let tmp = crate::atomic::tmp_path(path);
+    let written = Image::from_layer(layer)
+        .write()
+        .to_file(&tmp)
+        .map_err(|e| Error::Format {
+            path: path.display().to_string(),
+            reason: format!("writing EXR: {e}"),
+        });
+    crate::atomic::commit_tmp(&tmp, path, written)
+}
+
+/// The contents of a single-part flat EXR: channels by name, header attributes by name.
+pub(crate) struct Contents {
+    pub path: String,
+    pub width: usize,
+    pub height: usize,
+    pub channels: HashMap<String, Samples>,
+    pub attrs: HashMap<String, Attr>,
+}
+
+/// Reads every channel and attribute of the first layer. Attributes of other types are skipped.
+pub(crate) fn read(path: &Path) -> Result<Contents> {
+    let shown = path.display().to_string();
+    if let Err(e) = std::fs::metadata(path) {
+        return Err(Error::Io {
+            path: shown,
+            source: e,
+        });
+    }
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .pedantic()
+        .from_file(path)
+        .map_err(|e| Error::Format {
+            path: shown.clone(),
+            reason: format!("not a readable OpenEXR file (truncated or foreign?): {e}"),
+        })?;
+    let layer = image.layer_data;
+    let size = layer.size;
+    let mut channels = HashMap::new();
+    for ch in layer.channel_data.list {
+        let s = match ch.sample_data {
+            FlatSamples::F32(v) => Samples::F32(v),
+            FlatSamples::F16(v) => Samples::F16(v),
+            FlatSamples::U32(v) => Samples::F32(v.into_iter().map(|x| x as f32).collect()),
+        };
+        channels.insert(string(&ch.name), s);
+    }
+    let mut attrs = HashMap::new();
+    for (name, value) in layer.attributes.other.iter().chain(&image.attributes.other) {
+        let a = match value {
+            AttributeValue::Text(t) => Attr::Text(string(t)),
+            AttributeValue::TextVector(v) => Attr::Texts(v.iter().map(string).collect()),
+            AttributeValue::F64(x) => Attr::F64(*x),
+            AttributeValue::F32(x) => Attr::F64(*x as f64),
+            AttributeValue::I32(x) => Attr::I32(*x),
+            _ => continue,
+        };
+        attrs.insert(string(name), a);
+    }
+    Ok(Contents {
+        path: shown,
+        width: size.0,
+        height: size.1,
+        channels,
+        attrs,
+    })
+}
+
+impl Contents {
+    fn bad(&self, reason: String) -> Error {
+        Error::Format {
+            path: self.path.clone(),
+            reason,
+        }
+    }
+
+    /// Removes and returns channel `name` as f32, or an error naming it and what the file is.
+    pub fn take_f32(&mut self, name: &str, what: &str) -> Result<Vec<f32>> {
+        match self.channels.remove(name) {
+            Some(Samples::F32(v)) => Ok(v),
+            Some(Samples::F16(v)) => Ok(v.into_iter().map(f16::to_f32).collect()),
+            None => Err(self.bad(format!(
+                "{what} lacks channel `{name}` (the file is truncated in content or was written by another tool)"
+            ))),
+        }
+    }
+
+    #[allow(dead_code)]
+    pub fn text(&self, name: &str, what: &str) -> Result<String> {
+        match self.attrs.get(name) {
+            Some(Attr::Text(s)) => Ok(s.clone()),
+            _ => Err(self.bad(format!("{what} lacks the text attribute `{name}`"))),
+        }
+    }
+
+    pub fn texts(&self, name: &str, what: &str) -> Result<Vec<String>> {
+        match self.attrs.get(name) {
+            Some(Attr::Texts(v)) => Ok(v.clone()),
+            _ => Err(self.bad(format!("{what} lacks the text-vector attribute `{name}`"))),
+        }
+    }
+
+    pub fn f64(&self, name: &str, what: &str) -> Result<f64> {
+        match self.attrs.get(name) {
+            Some(Attr::F64(x)) => Ok(*x),
+            Some(Attr::I32(x)) => Ok(*x as f64),
+            _ => Err(self.bad(format!("{what} lacks the number attribute `{name}`"))),
+        }
+    }
+
+    pub fn error(&self, reason: impl Into<String>) -> Error {
+        self.bad(reason.into())
+    }
+}

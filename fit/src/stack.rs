@@ -1,0 +1,321 @@
+//! The stored sample stack: what `ptm bake` writes (`samples.exr`) and `ptm fit` reads.
+//!
+//! Layout (docs/FORMAT.md): one single-part, ZIP-compressed, float32 EXR of width × height
+//! texels; row 0 is the far edge y = H. Channels: `K.0000`, `K.0001`, … (K for light i, in light
+//! order), `coverage`, and for finite-distance lights `u.0000`/`v.0000`, … (the per-texel
+//! projection of the direction towards light i). Header: `stack:version`, `stack:tileW`,
+//! `stack:tileH` (f64), `stack:nLights` (i32), `stack:lightDirs` (text vector, "x y z" per light,
+//! shortest round-trip decimal), `stack:lightNames` (text vector), `stack:K`, `stack:frame`.
+use std::path::Path;
+
+use crate::exrio::{self, Attr, Samples};
+use crate::{Error, LightSet, Result};
+
+/// Value of `stack:version`; a file without it is not a sample stack.
+pub const STACK_VERSION: &str = "ptm-samples/1";
+
+/// The stored sample stack a bake writes (`samples.exr`) and `ptm fit` reads.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SampleStack {
+    /// Texels per row.
+    pub width: usize,
+    /// Rows; row 0 is the far edge y = H of the tile.
+    pub height: usize,
+    /// Tile size (W, H) in swatch units.
+    pub tile: [f64; 2],
+    /// Light order = channel order `K.0000`, `K.0001`, ….
+    pub lights: LightSet,
+    /// `k[light][texel]`: occluded fraction (0 = lit, 1 = occluded), row-major.
+    pub k: Vec<Vec<f32>>,
+    /// Per texel, the fraction of footprint samples that hit the swatch (0 = masked).
+    pub coverage: Vec<f32>,
+    /// Finite-distance lights only: per light, per texel, the (u, v) of the unit vector from
+    /// the texel towards the light (the distant direction `lights.dirs` is then nominal).
+    pub uv: Option<Vec<Vec<[f32; 2]>>>,
+}
+
+/// Name of the K channel of light `i`.
+pub fn k_channel(i: usize) -> String {
+    format!("K.{i:04}")
+}
+
+impl SampleStack {
+    /// Texel count.
+    pub fn texels(&self) -> usize {
+        self.width * self.height
+    }
+
+    /// Checks that every plane has width × height entries and one plane per light.
+    pub fn validate(&self) -> Result<()> {
+        let n = self.texels();
+        let bad = |r: String| Err(Error::Invalid(format!("sample stack: {r}")));
+        if n == 0 {
+            return bad(format!("empty image {}×{}", self.width, self.height));
+        }
+        if self.lights.is_empty() {
+            return bad("no lights".into());
+        }
+        if self.k.len() != self.lights.len() {
+            return bad(format!(
+                "{} K planes for {} lights",
+                self.k.len(),
+                self.lights.len()
+            ));
+        }
+        if let Some(i) = self.k.iter().position(|p| p.len() != n) {
+            return bad(format!(
+                "K plane {i} has {} texels, expected {n}",
+                self.k[i].len()
+            ));
+        }
+        if self.coverage.len() != n {
+            return bad(format!(
+                "coverage has {} texels, expected {n}",
+                self.coverage.len()
+            ));
+        }
+        if let Some(uv) = &self.uv {
+            if uv.len() != self.lights.len() || uv.iter().any(|p| p.len() != n) {
+                return bad("uv planes do not match the lights and texels".into());
+            }
+        }
+        if !(self.tile[0] > 0.0 && self.tile[1] > 0.0) {
+            return bad(format!("tile size {:?} is not positive", self.tile));
+        }
+        Ok(())
+    }
+
+    /// Writes the stack as EXR, atomically (temporary file, then rename).
+    pub fn write(&self, path: &Path) -> Result<()> {
+        self.validate()?;
+        let mut channels = Vec::with_capacity(self.k.len() * 3 + 1);
+        for (i, plane) in self.k.iter().enumerate() {
+            channels.push((k_channel(i), Samples::F32(plane.clone())));
+        }
+        channels.push(("coverage".to_string(), Samples::F32(self.coverage.clone())));
+        if let Some(uv) = &self.uv {
+            for (i, plane) in uv.iter().enumerate() {
+                let u = plane.iter().map(|p| p[0]).collect();
+                let v = plane.iter().map(|p| p[1]).collect();
+                channels.push((format!("u.{i:04}"), Samples::F32(u)));
+                channels.push((format!("v.{i:04}"), Samples::F32(v)));
+            }
+        }
+        let dirs = self
+            .lights
+            .dirs
+            .iter()
+            .map(|d| format!("{:e} {:e} {:e}", d[0], d[1], d[2]))
+            .collect();
+        let attrs = vec![
+            ("stack:version", Attr::Text(STACK_VERSION.into())),
+            ("stack:tileW", Attr::F64(self.tile[0])),
+            ("stack:tileH", Attr::F64(self.tile[1])),
+            ("stack:nLights", Attr::I32(self.lights.len() as i32)),
+            ("stack:lightDirs", Attr::Texts(dirs)),
+            ("stack:lightNames", Attr::Texts(self.lights.names.clone())),
+            (
+                "stack:K",
+                Attr::Text(
+                    "K = occluded fraction of the texel footprint: 0 lit, 1 occluded".into(),
+                ),
+            ),
+            (
+                "stack:frame",
+                Attr::Text(
+                    "tile [0,W]x[0,H], z up, u = l.X, v = l.Y, row 0 at y = H, column 0 at x = 0"
+                        .into(),
+                ),
+            ),
+            (
+                "stack:uv",
+                Attr::Text(
+                    if self.uv.is_some() {
+                        "per-texel"
+                    } else {
+                        "distant"
+                    }
+                    .into(),
+                ),
+            ),
+        ];
+        exrio::write(path, self.width, self.height, channels, attrs)
+    }
+
+    /// Reads a stack written by [`SampleStack::write`]. A file that is not a sample stack, or
+    /// lacks a channel or attribute, is an error saying which.
+    pub fn read(path: &Path) -> Result<Self> {
+        let mut c = exrio::read(path)?;
+        const WHAT: &str = "sample stack";
+        match c.attrs.get("stack:version") {
+            Some(Attr::Text(v)) if v == STACK_VERSION => {}
+            Some(Attr::Text(v)) => {
+                return Err(c.error(format!(
+                    "sample stack version {v:?} is not supported (expected {STACK_VERSION:?})"
+                )))
+            }
+            _ => {
+                let hint = if c.attrs.contains_key("ptm:basis") {
+                    " (it is a fitted PTM: pass the samples.exr written by `ptm bake`)"
+                } else {
+                    " (no `stack:version` attribute: pass the samples.exr written by `ptm bake`)"
+                };
+                return Err(c.error(format!("not a ptm sample stack{hint}")));
+            }
+        }
+        let tile = [c.f64("stack:tileW", WHAT)?, c.f64("stack:tileH", WHAT)?];
+        let dir_text = c.texts("stack:lightDirs", WHAT)?;
+        let mut dirs = Vec::with_capacity(dir_text.len());
+        for (i, s) in dir_text.iter().enumerate() {
+            let v: Vec<f64> = s
+                .split_whitespace()
+                .filter_map(|t| t.parse().ok())
+                .collect();
+            if v.len() != 3 || v.iter().any(|x| !x.is_finite()) {
+                return Err(c.error(format!("light {i} direction {s:?} is not `x y z`")));
+            }
+            dirs.push([v[0], v[1], v[2]]);
+        }
+        let names = c.texts("stack:lightNames", WHAT)?;
+        if names.len() != dirs.len() {
+            return Err(c.error(format!(
+                "{} light names for {} light directions",
+                names.len(),
+                dirs.len()
+            )));
+        }
+        let n = c.f64("stack:nLights", WHAT)? as usize;
+        if n != dirs.len() {
+            return Err(c.error(format!(
+                "header says {n} lights but lists {} directions",
+                dirs.len()
+            )));
+        }
+        // Directions were written normalised; keep them bit-exact rather than renormalising.
+        let lights = LightSet { names, dirs };
+        let mut k = Vec::with_capacity(n);
+        for i in 0..n {
+            k.push(c.take_f32(&k_channel(i), WHAT)?);
+        }
+        let coverage = c.take_f32("coverage", WHAT)?;
+        let per_texel = matches!(c.attrs.get("stack:uv"), Some(Attr::Text(s)) if s == "per-texel");
+        let uv = if per_texel {
+            let mut uv = Vec::with_capacity(n);
+            for i in 0..n {
+                let u = c.take_f32(&format!("u.{i:04}"), WHAT)?;
+                let v = c.take_f32(&format!("v.{i:04}"), WHAT)?;
+                uv.push(u.into_iter().zip(v).map(|(u, v)| [u, v]).collect());
+            }
+            Some(uv)
+        } else {
+            None
+        };
+        let stack = SampleStack {
+            width: c.width,
+            height: c.height,
+            tile,
+            lights,
+            k,
+            coverage,
+            uv,
+        };
+        stack.validate().map_err(|e| c.error(e.to_string()))?;
+        Ok(stack)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn small_stack(uv: bool) -> SampleStack {
+        let lights = LightSet::from_dirs([[0.3, -0.2, 0.9], [0.0, 0.0, 1.0], [-1.0, 0.1, 0.05]]);
+        let (w, h) = (5, 3);
+        let k: Vec<Vec<f32>> = (0..3)
+            .map(|l| (0..w * h).map(|t| (t * 7 + l * 3) as f32 / 37.0).collect())
+            .collect();
+        let uv = uv.then(|| {
+            (0..3)
+                .map(|l| {
+                    (0..w * h)
+                        .map(|t| [t as f32 * 0.01 - 0.1, l as f32 * 0.2 - 0.3])
+                        .collect()
+                })
+                .collect()
+        });
+        SampleStack {
+            width: w,
+            height: h,
+            tile: [1.25, 0.5],
+            lights,
+            k,
+            coverage: (0..w * h).map(|t| (t % 4) as f32 / 3.0).collect(),
+            uv,
+        }
+    }
+
+    #[test]
+    fn round_trip_is_exact() {
+        let dir = std::env::temp_dir().join(format!("ptm-fit-stack-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for uv in [false, true] {
+            let s = small_stack(uv);
+            let p = dir.join(format!("s{uv}.exr"));
+            s.write(&p).unwrap();
+            let back = SampleStack::read(&p).unwrap();
+            assert_eq!(s, back);
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn foreign_truncated_and_incomplete_files_are_named_errors() {
+        let dir = std::env::temp_dir().join(format!("ptm-fit-stack-bad-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // Not an EXR at all.
+        let p = dir.join("text.exr");
+        std::fs::write(&p, "hello").unwrap();
+        let e = SampleStack::read(&p).unwrap_err().to_string();
+        assert!(e.contains("text.exr") && e.contains("OpenEXR"), "{e}");
+        // A valid EXR that is not a stack.
+        let p = dir.join("foreign.exr");
+        exrio::write(
+            &p,
+            2,
+            2,
+            vec![("R".into(), Samples::F32(vec![0.0; 4]))],
+            vec![],
+        )
+        .unwrap();
+        let e = SampleStack::read(&p).unwrap_err().to_string();
+        assert!(e.contains("not a ptm sample stack"), "{e}");
+        // Truncated stack.
+        let s = small_stack(false);
+        let p = dir.join("trunc.exr");
+        s.write(&p).unwrap();
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() - 40]).unwrap();
+        let e = SampleStack::read(&p).unwrap_err().to_string();
+        assert!(e.contains("trunc.exr"), "{e}");
+        // A stack missing one K channel: write a stack, rewrite it without K.0001.
+        let p = dir.join("missing.exr");
+        let mut c = {
+            s.write(&p).unwrap();
+            exrio::read(&p).unwrap()
+        };
+        c.channels.remove("K.0001");
+        let channels = c.channels.into_iter().collect();
+        let attrs: Vec<(String, Attr)> = c.attrs.into_iter().collect();
+        exrio::write(
+            &p,
+            c.width,
+            c.height,
+            channels,
+            attrs.iter().map(|(n, a)| (n.as_str(), a.clone())).collect(),
+        )
+        .unwrap();
+        let e = SampleStack::read(&p).unwrap_err().to_string();
+        assert!(e.contains("K.0001"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
