@@ -1,9 +1,40 @@
-//! `ptm-swatches`: procedural, exactly tileable cloth geometry and the triangle mesh type every
+//! `ptm-swatches`: procedural, exactly tileable cloth geometry and the triangle mesh every
 //! swatch is handed to the baker as.
+//!
+//! A swatch is named by a spec `NAME[?key=value&key=value...]`, e.g. `plain-weave`,
+//! `twill?n=2&m=1&dir=s`, `plain-weave?segments=80`; [`builtin`] builds it and [`NAMES`] lists the
+//! generators. Sizes are in the user's units (default: yarn spacing 1); the tile is reported in
+//! [`Mesh::tile`].
+//!
+//! **Periodicity.** One tile spans [0, W]×[0, H] (z up) and the cloth is the union of its copies
+//! at (a·W, b·H). Yarns that run across the tile (warps, wefts, knit courses) are cut exactly on
+//! the border planes: the ring where a tube leaves through x = W (or y = H) is the ring where it
+//! enters through x = 0 (y = 0) translated by W (H), computed that way so both match to float
+//! rounding. Those tubes are open at the border and closed on the tile torus: identify border
+//! vertices modulo (W, H) and every edge has exactly two triangles. Parts that do not cross a
+//! border as a tube (knit loops reaching into the neighbouring course, pile tufts placed near
+//! the border) are not cut; they stick out of the tile by less than one tile and their copies
+//! fill the neighbours, so a 3×3 block of tiles covers the central tile completely.
+//!
+//! **Tubes.** Each yarn is a tube of elliptical cross-section swept along a centre curve
+//! ([`yarn::Yarn`]); triangle normals point out of the yarn (positive [`Mesh::signed_volume`]).
+//! Distinct yarns do not overlap: generators refuse parameters whose [`yarn::Cloth::clearance`]
+//! is negative.
 
+pub mod draft;
+pub mod knit;
 pub mod mesh;
+pub mod params;
+pub mod pile;
+pub mod weave;
+pub mod yarn;
+
+use std::path::PathBuf;
 
 pub use mesh::Mesh;
+pub use params::Params;
+pub use weave::{Pattern, WovenParams};
+pub use yarn::{Cloth, Yarn};
 
 /// Errors of the swatch crate.
 #[derive(Debug, thiserror::Error)]
@@ -12,15 +43,157 @@ pub enum Error {
     Invalid(String),
     #[error("unknown builtin swatch {name:?}; available: {available}")]
     UnknownSwatch { name: String, available: String },
+    #[error("swatch spec {spec:?}: {reason}")]
+    BadSpec { spec: String, reason: String },
+    #[error("{swatch}: parameter {name} = {value} is out of range; allowed: {allowed}")]
+    InvalidParameter {
+        swatch: String,
+        name: String,
+        value: String,
+        allowed: String,
+    },
+    #[error("{swatch}: unknown parameter {name:?}; parameters of this swatch: {known}")]
+    UnknownParameter {
+        swatch: String,
+        name: String,
+        known: String,
+    },
+    #[error("{source_name}: [{section}] line {line}: {reason}")]
+    Draft {
+        source_name: String,
+        section: String,
+        line: usize,
+        reason: String,
+    },
+    #[error(
+        "{swatch}: yarns overlap (gap {gap:.3e} between yarns {a} and {b} near {at:?}); {hint}"
+    )]
+    Overlap {
+        swatch: String,
+        gap: f64,
+        a: usize,
+        b: usize,
+        at: [f64; 3],
+        hint: String,
+    },
+    #[error("reading {path}: {reason}")]
+    InvalidMesh { path: PathBuf, reason: String },
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
 
+/// The builtin generators, for help texts and error messages.
+pub const NAMES: &[(&str, &str)] = &[
+    ("plain-weave", "plain weave; spacing, width, height, crimp, segments, along"),
+    ("twill", "n/m twill; n, m, dir=z|s, and the plain-weave parameters"),
+    ("satin", "warp-faced satin; n, step (coprime to n), and the plain-weave parameters"),
+    ("basket", "basket weave; n, and the plain-weave parameters"),
+    ("draft", "a weave draft; path=FILE (WIF 1.1 or 0/1 grid), and the plain-weave parameters"),
+    ("grid", "a 0/1 interlacement grid inline; rows=1010/0101 (1 = warp over), and the plain-weave parameters"),
+    ("jersey", "stockinette (plain) knit; wale, radius, a, h, d, courses, wales, segments, along"),
+    ("rib", "k×k rib knit; k, and the jersey parameters"),
+    ("velvet", "upright pile tufts on a plain ground weave; density, pile, radius, tilt, seed, repeat"),
+    ("terry", "pile loops on a plain ground weave; density, pile, radius, seed, repeat"),
+    ("corduroy", "parallel round wales on a ground slab; spacing, radius, slab, segments, along"),
+];
+
 /// A builtin swatch by spec `NAME[?k=v&...]`, e.g. `plain-weave` or `twill?n=2&m=1`.
 pub fn builtin(spec: &str) -> Result<Mesh> {
-    let name = spec.split('?').next().unwrap_or("");
-    Err(Error::UnknownSwatch {
-        name: name.to_string(),
-        available: String::new(),
-    })
+    let (name, params) = params::parse_spec(spec)?;
+    generate(&name, &params)
+}
+
+/// A builtin swatch by name and parameters. Refuses unknown names, unknown parameters, values
+/// out of range and parameter sets whose yarns would overlap.
+pub fn generate(name: &str, p: &Params) -> Result<Mesh> {
+    let canonical = match name {
+        "plain" | "plain-weave" => "plain-weave",
+        "stockinette" | "jersey" => "jersey",
+        other => other,
+    };
+    let (cloth, segments) = match canonical {
+        "plain-weave" | "twill" | "satin" | "basket" | "draft" | "grid" => {
+            let pattern = match canonical {
+                "plain-weave" => Pattern::plain(),
+                "twill" => {
+                    let n = p.int("n", 2, 1, 32)? as usize;
+                    let m = p.int("m", 1, 1, 32)? as usize;
+                    let z = p.choice("dir", "z", &["z", "s"])? == "z";
+                    Pattern::twill(n, m, z)
+                }
+                "satin" => {
+                    let n = p.int("n", 5, 5, 64)? as usize;
+                    let step = p.int("step", 2, 2, n as i64 - 2)? as usize;
+                    if gcd(n, step) != 1 {
+                        return Err(p.invalid(
+                            "step",
+                            step,
+                            format!("an integer in [2, {}] coprime to n = {n}", n - 2),
+                        ));
+                    }
+                    Pattern::satin(n, step)
+                }
+                "basket" => Pattern::basket(p.int("n", 2, 1, 32)? as usize),
+                "draft" => {
+                    let path = p.text("path").ok_or_else(|| {
+                        p.invalid("path", "(missing)", "the path of a WIF or 0/1 grid file")
+                    })?;
+                    draft::read(std::path::Path::new(&path))?
+                }
+                _ => {
+                    let rows = p.text("rows").ok_or_else(|| {
+                        p.invalid(
+                            "rows",
+                            "(missing)",
+                            "rows of 0/1 separated by '/', e.g. 10/01",
+                        )
+                    })?;
+                    draft::parse_grid(&rows.replace('/', "\n"), "rows")?
+                }
+            };
+            let wp = WovenParams::from_params(p)?;
+            (weave::woven(&weave::checked(pattern)?, &wp), wp.segments)
+        }
+        "jersey" | "rib" => knit::from_params(canonical, p)?,
+        "velvet" | "terry" => pile::from_params(canonical, p)?,
+        "corduroy" => pile::corduroy(p)?,
+        _ => {
+            return Err(Error::UnknownSwatch {
+                name: name.to_string(),
+                available: NAMES.iter().map(|n| n.0).collect::<Vec<_>>().join(", "),
+            })
+        }
+    };
+    p.finish()?;
+    check_clearance(canonical, &cloth)?;
+    Ok(cloth.mesh(segments))
+}
+
+/// Refuses a cloth whose yarns overlap (beyond rounding: 1e-9 of the tile).
+pub fn check_clearance(swatch: &str, cloth: &Cloth) -> Result<()> {
+    let c = cloth.clearance();
+    if c.gap < -1e-9 * cloth.tile[0].max(cloth.tile[1]) {
+        return Err(Error::Overlap {
+            swatch: swatch.to_string(),
+            gap: c.gap,
+            a: c.yarns.0,
+            b: c.yarns.1,
+            at: c.at,
+            hint: "make the yarns thinner or further apart (or raise the crimp)".to_string(),
+        });
+    }
+    Ok(())
+}
+
+fn gcd(a: usize, b: usize) -> usize {
+    if b == 0 {
+        a
+    } else {
+        gcd(b, a % b)
+    }
 }

@@ -1,11 +1,180 @@
-//! The triangle mesh of one swatch tile.
+//! The triangle mesh of one swatch tile, its OBJ writer and a few measurements.
+
+use std::io::Write;
+use std::path::Path;
+
+use crate::{Error, Result};
 
 /// A swatch: triangles in the swatch frame (z up) and the periodic tile [0, W]×[0, H] they
-/// repeat over. Geometry may cross the tile border; the baker tiles copies at multiples of W, H.
+/// repeat over.
+///
+/// Periodicity contract (see the crate docs): the union of copies translated by (a·W, b·H) for
+/// all integers a, b is the infinite cloth. A yarn tube that leaves the tile through a border is
+/// cut exactly on that border and its copy re-enters through the opposite one (the two border
+/// rings coincide after translation); geometry that does not cross a border as a tube (knit
+/// loops reaching into the next course, pile tufts near the border) may stick out of the tile,
+/// but never by more than one tile, so a 3×3 block of copies covers the central tile.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
     pub positions: Vec<[f32; 3]>,
     pub triangles: Vec<[u32; 3]>,
     /// Tile size (W, H) in the swatch's units.
     pub tile: [f32; 2],
+}
+
+impl Mesh {
+    /// Axis-aligned bounds `(min, max)` of the vertices; `None` for an empty mesh.
+    pub fn bounds(&self) -> Option<([f32; 3], [f32; 3])> {
+        let first = *self.positions.first()?;
+        let mut lo = first;
+        let mut hi = first;
+        for p in &self.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        Some((lo, hi))
+    }
+
+    /// `(z_min, z_max)` of the vertices: where an orthographic camera above the swatch must
+    /// start its rays; `None` for an empty mesh.
+    pub fn z_range(&self) -> Option<(f32, f32)> {
+        self.bounds().map(|(lo, hi)| (lo[2], hi[2]))
+    }
+
+    /// Enclosed volume of the periodic cloth per tile, Σ over triangles of the flux of
+    /// F = (0, 0, z) (divergence 1). Unlike the usual (p0 × p1)·p2 / 6 formula this stays exact
+    /// for tubes cut open on the tile borders, because F has no x or y component and so no flux
+    /// through the (vertical) border planes. Positive when normals point outwards.
+    pub fn signed_volume(&self) -> f64 {
+        let mut v = 0.0;
+        for t in &self.triangles {
+            let [a, b, c] = t.map(|i| self.positions[i as usize].map(f64::from));
+            // z-average times the signed area of the xy projection.
+            let area_xy = 0.5 * ((b[0] - a[0]) * (c[1] - a[1]) - (c[0] - a[0]) * (b[1] - a[1]));
+            v += area_xy * (a[2] + b[2] + c[2]) / 3.0;
+        }
+        v
+    }
+
+    /// Appends another mesh's triangles (its tile is ignored).
+    pub fn append(&mut self, other: &Mesh) {
+        let base = self.positions.len() as u32;
+        self.positions.extend_from_slice(&other.positions);
+        self.triangles
+            .extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
+    }
+
+    /// Writes the mesh as Wavefront OBJ (`v`, then `f` with 1-based indices), atomically: to a
+    /// temporary file beside `path`, then renamed over it. The tile size goes in a leading
+    /// comment (`# tile W H`), which [`Mesh::read_obj`] reads back.
+    pub fn write_obj(&self, path: &Path) -> Result<()> {
+        let io = |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let mut name = path.file_name().unwrap_or_default().to_os_string();
+        name.push(".tmp");
+        let tmp = path.with_file_name(name);
+        let file = std::fs::File::create(&tmp).map_err(io)?;
+        let mut w = std::io::BufWriter::new(file);
+        self.write_obj_to(&mut w).map_err(io)?;
+        w.into_inner()
+            .map_err(|e| io(e.into_error()))?
+            .sync_all()
+            .map_err(io)?;
+        std::fs::rename(&tmp, path).map_err(io)
+    }
+
+    /// The OBJ text of [`Mesh::write_obj`] into any writer.
+    pub fn write_obj_to(&self, w: &mut impl Write) -> std::io::Result<()> {
+        writeln!(w, "# ptm swatch: tile spans [0, W]x[0, H], z up")?;
+        writeln!(w, "# tile {} {}", self.tile[0], self.tile[1])?;
+        writeln!(
+            w,
+            "# {} vertices, {} triangles",
+            self.positions.len(),
+            self.triangles.len()
+        )?;
+        // `{}` on f32 prints the shortest string that reads back to the same f32.
+        for p in &self.positions {
+            writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+        }
+        for t in &self.triangles {
+            writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
+        }
+        Ok(())
+    }
+
+    /// Reads the subset of OBJ that [`Mesh::write_obj`] writes (`v`, triangular `f` with
+    /// optional `/vt/vn` parts, the `# tile W H` comment); other lines are ignored.
+    pub fn read_obj(path: &Path) -> Result<Mesh> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Mesh::parse_obj(&text).map_err(|reason| Error::InvalidMesh {
+            path: path.to_path_buf(),
+            reason,
+        })
+    }
+
+    /// [`Mesh::read_obj`] on text; the error is the reason with its line number.
+    pub fn parse_obj(text: &str) -> std::result::Result<Mesh, String> {
+        let mut mesh = Mesh::default();
+        for (n, line) in text.lines().enumerate() {
+            let n = n + 1;
+            let mut it = line.split_whitespace();
+            match it.next() {
+                Some("#") if line.starts_with("# tile ") => {
+                    let v: Vec<f32> = it.skip(1).filter_map(|s| s.parse().ok()).collect();
+                    if v.len() != 2 {
+                        return Err(format!("line {n}: `# tile` needs two numbers W H"));
+                    }
+                    mesh.tile = [v[0], v[1]];
+                }
+                Some("v") => {
+                    let v: Vec<f32> = it
+                        .map(|s| s.parse::<f32>())
+                        .collect::<std::result::Result<_, _>>()
+                        .map_err(|e| format!("line {n}: bad vertex coordinate: {e}"))?;
+                    if v.len() < 3 {
+                        return Err(format!("line {n}: a vertex needs 3 coordinates"));
+                    }
+                    mesh.positions.push([v[0], v[1], v[2]]);
+                }
+                Some("f") => {
+                    let idx: Vec<u32> = it
+                        .map(|s| {
+                            let first = s.split('/').next().unwrap_or("");
+                            first.parse::<u32>().ok().filter(|&i| i >= 1)
+                        })
+                        .collect::<Option<_>>()
+                        .ok_or_else(|| {
+                            format!("line {n}: face indices must be 1-based integers")
+                        })?;
+                    if idx.len() != 3 {
+                        return Err(format!("line {n}: only triangles are supported"));
+                    }
+                    mesh.triangles.push([idx[0] - 1, idx[1] - 1, idx[2] - 1]);
+                }
+                _ => {}
+            }
+        }
+        let nv = mesh.positions.len() as u32;
+        if let Some((i, t)) = mesh
+            .triangles
+            .iter()
+            .enumerate()
+            .find(|(_, t)| t.iter().any(|&k| k >= nv))
+        {
+            return Err(format!(
+                "face {} has index {} but the mesh has {nv} vertices",
+                i + 1,
+                t.iter().max().unwrap() + 1
+            ));
+        }
+        Ok(mesh)
+    }
 }

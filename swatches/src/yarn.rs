@@ -1,0 +1,258 @@
+//! Yarns as swept tubes (centre-line samples with elliptical cross-sections), the cloth they
+//! make over one periodic tile, its triangle mesh and the yarn-to-yarn clearance.
+
+use crate::mesh::Mesh;
+
+/// How a yarn's tube ends.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Ends {
+    /// The yarn crosses the tile: its last ring is its first ring translated by `shift` (a whole
+    /// number of tiles), and both lie in opposite border planes. The tube is left open there:
+    /// the copy in the next tile continues it, so the tiled surface is closed.
+    Periodic { shift: [f64; 3] },
+    /// A closed tube with flat caps at both ends (pile tufts, loops).
+    Capped,
+}
+
+/// One yarn: ring centres along its centre line and the cross-section ellipse at each.
+#[derive(Clone, Debug)]
+pub struct Yarn {
+    /// Ring centres in the swatch frame (user units).
+    pub centre: Vec<[f64; 3]>,
+    /// Semi-axis vectors (e1, e2) of the cross-section at each ring: the ring is
+    /// centre + cos θ·e1 + sin θ·e2. Sections need not be perpendicular to the yarn (woven yarns
+    /// are sliced by planes of constant y or x so that border rings lie in the border plane),
+    /// but e1 × e2 must point along the yarn, which makes the triangle normals point outwards.
+    pub axes: Vec<[[f64; 3]; 2]>,
+    pub ends: Ends,
+}
+
+/// A set of yarns over one periodic tile, plus closed non-yarn parts (a ground slab).
+#[derive(Clone, Debug, Default)]
+pub struct Cloth {
+    /// Tile size (W, H) in user units.
+    pub tile: [f64; 2],
+    pub yarns: Vec<Yarn>,
+    /// Non-yarn geometry (already closed on the tile torus), excluded from the clearance.
+    pub extra: Mesh,
+}
+
+/// The closest approach between two distinct yarns (or copies of one yarn in another tile).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Clearance {
+    /// Gap between the two cross-sections along the line joining their centres, minus nothing:
+    /// negative means the tubes overlap there. Infinity when there is a single yarn.
+    pub gap: f64,
+    /// Indices of the two yarns and the tile offset of the second one's copy.
+    pub yarns: (usize, usize),
+    pub offset: [i32; 2],
+    /// Midpoint of the two section centres.
+    pub at: [f64; 3],
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+pub(crate) fn norm(a: [f64; 3]) -> f64 {
+    dot(a, a).sqrt()
+}
+pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
+    [a[0] * s, a[1] * s, a[2] * s]
+}
+
+/// Half-extent of an ellipse with semi-axis vectors (e1, e2) along the unit direction u: the
+/// support function sqrt((e1·u)² + (e2·u)²).
+pub fn support(axes: &[[f64; 3]; 2], u: [f64; 3]) -> f64 {
+    dot(axes[0], u).hypot(dot(axes[1], u))
+}
+
+impl Yarn {
+    /// Yarn with a round section of `radius`, perpendicular to the centre line, from samples
+    /// of a centre curve; the frame is fixed to the tangent (e1 horizontal), so two samples with
+    /// equal tangents get equal rings: periodic curves give exactly periodic tubes.
+    pub fn round(centre: Vec<[f64; 3]>, tangents: &[[f64; 3]], radius: f64, ends: Ends) -> Yarn {
+        let axes = tangents
+            .iter()
+            .map(|&t| {
+                let t = scale(t, 1.0 / norm(t));
+                // Tangents of our curves are never vertical; e1 = ẑ × t is then well defined.
+                let side = cross([0.0, 0.0, 1.0], t);
+                let e1 = scale(side, radius / norm(side));
+                let e2 = scale(cross(t, e1), 1.0);
+                [e1, e2]
+            })
+            .collect();
+        Yarn { centre, axes, ends }
+    }
+
+    /// Largest semi-axis over the yarn, for culling.
+    fn max_radius(&self) -> f64 {
+        self.axes
+            .iter()
+            .map(|a| norm(a[0]).max(norm(a[1])))
+            .fold(0.0, f64::max)
+    }
+
+    /// Appends the tube to `mesh` with `segments` vertices per ring.
+    fn mesh_into(&self, segments: usize, mesh: &mut Mesh) {
+        let n = self.centre.len();
+        let s = segments;
+        // Flip the angular direction if e1 × e2 runs against the yarn, so normals face out.
+        let dir = sub(self.centre[1.min(n - 1)], self.centre[0]);
+        let sign = if dot(cross(self.axes[0][0], self.axes[0][1]), dir) >= 0.0 {
+            1.0
+        } else {
+            -1.0
+        };
+        let base = mesh.positions.len() as u32;
+        let ring_point = |k: usize, m: usize| -> [f64; 3] {
+            let th = std::f64::consts::TAU * m as f64 / s as f64;
+            let [e1, e2] = self.axes[k];
+            let (sn, cs) = th.sin_cos();
+            let c = self.centre[k];
+            [0, 1, 2].map(|i| c[i] + cs * e1[i] + sign * sn * e2[i])
+        };
+        for k in 0..n {
+            for m in 0..s {
+                let p = match self.ends {
+                    // The last ring is the first one moved by the shift, computed that way so
+                    // the two borders match to rounding.
+                    Ends::Periodic { shift } if k == n - 1 => {
+                        let q = ring_point(0, m);
+                        [q[0] + shift[0], q[1] + shift[1], q[2] + shift[2]]
+                    }
+                    _ => ring_point(k, m),
+                };
+                mesh.positions.push(p.map(|v| v as f32));
+            }
+        }
+        let id = |k: usize, m: usize| base + (k * s + m % s) as u32;
+        for k in 0..n - 1 {
+            for m in 0..s {
+                let (a, b, c, d) = (id(k, m), id(k, m + 1), id(k + 1, m + 1), id(k + 1, m));
+                mesh.triangles.push([a, b, c]);
+                mesh.triangles.push([a, c, d]);
+            }
+        }
+        if self.ends == Ends::Capped {
+            for (k, last) in [(0, false), (n - 1, true)] {
+                let c = mesh.positions.len() as u32;
+                mesh.positions.push(self.centre[k].map(|v| v as f32));
+                for m in 0..s {
+                    let (p, q) = (id(k, m), id(k, m + 1));
+                    mesh.triangles
+                        .push(if last { [c, p, q] } else { [c, q, p] });
+                }
+            }
+        }
+    }
+}
+
+impl Cloth {
+    /// The triangle mesh: every yarn as a tube with `segments` vertices per ring.
+    pub fn mesh(&self, segments: usize) -> Mesh {
+        let mut mesh = Mesh {
+            tile: self.tile.map(|v| v as f32),
+            ..Mesh::default()
+        };
+        for y in &self.yarns {
+            y.mesh_into(segments, &mut mesh);
+        }
+        mesh.append(&self.extra);
+        mesh
+    }
+
+    /// The smallest gap between the cross-sections of two distinct yarns, copies in the 8
+    /// neighbouring tiles included (a knit course meets its own copy one course up). For a pair
+    /// of ring samples the gap is |d| − s₁(u) − s₂(u), u = d/|d| the direction between the
+    /// centres and s the ellipse support functions: a positive gap separates the two sections.
+    /// Rings are samples, so this is exact at the samples and an estimate between them.
+    pub fn clearance(&self) -> Clearance {
+        let mut best = Clearance {
+            gap: f64::INFINITY,
+            yarns: (0, 0),
+            offset: [0, 0],
+            at: [0.0; 3],
+        };
+        let boxes: Vec<([f64; 3], [f64; 3], f64)> = self
+            .yarns
+            .iter()
+            .map(|y| {
+                let mut lo = [f64::INFINITY; 3];
+                let mut hi = [f64::NEG_INFINITY; 3];
+                for c in &y.centre {
+                    for k in 0..3 {
+                        lo[k] = lo[k].min(c[k]);
+                        hi[k] = hi[k].max(c[k]);
+                    }
+                }
+                (lo, hi, y.max_radius())
+            })
+            .collect();
+        let [w, h] = self.tile;
+        for (a, ya) in self.yarns.iter().enumerate() {
+            for (b, yb) in self.yarns.iter().enumerate() {
+                for ox in -1..=1 {
+                    for oy in -1..=1 {
+                        if a == b && ox == 0 && oy == 0 {
+                            continue;
+                        }
+                        // Each unordered pair once: (a, b, o) and (b, a, −o) are the same.
+                        if (b, -ox, -oy) < (a, ox, oy) {
+                            continue;
+                        }
+                        let off = [ox as f64 * w, oy as f64 * h, 0.0];
+                        // A yarn's copy one shift along is the same yarn, continued.
+                        if let (true, Ends::Periodic { shift }) = (a == b, ya.ends) {
+                            let same = |sg: f64| {
+                                (0..2).all(|k| (off[k] - sg * shift[k]).abs() < 1e-9 * (w + h))
+                            };
+                            if same(1.0) || same(-1.0) {
+                                continue;
+                            }
+                        }
+                        let (la, ha, ra) = boxes[a];
+                        let (lb, hb, rb) = boxes[b];
+                        let reach = ra + rb + best.gap.clamp(0.0, 1e300);
+                        if (0..3).any(|k| {
+                            lb[k] + off[k] > ha[k] + reach || hb[k] + off[k] < la[k] - reach
+                        }) {
+                            continue;
+                        }
+                        for (i, &pa) in ya.centre.iter().enumerate() {
+                            for (j, &pb) in yb.centre.iter().enumerate() {
+                                let pb = [pb[0] + off[0], pb[1] + off[1], pb[2]];
+                                let d = sub(pb, pa);
+                                let len = norm(d);
+                                if len - ra - rb > best.gap {
+                                    continue;
+                                }
+                                let u = scale(d, 1.0 / len.max(1e-300));
+                                let gap = len - support(&ya.axes[i], u) - support(&yb.axes[j], u);
+                                if gap < best.gap {
+                                    best = Clearance {
+                                        gap,
+                                        yarns: (a, b),
+                                        offset: [ox, oy],
+                                        at: [0, 1, 2].map(|k| 0.5 * (pa[k] + pb[k])),
+                                    };
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        best
+    }
+}
