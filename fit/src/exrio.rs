@@ -164,7 +164,6 @@ impl Contents {
         }
     }
 
-    #[allow(dead_code)]
     pub fn text(&self, name: &str, what: &str) -> Result<String> {
         match self.attrs.get(name) {
             Some(Attr::Text(s)) => Ok(s.clone()),

@@ -9,16 +9,21 @@
 //! texel's footprint that cannot see the light (0 = lit, 1 = occluded); (u, v) = (l·X, l·Y) for
 //! the unit vector l towards the light.
 
+// Index loops over terms and lights mirror the maths (cᵢ, Aᵢⱼ) and keep several arrays in step.
+#![allow(clippy::needless_range_loop)]
+
 pub mod atomic;
 pub mod basis;
 mod exrio;
 pub mod lights;
 pub mod ptm;
+pub mod solve;
 pub mod stack;
 
 pub use basis::{Basis, Monomial};
 pub use lights::LightSet;
-pub use ptm::Ptm;
+pub use ptm::{Ptm, PtmInfo, SaveOptions};
+pub use solve::{fit_stack, Accumulator, ErrorStats, FitOptions, FitReport, Weight};
 pub use stack::SampleStack;
 
 /// Errors of the fit crate. Messages name the input and, where there is something to do, what.
@@ -39,6 +44,15 @@ pub enum Error {
     Format { path: String, reason: String },
     #[error("{0}")]
     Invalid(String),
+    #[error("non-finite sample {value} at texel (column {col}, row {row}) for light {light}: fix the input, or pass --skip-bad to drop such samples")]
+    BadSample {
+        col: usize,
+        row: usize,
+        light: usize,
+        value: f32,
+    },
+    #[error("--strict: {0}")]
+    Strict(String),
 }
 
 pub type Result<T> = std::result::Result<T, Error>;

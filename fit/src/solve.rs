@@ -1,0 +1,1203 @@
+//! Per-texel weighted least squares of K against the basis terms of (u, v), with diagnostics.
+//!
+//! Distant lights: every texel shares the design matrix A (lights × terms). It is factored once,
+//! in f64, by SVD of W½A (W = light weights); singular values below `rcond · σ_max` are dropped
+//! (minimum-norm solution) or, with `regularize`, a ridge term is added. Two ways apply it:
+//! - [`fit_stack`] (a stored stack): C = P·K with P = pinv(W½A)·W½ in f32, one blocked product
+//!   over all texels, parallel over texel blocks, fused with the residual pass while the block
+//!   is in cache;
+//! - [`Accumulator`] (streaming, during a bake): per texel g = AᵀW·k and s = kᵀW·k are
+//!   accumulated light by light in f64 (memory O(texels × terms)); `finish` solves
+//!   c = S·g with S = V·diag(1/σ²)·Vᵀ over the kept singular values, which equals pinv(W½A)·W½·k.
+//!
+//! Per-texel light directions (finite-distance lights) accumulate each texel's own normal
+//! matrix AᵀWA in f64 and solve it by a symmetric eigendecomposition with the same cutoff.
+//!
+//! Every result is computed without clamping; evaluation clamps K to [0, 1].
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+use nalgebra::{DMatrix, SymmetricEigen};
+use rayon::prelude::*;
+
+use crate::{Basis, Error, LightSet, Ptm, Result, SampleStack};
+
+/// How each light's squared error counts in the fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Weight {
+    /// Every light counts the same.
+    Uniform,
+    /// Weight = l_z = sin(elevation): grazing lights carry less light, so their errors matter
+    /// less for shading. Lights at or below the horizon get weight 0 (left out).
+    Cosine,
+}
+
+impl Weight {
+    pub fn name(self) -> &'static str {
+        match self {
+            Weight::Uniform => "uniform",
+            Weight::Cosine => "cosine",
+        }
+    }
+}
+
+/// Options of a fit. Defaults live in the CLI; [`FitOptions::new`] gives the documented ones.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    pub basis: Basis,
+    pub weight: Weight,
+    /// Ridge λ, relative to the mean eigenvalue trace(AᵀWA)/terms: minimises
+    /// |W½(Ac − k)|² + λ·trace(AᵀWA)/terms·|c|². `None`: truncated SVD (minimum norm).
+    pub regularize: Option<f64>,
+    /// Singular values below `rcond · σ_max` are treated as zero (their directions undetermined).
+    pub rcond: f64,
+    /// Any warning about the light set becomes an error.
+    pub strict: bool,
+    /// Drop non-finite samples (counted) instead of failing.
+    pub skip_bad: bool,
+    /// Number of lights kept out of the fit to measure the error honestly (0 = none).
+    pub holdout: usize,
+}
+
+/// Condition number above which the fit is reported as ill-conditioned.
+pub const COND_WARN: f64 = 100.0;
+
+impl FitOptions {
+    pub fn new(basis: Basis) -> Self {
+        FitOptions {
+            basis,
+            weight: Weight::Uniform,
+            regularize: None,
+            rcond: 1e-4,
+            strict: false,
+            skip_bad: false,
+            holdout: 0,
+        }
+    }
+}
+
+/// Mean, 99th percentile and maximum of a per-texel error over the unmasked texels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ErrorStats {
+    pub mean: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+impl ErrorStats {
+    fn of(values: &[f32], mask: &[bool]) -> Self {
+        let mut v: Vec<f32> = values
+            .iter()
+            .zip(mask)
+            .filter(|(_, &m)| !m)
+            .map(|(&x, _)| x)
+            .collect();
+        if v.is_empty() {
+            return ErrorStats::default();
+        }
+        v.sort_by(f32::total_cmp);
+        let mean = v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
+        let i99 = ((v.len() as f64 * 0.99).ceil() as usize).clamp(1, v.len()) - 1;
+        ErrorStats {
+            mean,
+            p99: v[i99] as f64,
+            max: *v.last().unwrap() as f64,
+        }
+    }
+}
+
+/// Diagnostics of a fit, returned beside the PTM.
+#[derive(Clone, Debug, Default)]
+pub struct FitReport {
+    pub basis: Option<Basis>,
+    /// Lights in the set, lights that entered the fit (weight > 0, not held out).
+    pub lights: usize,
+    pub lights_fit: usize,
+    /// Indices of held-out lights.
+    pub holdout_lights: Vec<usize>,
+    pub texels: usize,
+    /// Texels with coverage 0: coefficients 0, left out of the statistics.
+    pub masked: usize,
+    pub coefficients: usize,
+    /// Numerical rank of W½A (for per-texel directions: the lowest over texels).
+    pub rank: usize,
+    /// σ_max / σ_min of W½A (for per-texel directions: the worst texel); `inf` when singular.
+    pub cond: f64,
+    /// Absolute singular-value cutoff used (rcond · σ_max), and rcond.
+    pub cutoff: f64,
+    pub rcond: f64,
+    /// Singular values of W½A, descending (distant lights).
+    pub singular_values: Vec<f64>,
+    /// Solver in words, e.g. `svd-pinv f64 (truncated at 1e-4·σmax), applied in f32`.
+    pub solver: String,
+    /// Plain-word warnings about the light set and the data.
+    pub warnings: Vec<String>,
+    /// Per-texel weighted RMS residual over the fitting lights.
+    pub rms: ErrorStats,
+    /// Per-texel max |residual| over the fitting lights (None when streaming: needs the samples).
+    pub max: Option<ErrorStats>,
+    /// Per-texel RMS error of clamped K on the held-out lights.
+    pub holdout: Option<ErrorStats>,
+    /// Non-finite samples dropped (`skip_bad`).
+    pub skipped_samples: usize,
+    /// Texels solved individually (dropped samples) whose rank fell below `coefficients`.
+    pub rank_deficient_texels: usize,
+    /// Per-texel maps: weighted RMS and max residual (max empty when streaming).
+    pub rms_map: Vec<f32>,
+    pub max_map: Vec<f32>,
+    /// Seconds per stage, in order.
+    pub seconds: Vec<(&'static str, f64)>,
+}
+
+/// Evenly spread hold-out lights: index ⌊(j + ½)·n / h⌋ for j < h.
+pub fn holdout_indices(n: usize, h: usize) -> Vec<usize> {
+    (0..h.min(n))
+        .map(|j| ((j as f64 + 0.5) * n as f64 / h as f64) as usize)
+        .collect()
+}
+
+fn light_weights(lights: &LightSet, opts: &FitOptions) -> Result<(Vec<f64>, Vec<usize>)> {
+    if opts.holdout >= lights.len() {
+        return Err(Error::Invalid(format!(
+            "--holdout {} leaves no light to fit ({} lights)",
+            opts.holdout,
+            lights.len()
+        )));
+    }
+    let held = holdout_indices(lights.len(), opts.holdout);
+    let mut w: Vec<f64> = lights
+        .dirs
+        .iter()
+        .map(|d| match opts.weight {
+            Weight::Uniform => 1.0,
+            Weight::Cosine => d[2].max(0.0),
+        })
+        .collect();
+    for &i in &held {
+        w[i] = 0.0;
+    }
+    Ok((w, held))
+}
+
+/// Signed coefficient list of a basis direction, e.g. `u2 + v2 - 0.75*1`.
+pub fn describe_direction(basis: Basis, v: &[f64]) -> String {
+    let big = v.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
+    let lead = v.iter().copied().find(|x| x.abs() == big).unwrap_or(1.0);
+    let scale = if lead < 0.0 { -1.0 / big } else { 1.0 / big };
+    let mut s = String::new();
+    for (x, m) in v.iter().zip(basis.monomials()) {
+        let x = x * scale;
+        if x.abs() < 1e-3 {
+            continue;
+        }
+        let sign = if x < 0.0 { " - " } else { " + " };
+        if s.is_empty() {
+            if x < 0.0 {
+                s.push('-');
+            }
+        } else {
+            s.push_str(sign);
+        }
+        if (x.abs() - 1.0).abs() < 5e-4 {
+            s.push_str(m.name);
+        } else {
+            s.push_str(&format!("{:.3}*{}", x.abs(), m.name));
+        }
+    }
+    s
+}
+
+/// A factored (weighted) design: right singular vectors and singular values of W½A, and the
+/// solve operator S (terms × terms) with c = S · AᵀW·k.
+#[derive(Clone, Debug)]
+pub(crate) struct Factor {
+    pub sigma: Vec<f64>,
+    pub v: DMatrix<f64>,
+    pub rank: usize,
+    pub cutoff: f64,
+    pub cond: f64,
+    pub s: DMatrix<f64>,
+}
+
+impl Factor {
+    /// From singular values (descending) and right singular vectors (columns).
+    fn new(sigma: Vec<f64>, v: DMatrix<f64>, rcond: f64, regularize: Option<f64>) -> Factor {
+        let m = sigma.len();
+        let smax = sigma.first().copied().unwrap_or(0.0);
+        let cutoff = rcond * smax;
+        let rank = sigma.iter().filter(|&&s| s > cutoff && s > 0.0).count();
+        let smin = sigma.last().copied().unwrap_or(0.0);
+        let cond = if smin > 0.0 {
+            smax / smin
+        } else {
+            f64::INFINITY
+        };
+        let ridge = regularize.map(|l| l * sigma.iter().map(|s| s * s).sum::<f64>() / m as f64);
+        let f: Vec<f64> = sigma
+            .iter()
+            .map(|&s| match ridge {
+                Some(l) if s * s + l > 0.0 => 1.0 / (s * s + l),
+                Some(_) => 0.0,
+                None if s > cutoff && s > 0.0 => 1.0 / (s * s),
+                None => 0.0,
+            })
+            .collect();
+        let mut s = DMatrix::zeros(m, m);
+        for (k, &fk) in f.iter().enumerate() {
+            if fk == 0.0 {
+                continue;
+            }
+            let col = v.column(k);
+            s += fk * col * col.transpose();
+        }
+        Factor {
+            sigma,
+            v,
+            rank,
+            cutoff,
+            cond,
+            s,
+        }
+    }
+
+    /// From the SVD of W½A (rows padded to at least `terms`, so V is complete).
+    fn from_design(a: &DMatrix<f64>, w: &[f64], rcond: f64, regularize: Option<f64>) -> Factor {
+        let (n, m) = a.shape();
+        let mut wa = DMatrix::zeros(n.max(m), m);
+        for i in 0..n {
+            let sw = w[i].sqrt();
+            for j in 0..m {
+                wa[(i, j)] = sw * a[(i, j)];
+            }
+        }
+        let svd = nalgebra::SVD::new(wa, false, true);
+        let vt = svd.v_t.expect("v requested");
+        Factor::new(
+            svd.singular_values.iter().copied().collect(),
+            vt.transpose(),
+            rcond,
+            regularize,
+        )
+    }
+
+    /// From a normal matrix G = AᵀWA (symmetric eigendecomposition; σ = √λ).
+    fn from_normal(g: DMatrix<f64>, rcond: f64, regularize: Option<f64>) -> Factor {
+        let m = g.nrows();
+        let eig = SymmetricEigen::new(g);
+        let mut order: Vec<usize> = (0..m).collect();
+        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+        let sigma = order
+            .iter()
+            .map(|&i| eig.eigenvalues[i].max(0.0).sqrt())
+            .collect();
+        let v = DMatrix::from_fn(m, m, |r, c| eig.eigenvectors[(r, order[c])]);
+        Factor::new(sigma, v, rcond, regularize)
+    }
+
+    /// Right singular vectors with σ ≤ `limit` (undetermined or poorly determined directions).
+    fn weak_directions(&self, basis: Basis, limit: f64) -> Vec<String> {
+        (0..self.sigma.len())
+            .filter(|&k| self.sigma[k] <= limit)
+            .map(|k| describe_direction(basis, self.v.column(k).as_slice()))
+            .collect()
+    }
+}
+
+/// Plain-word warnings about a light set and its factorisation.
+fn diagnose(
+    basis: Basis,
+    lights: &LightSet,
+    w: &[f64],
+    f: &Factor,
+    opts: &FitOptions,
+) -> Vec<String> {
+    let m = basis.len();
+    let fit: Vec<usize> = (0..lights.len()).filter(|&i| w[i] > 0.0).collect();
+    let mut out = Vec::new();
+    if fit.len() < m {
+        out.push(format!(
+            "only {} lights enter the fit for {} coefficients of {}: at least {} directions of the basis are undetermined",
+            fit.len(),
+            m,
+            basis.name(),
+            m - fit.len()
+        ));
+    }
+    if !fit.is_empty() {
+        let r2: Vec<f64> = fit
+            .iter()
+            .map(|&i| lights.dirs[i][0].powi(2) + lights.dirs[i][1].powi(2))
+            .collect();
+        let (lo, hi) = r2
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        let el = |r2: f64| (1.0 - r2).max(0.0).sqrt().asin().to_degrees();
+        if fit.len() >= 2 && hi - lo < 1e-9 {
+            out.push(format!(
+                "all lights lie on one elevation ring ({:.2}°, u²+v² = {:.4}): u2+v2 cannot be told from the constant, and K inside the ring is not determined by the data",
+                el(lo),
+                lo
+            ));
+        } else if fit.len() >= 2 && hi - lo < 0.02 {
+            out.push(format!(
+                "lights lie near one elevation ring (elevations {:.2}°–{:.2}°): terms that differ only by u²+v² are nearly indistinguishable",
+                el(hi),
+                el(lo)
+            ));
+        }
+        let min_el = fit
+            .iter()
+            .map(|&i| lights.elevation_deg(i))
+            .fold(f64::MAX, f64::min);
+        if min_el >= 45.0 {
+            out.push(format!(
+                "no light below {min_el:.1}° elevation: K at grazing lights, where most occlusion lives, is extrapolated"
+            ));
+        }
+    }
+    if f.rank < m {
+        let what = match opts.regularize {
+            Some(l) => format!("ridge solution (lambda = {l:e} x mean eigenvalue)"),
+            None => format!(
+                "minimum-norm solution (truncated SVD: singular values <= {:.3e} = {:e} x sigma_max dropped)",
+                f.cutoff, opts.rcond
+            ),
+        };
+        out.push(format!(
+            "rank {} of {}: the light set cannot determine these basis directions: {}; returning the {what}",
+            f.rank,
+            m,
+            f.weak_directions(basis, f.cutoff).join("; ")
+        ));
+    } else if f.cond > COND_WARN {
+        let smax = f.sigma[0];
+        out.push(format!(
+            "ill-conditioned (condition number {:.1} > {COND_WARN}): poorly determined directions: {}",
+            f.cond,
+            f.weak_directions(basis, smax / COND_WARN).join("; ")
+        ));
+    }
+    out
+}
+
+fn design(basis: Basis, lights: &LightSet) -> DMatrix<f64> {
+    let m = basis.len();
+    let mut a = DMatrix::zeros(lights.len(), m);
+    let mut t = vec![0.0; m];
+    for (i, d) in lights.dirs.iter().enumerate() {
+        basis.terms(d[0], d[1], &mut t);
+        for j in 0..m {
+            a[(i, j)] = t[j];
+        }
+    }
+    a
+}
+
+fn solver_words(opts: &FitOptions, f: &Factor, per_texel: bool) -> String {
+    let how = match opts.regularize {
+        Some(l) => format!("ridge lambda={l:e} x mean eigenvalue"),
+        None => format!(
+            "truncated at rcond={:e} (cutoff {:.3e})",
+            opts.rcond, f.cutoff
+        ),
+    };
+    if per_texel {
+        format!(
+            "per-texel f64 eigen-solve of the weighted normal matrix, {how}, weight={}",
+            opts.weight.name()
+        )
+    } else {
+        format!(
+            "svd-pinv f64 of the shared design matrix, {how}, weight={}, applied in f32",
+            opts.weight.name()
+        )
+    }
+}
+
+fn check_strict(opts: &FitOptions, warnings: &[String]) -> Result<()> {
+    if opts.strict && !warnings.is_empty() {
+        return Err(Error::Strict(warnings.join("; ")));
+    }
+    Ok(())
+}
+
+/// Shared preparation of a distant-light fit.
+struct Prepared {
+    a: DMatrix<f64>,
+    w: Vec<f64>,
+    held: Vec<usize>,
+    factor: Factor,
+    warnings: Vec<String>,
+}
+
+fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {
+    if lights.is_empty() {
+        return Err(Error::Invalid("no lights to fit".into()));
+    }
+    let (w, held) = light_weights(lights, opts)?;
+    let a = design(opts.basis, lights);
+    let factor = Factor::from_design(&a, &w, opts.rcond, opts.regularize);
+    let warnings = diagnose(opts.basis, lights, &w, &factor, opts);
+    check_strict(opts, &warnings)?;
+    Ok(Prepared {
+        a,
+        w,
+        held,
+        factor,
+        warnings,
+    })
+}
+
+/// Streaming accumulator used by `ptm bake --fit`: samples are added light by light, memory is
+/// O(texels × terms) (plus the held-out lights' samples, if asked), never O(texels × lights).
+pub struct Accumulator {
+    opts: FitOptions,
+    lights: LightSet,
+    width: usize,
+    height: usize,
+    m: usize,
+    prep: Prepared,
+    /// Texel-major AᵀW·k, m per texel (distant lights).
+    g: Vec<f64>,
+    /// Per-texel packed upper triangle of AᵀWA, m(m+1)/2 per texel (per-texel directions).
+    gram: Vec<f64>,
+    /// Per-texel Σ w·k².
+    s: Vec<f64>,
+    /// Per-texel Σ w over the lights added (differs from the total only for dropped samples).
+    wsum: Vec<f64>,
+    seen: Vec<bool>,
+    mode: Option<bool>,
+    masked: Vec<bool>,
+    /// Held-out light index → its K plane and, per texel, (u, v) when per-texel.
+    held: BTreeMap<usize, HeldLight>,
+    /// Dropped samples per texel (skip_bad).
+    bad: BTreeMap<usize, Vec<usize>>,
+    skipped: usize,
+    started: Instant,
+}
+
+const CHUNK: usize = 4096;
+
+/// A held-out light's K plane and, for per-texel directions, its (u, v) plane.
+type HeldLight = (Vec<f32>, Option<Vec<[f32; 2]>>);
+
+impl Accumulator {
+    /// Factors the shared design matrix once (f64 SVD) and runs the light-set diagnostics.
+    pub fn new(lights: &LightSet, width: usize, height: usize, opts: &FitOptions) -> Result<Self> {
+        let started = Instant::now();
+        if width * height == 0 {
+            return Err(Error::Invalid(format!("empty image {width}×{height}")));
+        }
+        let prep = prepare(lights, opts)?;
+        let t = width * height;
+        Ok(Accumulator {
+            opts: opts.clone(),
+            lights: lights.clone(),
+            width,
+            height,
+            m: opts.basis.len(),
+            prep,
+            g: Vec::new(),
+            gram: Vec::new(),
+            s: vec![0.0; t],
+            wsum: Vec::new(),
+            seen: vec![false; lights.len()],
+            mode: None,
+            masked: vec![false; t],
+            held: BTreeMap::new(),
+            bad: BTreeMap::new(),
+            skipped: 0,
+            started,
+        })
+    }
+
+    /// The light-set warnings found when factoring (before any sample is added).
+    pub fn warnings(&self) -> &[String] {
+        &self.prep.warnings
+    }
+
+    /// Marks texels with coverage 0 as masked: their samples are ignored (NaN allowed) and their
+    /// coefficients are 0. Call before adding lights.
+    pub fn set_coverage(&mut self, coverage: &[f32]) -> Result<()> {
+        if coverage.len() != self.masked.len() {
+            return Err(Error::Invalid(format!(
+                "coverage has {} texels, expected {}",
+                coverage.len(),
+                self.masked.len()
+            )));
+        }
+        for (m, &c) in self.masked.iter_mut().zip(coverage) {
+            *m = c <= 0.0;
+        }
+        Ok(())
+    }
+
+    fn begin(&mut self, index: usize, len: usize, per_texel: bool) -> Result<()> {
+        let t = self.width * self.height;
+        if index >= self.lights.len() {
+            return Err(Error::Invalid(format!(
+                "light index {index} out of range ({} lights)",
+                self.lights.len()
+            )));
+        }
+        if self.seen[index] {
+            return Err(Error::Invalid(format!("light {index} added twice")));
+        }
+        if len != t {
+            return Err(Error::Invalid(format!(
+                "light {index}: {len} samples for {t} texels"
+            )));
+        }
+        match self.mode {
+            None => {
+                self.mode = Some(per_texel);
+                if per_texel {
+                    self.gram = vec![0.0; t * self.m * (self.m + 1) / 2];
+                    self.g = vec![0.0; t * self.m];
+                    self.wsum = vec![0.0; t];
+                } else {
+                    self.g = vec![0.0; t * self.m];
+                }
+            }
+            Some(p) if p != per_texel => {
+                return Err(Error::Invalid(
+                    "add_light and add_light_uv cannot be mixed in one fit".into(),
+                ))
+            }
+            _ => {}
+        }
+        self.seen[index] = true;
+        Ok(())
+    }
+
+    /// Finds non-finite samples of unmasked texels: an error naming the first, or (skip_bad)
+    /// records them. Returns the texels whose sample must be left out.
+    fn scan_bad(&mut self, index: usize, k: &[f32], uv: Option<&[[f32; 2]]>) -> Result<()> {
+        let bad: Vec<usize> = (0..k.len())
+            .filter(|&t| {
+                !self.masked[t]
+                    && (!k[t].is_finite()
+                        || uv.is_some_and(|uv| !(uv[t][0].is_finite() && uv[t][1].is_finite())))
+            })
+            .collect();
+        if let Some(&t) = bad.first() {
+            if !self.opts.skip_bad {
+                return Err(bad_sample(t, self.width, index, k[t]));
+            }
+            self.skipped += bad.len();
+            for &t in &bad {
+                self.bad.entry(t).or_default().push(index);
+            }
+        }
+        Ok(())
+    }
+
+    /// Adds the K plane (row-major, one value per texel) of distant light `index`.
+    pub fn add_light(&mut self, index: usize, k: &[f32]) -> Result<()> {
+        self.begin(index, k.len(), false)?;
+        self.scan_bad(index, k, None)?;
+        if self.prep.held.contains(&index) {
+            self.held.insert(index, (k.to_vec(), None));
+            return Ok(());
+        }
+        let w = self.prep.w[index];
+        if w == 0.0 {
+            return Ok(());
+        }
+        let m = self.m;
+        let aw: Vec<f64> = (0..m).map(|j| w * self.prep.a[(index, j)]).collect();
+        let masked = &self.masked;
+        self.g
+            .par_chunks_mut(CHUNK * m)
+            .zip(self.s.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(ci, (g, s))| {
+                let t0 = ci * CHUNK;
+                for (b, sb) in s.iter_mut().enumerate() {
+                    let kb = k[t0 + b];
+                    if masked[t0 + b] || !kb.is_finite() {
+                        continue;
+                    }
+                    let kb = kb as f64;
+                    let gb = &mut g[b * m..(b + 1) * m];
+                    for j in 0..m {
+                        gb[j] += aw[j] * kb;
+                    }
+                    *sb += w * kb * kb;
+                }
+            });
+        Ok(())
+    }
+
+    /// Adds light `index` with per-texel (u, v) (finite-distance lights).
+    pub fn add_light_uv(&mut self, index: usize, k: &[f32], uv: &[[f32; 2]]) -> Result<()> {
+        self.begin(index, k.len(), true)?;
+        if uv.len() != k.len() {
+            return Err(Error::Invalid(format!(
+                "light {index}: {} (u, v) pairs for {} samples",
+                uv.len(),
+                k.len()
+            )));
+        }
+        self.scan_bad(index, k, Some(uv))?;
+        if self.prep.held.contains(&index) {
+            self.held.insert(index, (k.to_vec(), Some(uv.to_vec())));
+            return Ok(());
+        }
+        let w = self.prep.w[index];
+        if w == 0.0 {
+            return Ok(());
+        }
+        let (m, basis) = (self.m, self.opts.basis);
+        let np = m * (m + 1) / 2;
+        let masked = &self.masked;
+        self.gram
+            .par_chunks_mut(CHUNK * np)
+            .zip(self.g.par_chunks_mut(CHUNK * m))
+            .zip(self.s.par_chunks_mut(CHUNK))
+            .zip(self.wsum.par_chunks_mut(CHUNK))
+            .enumerate()
+            .for_each(|(ci, (((gr, g), s), ws))| {
+                let t0 = ci * CHUNK;
+                let mut a = [0.0f64; 16];
+                for b in 0..s.len() {
+                    let (kb, p) = (k[t0 + b], uv[t0 + b]);
+                    if masked[t0 + b] || !kb.is_finite() || !p[0].is_finite() || !p[1].is_finite() {
+                        continue;
+                    }
+                    basis.terms(p[0] as f64, p[1] as f64, &mut a[..m]);
+                    let kb = kb as f64;
+                    let grb = &mut gr[b * np..(b + 1) * np];
+                    let mut q = 0;
+                    for i in 0..m {
+                        for j in i..m {
+                            grb[q] += w * a[i] * a[j];
+                            q += 1;
+                        }
+                        g[b * m + i] += w * a[i] * kb;
+                    }
+                    s[b] += w * kb * kb;
+                    ws[b] += w;
+                }
+            });
+        Ok(())
+    }
+
+    /// Solves every texel and returns the PTM and its report. Every light must have been added.
+    pub fn finish(self, tile: [f64; 2]) -> Result<(Ptm, FitReport)> {
+        if let Some(i) = self.seen.iter().position(|s| !s) {
+            return Err(Error::Invalid(format!(
+                "light {i} ({}) was never added; the fit needs every light of the set",
+                self.lights.names[i]
+            )));
+        }
+        let t_acc = self.started.elapsed().as_secs_f64();
+        let t0 = Instant::now();
+        let per_texel = self.mode == Some(true);
+        let (m, t) = (self.m, self.width * self.height);
+        let basis = self.opts.basis;
+        let wtot: f64 = self.prep.w.iter().sum();
+        let mut planes = vec![vec![0f32; t]; m];
+        let mut rms_map = vec![0f32; t];
+        let mut report = self.base_report(per_texel);
+        let g_all = if per_texel {
+            DMatrix::zeros(m, m)
+        } else {
+            self.gram_distant()
+        };
+        let results: Vec<(Vec<f64>, f64, usize, f64)> = (0..t)
+            .into_par_iter()
+            .map(|ti| {
+                if self.masked[ti] {
+                    return (vec![0.0; m], 0.0, m, 1.0);
+                }
+                let gv = nalgebra::DVector::from_column_slice(&self.g[ti * m..(ti + 1) * m]);
+                // Weighted residual: s − 2cᵀg + cᵀGc (exact for any c; f64 keeps it accurate).
+                let finish = |s_op: &DMatrix<f64>, gmat: &DMatrix<f64>, wsum: f64| {
+                    let c = s_op * &gv;
+                    let res = self.s[ti] - 2.0 * c.dot(&gv) + c.dot(&(gmat * &c));
+                    let rms = if wsum > 0.0 {
+                        (res.max(0.0) / wsum).sqrt()
+                    } else {
+                        0.0
+                    };
+                    (c.iter().copied().collect::<Vec<f64>>(), rms)
+                };
+                if per_texel {
+                    let gm = unpack(&self.gram[ti * m * (m + 1) / 2..], m);
+                    let f = Factor::from_normal(gm.clone(), self.opts.rcond, self.opts.regularize);
+                    let (c, rms) = finish(&f.s, &gm, self.wsum[ti]);
+                    (c, rms, f.rank, f.cond)
+                } else if let Some(bad) = self.bad.get(&ti) {
+                    let mut gm = g_all.clone();
+                    let mut wsum = wtot;
+                    for &l in bad {
+                        if self.prep.w[l] > 0.0 && !self.prep.held.contains(&l) {
+                            remove_light(&mut gm, &self.prep.a, l, self.prep.w[l]);
+                            wsum -= self.prep.w[l];
+                        }
+                    }
+                    let f = Factor::from_normal(gm.clone(), self.opts.rcond, self.opts.regularize);
+                    let (c, rms) = finish(&f.s, &gm, wsum);
+                    (c, rms, f.rank, f.cond)
+                } else {
+                    let f = &self.prep.factor;
+                    let (c, rms) = finish(&f.s, &g_all, wtot);
+                    (c, rms, f.rank, f.cond)
+                }
+            })
+            .collect();
+        let mut worst_cond: f64 = 0.0;
+        let mut min_rank = m;
+        for (ti, (c, rms, rank, cond)) in results.into_iter().enumerate() {
+            for j in 0..m {
+                planes[j][ti] = c[j] as f32;
+            }
+            rms_map[ti] = rms as f32;
+            if !self.masked[ti] {
+                min_rank = min_rank.min(rank);
+                worst_cond = worst_cond.max(cond);
+                if rank < m && (per_texel || self.bad.contains_key(&ti)) {
+                    report.rank_deficient_texels += 1;
+                }
+            }
+        }
+        if per_texel {
+            report.rank = min_rank;
+            report.cond = worst_cond;
+            if min_rank < m {
+                report.warnings.push(format!(
+                    "{} texels have rank below {m} with their per-texel light directions (lowest rank {min_rank}); they get the minimum-norm solution",
+                    report.rank_deficient_texels
+                ));
+            } else if worst_cond > COND_WARN {
+                report.warnings.push(format!(
+                    "ill-conditioned texels: worst condition number {worst_cond:.1} > {COND_WARN}"
+                ));
+            }
+            check_strict(&self.opts, &report.warnings)?;
+        }
+        if self.skipped > 0 {
+            report.warnings.push(format!(
+                "{} non-finite samples in {} texels were dropped (--skip-bad); {} of those texels lost rank",
+                self.skipped,
+                self.bad.len(),
+                if per_texel { 0 } else { report.rank_deficient_texels }
+            ));
+        }
+        report.skipped_samples = self.skipped;
+        let ptm = Ptm {
+            basis,
+            width: self.width,
+            height: self.height,
+            tile,
+            planes,
+        };
+        report.rms = ErrorStats::of(&rms_map, &self.masked);
+        report.rms_map = rms_map;
+        report.masked = self.masked.iter().filter(|&&m| m).count();
+        let t_solve = t0.elapsed().as_secs_f64();
+        if !self.held.is_empty() {
+            let t1 = Instant::now();
+            let mut hs = vec![0f64; t];
+            let mut hn = vec![0u32; t];
+            for (&l, (k, uv)) in &self.held {
+                let d = self.lights.dirs[l];
+                for ti in 0..t {
+                    if self.masked[ti] || !k[ti].is_finite() {
+                        continue;
+                    }
+                    let (u, v) = match uv {
+                        Some(uv) => (uv[ti][0], uv[ti][1]),
+                        None => (d[0] as f32, d[1] as f32),
+                    };
+                    let e = ptm.eval(ti % self.width, ti / self.width, u, v) - k[ti];
+                    hs[ti] += (e as f64).powi(2);
+                    hn[ti] += 1;
+                }
+            }
+            let map: Vec<f32> = hs
+                .iter()
+                .zip(&hn)
+                .map(|(&s, &n)| {
+                    if n > 0 {
+                        (s / n as f64).sqrt() as f32
+                    } else {
+                        0.0
+                    }
+                })
+                .collect();
+            report.holdout = Some(ErrorStats::of(&map, &self.masked));
+            report.seconds.push(("holdout", t1.elapsed().as_secs_f64()));
+        }
+        report.seconds.insert(0, ("accumulate", t_acc));
+        report.seconds.insert(1, ("solve", t_solve));
+        Ok((ptm, report))
+    }
+
+    fn gram_distant(&self) -> DMatrix<f64> {
+        let a = &self.prep.a;
+        let m = self.m;
+        let mut g = DMatrix::zeros(m, m);
+        for (i, &w) in self.prep.w.iter().enumerate() {
+            if w > 0.0 {
+                let row = a.row(i);
+                g += w * row.transpose() * row;
+            }
+        }
+        g
+    }
+
+    fn base_report(&self, per_texel: bool) -> FitReport {
+        let f = &self.prep.factor;
+        FitReport {
+            basis: Some(self.opts.basis),
+            lights: self.lights.len(),
+            lights_fit: self.prep.w.iter().filter(|&&w| w > 0.0).count(),
+            holdout_lights: self.prep.held.clone(),
+            texels: self.width * self.height,
+            coefficients: self.m,
+            rank: f.rank,
+            cond: f.cond,
+            cutoff: f.cutoff,
+            rcond: self.opts.rcond,
+            singular_values: if per_texel {
+                Vec::new()
+            } else {
+                f.sigma.clone()
+            },
+            solver: solver_words(&self.opts, f, per_texel),
+            warnings: if per_texel {
+                Vec::new()
+            } else {
+                self.prep.warnings.clone()
+            },
+            ..FitReport::default()
+        }
+    }
+}
+
+fn unpack(packed: &[f64], m: usize) -> DMatrix<f64> {
+    let mut g = DMatrix::zeros(m, m);
+    let mut q = 0;
+    for i in 0..m {
+        for j in i..m {
+            g[(i, j)] = packed[q];
+            g[(j, i)] = packed[q];
+            q += 1;
+        }
+    }
+    g
+}
+
+fn remove_light(g: &mut DMatrix<f64>, a: &DMatrix<f64>, l: usize, w: f64) {
+    let row = a.row(l);
+    *g -= w * row.transpose() * row;
+}
+
+fn bad_sample(texel: usize, width: usize, light: usize, value: f32) -> Error {
+    Error::BadSample {
+        col: texel % width,
+        row: texel / width,
+        light,
+        value,
+    }
+}
+
+/// Texels per block of the fused product + residual kernel: the block's K (lights × BLOCK f32)
+/// stays in L2 between the two passes.
+const BLOCK: usize = 128;
+
+/// Fits a stored stack: one f32 product C = P·K over texel blocks (parallel, deterministic),
+/// fused with the exact residual pass (weighted RMS and max over the fitting lights, RMS of
+/// clamped K over held-out lights). Per-texel directions go through the [`Accumulator`].
+pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitReport)> {
+    stack.validate()?;
+    let (w, h, t) = (stack.width, stack.height, stack.texels());
+    if let Some(uv) = &stack.uv {
+        let mut acc = Accumulator::new(&stack.lights, w, h, opts)?;
+        acc.set_coverage(&stack.coverage)?;
+        for (i, (k, uv)) in stack.k.iter().zip(uv).enumerate() {
+            acc.add_light_uv(i, k, uv)?;
+        }
+        let (ptm, mut report) = acc.finish(stack.tile)?;
+        let t1 = Instant::now();
+        let maxes = residual_max_per_texel(stack, &ptm, opts)?;
+        report.max = Some(ErrorStats::of(&maxes, &masked(stack)));
+        report.max_map = maxes;
+        report
+            .seconds
+            .push(("max residual", t1.elapsed().as_secs_f64()));
+        return Ok((ptm, report));
+    }
+    let t0 = Instant::now();
+    let prep = prepare(&stack.lights, opts)?;
+    let m = opts.basis.len();
+    let n = stack.lights.len();
+    // P = S·AᵀW (terms × lights), f64 → f32; rows of A in f32 for the residual.
+    let f = &prep.factor;
+    let mut p = vec![0f32; n * m];
+    let mut af = vec![0f32; n * m];
+    for i in 0..n {
+        for j in 0..m {
+            af[i * m + j] = prep.a[(i, j)] as f32;
+            if prep.w[i] > 0.0 {
+                let mut x = 0.0;
+                for q in 0..m {
+                    x += f.s[(j, q)] * prep.a[(i, q)];
+                }
+                p[i * m + j] = (x * prep.w[i]) as f32;
+            }
+        }
+    }
+    let fit: Vec<usize> = (0..n).filter(|&i| prep.w[i] > 0.0).collect();
+    let wf: Vec<f32> = prep.w.iter().map(|&x| x as f32).collect();
+    let wtot: f32 = fit.iter().map(|&i| wf[i]).sum();
+    let mask = masked(stack);
+    let t_factor = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let nb = t.div_ceil(BLOCK);
+    let blocks: Vec<Block> = (0..nb)
+        .into_par_iter()
+        .map(|bi| {
+            let start = bi * BLOCK;
+            let len = BLOCK.min(t - start);
+            kernel(stack, start, len, m, &fit, &prep.held, &p, &af, &wf)
+        })
+        .collect();
+    let t_apply = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let mut planes = vec![vec![0f32; t]; m];
+    let mut rms_map = vec![0f32; t];
+    let mut max_map = vec![0f32; t];
+    let mut hold_map = vec![0f32; t];
+    let mut bad_texels = Vec::new();
+    for (bi, b) in blocks.iter().enumerate() {
+        let start = bi * BLOCK;
+        let len = BLOCK.min(t - start);
+        for i in 0..len {
+            let ti = start + i;
+            if mask[ti] {
+                continue;
+            }
+            let ok = (0..m).all(|j| b.c[j * BLOCK + i].is_finite())
+                && b.ss[i].is_finite()
+                && b.hs[i].is_finite();
+            if !ok {
+                bad_texels.push(ti);
+                continue;
+            }
+            for j in 0..m {
+                planes[j][ti] = b.c[j * BLOCK + i];
+            }
+            rms_map[ti] = (b.ss[i] / wtot).max(0.0).sqrt();
+            max_map[ti] = b.mx[i];
+            if !prep.held.is_empty() {
+                hold_map[ti] = (b.hs[i] / prep.held.len() as f32).sqrt();
+            }
+        }
+    }
+    let mut report = FitReport {
+        basis: Some(opts.basis),
+        lights: n,
+        lights_fit: fit.len(),
+        holdout_lights: prep.held.clone(),
+        texels: t,
+        masked: mask.iter().filter(|&&x| x).count(),
+        coefficients: m,
+        rank: f.rank,
+        cond: f.cond,
+        cutoff: f.cutoff,
+        rcond: opts.rcond,
+        singular_values: f.sigma.clone(),
+        solver: solver_words(opts, f, false),
+        warnings: prep.warnings.clone(),
+        ..FitReport::default()
+    };
+    // Texels with non-finite samples: name the first, or refit each from its finite samples.
+    for &ti in &bad_texels {
+        let bad: Vec<usize> = (0..n).filter(|&l| !stack.k[l][ti].is_finite()).collect();
+        if !opts.skip_bad {
+            return Err(bad_sample(ti, w, bad[0], stack.k[bad[0]][ti]));
+        }
+        report.skipped_samples += bad.len();
+        let (c, rms, mx, hold, rank) = refit_texel(stack, ti, &prep, opts);
+        for j in 0..m {
+            planes[j][ti] = c[j];
+        }
+        rms_map[ti] = rms;
+        max_map[ti] = mx;
+        hold_map[ti] = hold;
+        if rank < m {
+            report.rank_deficient_texels += 1;
+        }
+    }
+    if !bad_texels.is_empty() {
+        report.warnings.push(format!(
+            "{} non-finite samples in {} texels were dropped (--skip-bad); {} of those texels lost rank",
+            report.skipped_samples,
+            bad_texels.len(),
+            report.rank_deficient_texels
+        ));
+    }
+    report.rms = ErrorStats::of(&rms_map, &mask);
+    report.max = Some(ErrorStats::of(&max_map, &mask));
+    if !prep.held.is_empty() {
+        report.holdout = Some(ErrorStats::of(&hold_map, &mask));
+    }
+    report.rms_map = rms_map;
+    report.max_map = max_map;
+    report.seconds = vec![
+        ("factor", t_factor),
+        ("apply", t_apply),
+        ("gather", t2.elapsed().as_secs_f64()),
+    ];
+    let ptm = Ptm {
+        basis: opts.basis,
+        width: w,
+        height: h,
+        tile: stack.tile,
+        planes,
+    };
+    Ok((ptm, report))
+}
+
+fn masked(stack: &SampleStack) -> Vec<bool> {
+    stack.coverage.iter().map(|&c| c <= 0.0).collect()
+}
+
+/// Results of one texel block: coefficients (term-major, BLOCK stride), weighted squared
+/// residual sum, max |residual|, squared held-out error sum.
+struct Block {
+    c: Vec<f32>,
+    ss: Vec<f32>,
+    mx: Vec<f32>,
+    hs: Vec<f32>,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn kernel(
+    stack: &SampleStack,
+    start: usize,
+    len: usize,
+    m: usize,
+    fit: &[usize],
+    held: &[usize],
+    p: &[f32],
+    af: &[f32],
+    wf: &[f32],
+) -> Block {
+    let mut c = vec![0f32; m * BLOCK];
+    for &l in fit {
+        let k = &stack.k[l][start..start + len];
+        let pl = &p[l * m..(l + 1) * m];
+        for j in 0..m {
+            let pj = pl[j];
+            let cj = &mut c[j * BLOCK..j * BLOCK + len];
+            for (cb, &kb) in cj.iter_mut().zip(k) {
+                *cb += pj * kb;
+            }
+        }
+    }
+    let mut ss = vec![0f32; BLOCK];
+    let mut mx = vec![0f32; BLOCK];
+    let mut hs = vec![0f32; BLOCK];
+    let mut pred = [0f32; BLOCK];
+    let predict = |l: usize, pred: &mut [f32; BLOCK]| {
+        let al = &af[l * m..(l + 1) * m];
+        pred.fill(0.0);
+        for j in 0..m {
+            let aj = al[j];
+            for (pb, &cb) in pred[..len].iter_mut().zip(&c[j * BLOCK..j * BLOCK + len]) {
+                *pb += aj * cb;
+            }
+        }
+    };
+    for &l in fit {
+        predict(l, &mut pred);
+        let k = &stack.k[l][start..start + len];
+        let wl = wf[l];
+        for i in 0..len {
+            let r = k[i] - pred[i];
+            ss[i] += wl * r * r;
+            // NaN-propagating max so bad samples are detected after the pass.
+            mx[i] = if r.is_nan() { r } else { mx[i].max(r.abs()) };
+        }
+    }
+    for &l in held {
+        predict(l, &mut pred);
+        let k = &stack.k[l][start..start + len];
+        for i in 0..len {
+            let r = pred[i].clamp(0.0, 1.0) - k[i];
+            hs[i] += r * r;
+        }
+    }
+    Block { c, ss, mx, hs }
+}
+
+/// Refits one texel from its finite samples (f64 normal equations, same cutoff), returning
+/// coefficients, weighted RMS, max residual, held-out RMS and rank.
+fn refit_texel(
+    stack: &SampleStack,
+    ti: usize,
+    prep: &Prepared,
+    opts: &FitOptions,
+) -> (Vec<f32>, f32, f32, f32, usize) {
+    let m = opts.basis.len();
+    let n = stack.lights.len();
+    let good = |l: usize| prep.w[l] > 0.0 && stack.k[l][ti].is_finite();
+    let mut g = DMatrix::zeros(m, m);
+    let mut rhs = nalgebra::DVector::zeros(m);
+    let mut wsum = 0.0;
+    for l in (0..n).filter(|&l| good(l)) {
+        let row = prep.a.row(l);
+        g += prep.w[l] * row.transpose() * row;
+        rhs += prep.w[l] * stack.k[l][ti] as f64 * row.transpose();
+        wsum += prep.w[l];
+    }
+    let f = Factor::from_normal(g, opts.rcond, opts.regularize);
+    let c = &f.s * rhs;
+    let (mut ss, mut mx) = (0.0f64, 0.0f64);
+    for l in (0..n).filter(|&l| good(l)) {
+        let r = stack.k[l][ti] as f64 - (prep.a.row(l) * &c)[0];
+        ss += prep.w[l] * r * r;
+        mx = mx.max(r.abs());
+    }
+    let (mut hs, mut hn) = (0.0f64, 0);
+    for &l in prep.held.iter().filter(|&&l| stack.k[l][ti].is_finite()) {
+        let r = (prep.a.row(l) * &c)[0].clamp(0.0, 1.0) - stack.k[l][ti] as f64;
+        hs += r * r;
+        hn += 1;
+    }
+    let rms = if wsum > 0.0 { (ss / wsum).sqrt() } else { 0.0 };
+    let hold = if hn > 0 { (hs / hn as f64).sqrt() } else { 0.0 };
+    (
+        c.iter().map(|&x| x as f32).collect(),
+        rms as f32,
+        mx as f32,
+        hold as f32,
+        f.rank,
+    )
+}
+
+/// Max |residual| per texel over the fitting lights, for per-texel directions.
+fn residual_max_per_texel(stack: &SampleStack, ptm: &Ptm, opts: &FitOptions) -> Result<Vec<f32>> {
+    let (w, _) = light_weights(&stack.lights, opts)?;
+    let uv = stack.uv.as_ref().expect("per-texel stack");
+    let m = opts.basis.len();
+    Ok((0..stack.texels())
+        .into_par_iter()
+        .map(|ti| {
+            let c: Vec<f32> = (0..m).map(|j| ptm.planes[j][ti]).collect();
+            let mut mx = 0f32;
+            for l in 0..stack.lights.len() {
+                let k = stack.k[l][ti];
+                let p = uv[l][ti];
+                if w[l] > 0.0 && k.is_finite() && p[0].is_finite() && p[1].is_finite() {
+                    mx = mx.max((k - opts.basis.eval(&c, p[0], p[1])).abs());
+                }
+            }
+            mx
+        })
+        .collect())
+}
