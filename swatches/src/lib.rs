@@ -58,7 +58,8 @@ pub enum Error {
         name: String,
         known: String,
     },
-    #[error("{source_name}: [{section}] line {line}: {reason}")]
+    /// A malformed draft; `line` 0 means the section as a whole (e.g. missing).
+    #[error("{source_name}: [{section}]{}: {reason}", line_text(.line))]
     Draft {
         source_name: String,
         section: String,
@@ -188,6 +189,14 @@ pub fn check_clearance(swatch: &str, cloth: &Cloth) -> Result<()> {
         });
     }
     Ok(())
+}
+
+fn line_text(line: &usize) -> String {
+    if *line == 0 {
+        String::new()
+    } else {
+        format!(" line {line}")
+    }
 }
 
 fn gcd(a: usize, b: usize) -> usize {

@@ -40,8 +40,9 @@ pub struct Cloth {
 /// The closest approach between two distinct yarns (or copies of one yarn in another tile).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Clearance {
-    /// Gap between the two cross-sections along the line joining their centres, minus nothing:
-    /// negative means the tubes overlap there. Infinity when there is a single yarn.
+    /// Separation of the two closest cross-sections along the best of the tried separating axes
+    /// (see [`Cloth::clearance`]); negative means the tubes overlap there. Infinity when
+    /// nothing is near.
     pub gap: f64,
     /// Indices of the two yarns and the tile offset of the second one's copy.
     pub yarns: (usize, usize),
@@ -70,6 +71,8 @@ pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
     [a[0] * s, a[1] * s, a[2] * s]
 }
 
+const AXES: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+
 /// Half-extent of an ellipse with semi-axis vectors (e1, e2) along the unit direction u: the
 /// support function sqrt((e1·u)² + (e2·u)²).
 pub fn support(axes: &[[f64; 3]; 2], u: [f64; 3]) -> f64 {
@@ -80,13 +83,21 @@ impl Yarn {
     /// Yarn with a round section of `radius`, perpendicular to the centre line, from samples
     /// of a centre curve; the frame is fixed to the tangent (e1 horizontal), so two samples with
     /// equal tangents get equal rings: periodic curves give exactly periodic tubes.
-    pub fn round(centre: Vec<[f64; 3]>, tangents: &[[f64; 3]], radius: f64, ends: Ends) -> Yarn {
+    ///
+    /// `reference` must never be parallel to the tangent (ẑ for yarns that run along the cloth,
+    /// the normal of its plane for a loop standing in a plane): e1 = reference × t.
+    pub fn round(
+        centre: Vec<[f64; 3]>,
+        tangents: &[[f64; 3]],
+        radius: f64,
+        ends: Ends,
+        reference: [f64; 3],
+    ) -> Yarn {
         let axes = tangents
             .iter()
             .map(|&t| {
                 let t = scale(t, 1.0 / norm(t));
-                // Tangents of our curves are never vertical; e1 = ẑ × t is then well defined.
-                let side = cross([0.0, 0.0, 1.0], t);
+                let side = cross(reference, t);
                 let e1 = scale(side, radius / norm(side));
                 let e2 = scale(cross(t, e1), 1.0);
                 [e1, e2]
@@ -174,9 +185,11 @@ impl Cloth {
 
     /// The smallest gap between the cross-sections of two distinct yarns, copies in the 8
     /// neighbouring tiles included (a knit course meets its own copy one course up). For a pair
-    /// of ring samples the gap is |d| − s₁(u) − s₂(u), u = d/|d| the direction between the
-    /// centres and s the ellipse support functions: a positive gap separates the two sections.
-    /// Rings are samples, so this is exact at the samples and an estimate between them.
+    /// of ring samples with centre offset d the gap along a unit axis v is
+    /// |d·v| − s₁(v) − s₂(v), s the ellipse support functions; a positive gap on any axis
+    /// separates the two sections (separating-axis theorem). Axes tried: u = d/|d| and x̂, ŷ, ẑ.
+    /// The result is a lower bound of the true gap at the samples (for round sections, u gives
+    /// it exactly); between samples it is an estimate.
     pub fn clearance(&self) -> Clearance {
         let mut best = Clearance {
             gap: f64::INFINITY,
@@ -238,7 +251,13 @@ impl Cloth {
                                     continue;
                                 }
                                 let u = scale(d, 1.0 / len.max(1e-300));
-                                let gap = len - support(&ya.axes[i], u) - support(&yb.axes[j], u);
+                                let (sa, sb) = (&ya.axes[i], &yb.axes[j]);
+                                // Separating axes tried: the centre line and the frame axes
+                                // (ẑ certifies flat ellipses stacked at a crossing).
+                                let mut gap = len - support(sa, u) - support(sb, u);
+                                for (k, e) in AXES.iter().enumerate() {
+                                    gap = gap.max(d[k].abs() - support(sa, *e) - support(sb, *e));
+                                }
                                 if gap < best.gap {
                                     best = Clearance {
                                         gap,
