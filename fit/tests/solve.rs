@@ -150,7 +150,7 @@ fn exact_polynomials_are_recovered_by_both_paths() {
     let mut rng = Rng(1);
     for (basis, n) in [(Basis::Ptm6, 40), (Basis::Ptm11, 96)] {
         // A random well-spread dome: Fibonacci with a random rotation about z.
-        let rot = rng.range(0.0, 6.28);
+        let rot = rng.range(0.0, std::f64::consts::TAU);
         let lights = LightSet::from_dirs(fibonacci(n, 5.0).dirs.iter().map(|d| {
             [
                 d[0] * rot.cos() - d[1] * rot.sin(),
@@ -266,7 +266,7 @@ fn single_ring_is_rank_deficient_named_and_min_norm() {
             );
         }
         assert_sane(&ptm);
-        let want = reference(&stack, basis, &vec![1.0; 24], opts.rcond);
+        let want = reference(&stack, basis, &[1.0; 24], opts.rcond);
         let d = max_diff(&ptm, &want);
         assert!(
             d < 1e-5,
