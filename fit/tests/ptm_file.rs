@@ -1,0 +1,209 @@
+//! PTM EXR round trips (exact for f32, within the stated bound for half) and load errors.
+use std::path::PathBuf;
+
+use ptm_fit::solve::{fit_stack, FitOptions};
+use ptm_fit::{Basis, LightSet, Ptm, SampleStack, SaveOptions};
+
+fn tmpdir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("ptm-fit-{name}-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn sample_ptm(basis: Basis) -> Ptm {
+    let (w, h) = (13, 7);
+    let planes = (0..basis.len())
+        .map(|j| {
+            (0..w * h)
+                .map(|t| ((t * 31 + j * 17) % 101) as f32 / 37.0 - 1.3 + 1e-7 * t as f32)
+                .collect()
+        })
+        .collect();
+    Ptm {
+        basis,
+        width: w,
+        height: h,
+        tile: [1.5, 0.75],
+        planes,
+    }
+}
+
+#[test]
+fn f32_round_trip_is_exact_and_half_within_bound() {
+    let dir = tmpdir("rt");
+    for basis in Basis::ALL {
+        let ptm = sample_ptm(basis);
+        let p = dir.join(format!("{}.ptm.exr", basis.name()));
+        ptm.save(&p, &SaveOptions::default()).unwrap();
+        assert_eq!(Ptm::load(&p).unwrap(), ptm);
+        let half = SaveOptions {
+            half: true,
+            ..SaveOptions::default()
+        };
+        ptm.save(&p, &half).unwrap();
+        let (back, info) = Ptm::load_with_info(&p).unwrap();
+        assert_eq!(info.storage, "half");
+        let bound = ptm.half_error_bound();
+        assert!(bound > 0.0 && bound < 5e-3, "bound {bound}");
+        let mut worst = 0f64;
+        for y in 0..ptm.height {
+            for x in 0..ptm.width {
+                for (u, v) in [(0.0, 0.0), (0.7, -0.7), (-1.0, 0.0), (0.3, 0.9)] {
+                    let d = (ptm.eval_unclamped(x, y, u, v) - back.eval_unclamped(x, y, u, v)).abs()
+                        as f64;
+                    worst = worst.max(d);
+                }
+            }
+        }
+        assert!(
+            worst <= bound * 1.0001 + 1e-7,
+            "half error {worst} > bound {bound}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn channels_are_named_by_monomial_and_header_is_complete() {
+    let dir = tmpdir("hdr");
+    let lights = LightSet::from_dirs((0..20).map(|i| {
+        let a = i as f64 * 2.4;
+        let z = 0.1 + 0.9 * i as f64 / 20.0;
+        let r = (1.0 - z * z).sqrt();
+        [r * a.cos(), r * a.sin(), z]
+    }));
+    let stack = SampleStack {
+        width: 4,
+        height: 3,
+        tile: [1.0, 2.0],
+        lights: lights.clone(),
+        k: (0..20)
+            .map(|l| (0..12).map(|t| ((l * 5 + t) % 7) as f32 / 7.0).collect())
+            .collect(),
+        coverage: vec![1.0; 12],
+        uv: None,
+    };
+    let (ptm, report) = fit_stack(&stack, &FitOptions::new(Basis::Ptm6)).unwrap();
+    let p = dir.join("w.ptm.exr");
+    let opts = SaveOptions {
+        half: false,
+        report: Some(&report),
+        error_map: true,
+    };
+    ptm.save(&p, &opts).unwrap();
+    // Read with the exr crate directly, as a pipeline without our code would.
+    let img = exr::prelude::read_all_flat_layers_from_file(&p).unwrap();
+    let layer = &img.layer_data[0];
+    let names: Vec<String> = layer
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    for want in [
+        "ptm.u2", "ptm.u", "ptm.uv", "ptm.v", "ptm.v2", "ptm.1", "err.rms", "err.max",
+    ] {
+        assert!(
+            names.iter().any(|n| n == want),
+            "{want} missing from {names:?}"
+        );
+    }
+    let attrs: Vec<String> = layer
+        .attributes
+        .other
+        .keys()
+        .map(|k| k.to_string())
+        .collect();
+    for want in [
+        "ptm:version",
+        "ptm:basis",
+        "ptm:monomials",
+        "ptm:value",
+        "ptm:uv",
+        "ptm:frame",
+        "ptm:tileW",
+        "ptm:nLights",
+        "ptm:solver",
+        "ptm:rank",
+        "ptm:cond",
+        "ptm:rmsMean",
+    ] {
+        assert!(
+            attrs.iter().any(|n| n == want),
+            "{want} missing from {attrs:?}"
+        );
+    }
+    let (back, info) = Ptm::load_with_info(&p).unwrap();
+    assert_eq!(back, ptm);
+    assert_eq!(info.lights, Some(20));
+    assert_eq!(info.rank, Some(6));
+    assert_eq!(info.err_rms.unwrap(), report.rms_map);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn foreign_truncated_and_unknown_files_are_named_errors() {
+    let dir = tmpdir("bad");
+    let ptm = sample_ptm(Basis::Ptm6);
+    let good = dir.join("good.ptm.exr");
+    ptm.save(&good, &SaveOptions::default()).unwrap();
+    let bytes = std::fs::read(&good).unwrap();
+
+    let p = dir.join("trunc.ptm.exr");
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    let e = Ptm::load(&p).unwrap_err().to_string();
+    assert!(e.contains("trunc.ptm.exr") && e.contains("OpenEXR"), "{e}");
+
+    let p = dir.join("missing.exr");
+    let e = Ptm::load(&p).unwrap_err().to_string();
+    assert!(e.contains("missing.exr"), "{e}");
+
+    // A sample stack is not a PTM, and says so.
+    let stack = SampleStack {
+        width: 2,
+        height: 2,
+        tile: [1.0, 1.0],
+        lights: LightSet::from_dirs([[0.0, 0.0, 1.0]]),
+        k: vec![vec![0.0; 4]],
+        coverage: vec![1.0; 4],
+        uv: None,
+    };
+    let p = dir.join("samples.exr");
+    stack.write(&p).unwrap();
+    let e = Ptm::load(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("not an occlusion PTM") && e.contains("sample stack"),
+        "{e}"
+    );
+
+    // A foreign EXR (plain RGBA).
+    let p = dir.join("rgba.exr");
+    exr::prelude::write_rgba_file(&p, 4, 4, |_, _| (0.5f32, 0.5f32, 0.5f32, 1.0f32)).unwrap();
+    let e = Ptm::load(&p).unwrap_err().to_string();
+    assert!(e.contains("not an occlusion PTM"), "{e}");
+
+    // Unknown basis and a missing channel: edit the header / channels with the exr crate.
+    use exr::meta::attribute::AttributeValue;
+    use exr::prelude::*;
+    let img = read_all_flat_layers_from_file(&good).unwrap();
+    let mut unknown = img.clone();
+    unknown.layer_data[0].attributes.other.insert(
+        Text::from("ptm:basis"),
+        AttributeValue::Text(Text::from("hsh9")),
+    );
+    let p = dir.join("unknown.ptm.exr");
+    unknown.write().to_file(&p).unwrap();
+    let e = Ptm::load(&p).unwrap_err().to_string();
+    assert!(e.contains("unknown basis") && e.contains("hsh9"), "{e}");
+
+    let mut lacking = img;
+    lacking.layer_data[0]
+        .channel_data
+        .list
+        .retain(|c| c.name.to_string() != "ptm.uv");
+    let p = dir.join("lacking.ptm.exr");
+    lacking.write().to_file(&p).unwrap();
+    let e = Ptm::load(&p).unwrap_err().to_string();
+    assert!(e.contains("ptm.uv"), "{e}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
