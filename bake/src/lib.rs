@@ -1,1 +1,40 @@
 //! `ptm-bake`: Embree 4 occlusion baking of tileable swatches from a dome of lights.
+//!
+//! Data flow: [`Swatch`] (checked mesh and tile) → [`Baker::new`] (Embree scene of the tile,
+//! instanced copies, primary hits of an orthographic camera over the central tile) →
+//! [`Baker::trace`] (per light, the occluded fraction K of every texel, handed to a sink light
+//! by light, so a fitter can stream without holding the whole sample stack).
+//!
+//! Conventions (docs/FORMAT.md): tile [0, W]×[0, H], z up; image row 0 at y = H; K = 0 lit,
+//! 1 occluded; lights are unit vectors towards the light.
+
+pub mod dome;
+pub mod embree;
+pub mod swatch;
+pub mod tiling;
+pub mod visibility;
+
+pub use swatch::Swatch;
+pub use visibility::{bake_planes, BakeConfig, BakeReport, Baker, Planes, Sink};
+
+/// Errors of the bake crate; messages name the input and what to do.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    #[error("{path}: {reason}")]
+    InvalidMesh { path: String, reason: String },
+    #[error("{0}")]
+    Dome(String),
+    #[error("{0}")]
+    Config(String),
+    #[error("embree: {0}")]
+    Embree(String),
+    #[error(transparent)]
+    Fit(#[from] ptm_fit::Error),
+}
+
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,435 @@
+//! Swatch input: OBJ or builtin meshes, checked before anything is traced. Bad input is refused
+//! with an error naming the source; degenerate triangles are dropped and counted; a mesh that is
+//! not periodic over its tile gets a warning with the measured seam mismatch.
+use std::path::Path;
+
+use ptm_swatches::Mesh;
+
+use crate::{Error, Result};
+
+/// Axis-aligned bounds in the swatch frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+/// How well the mesh's cross-sections at opposite tile borders match.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Seam {
+    /// 0: the sections at x = 0 and x = W; 1: at y = 0 and y = H.
+    pub axis: usize,
+    /// Largest distance from a point of one section to the other section, in mesh units;
+    /// infinite when only one border has geometry, 0 when neither has.
+    pub mismatch: f64,
+}
+
+/// A checked swatch ready to bake: non-degenerate triangles, tile and bounds.
+#[derive(Clone, Debug)]
+pub struct Swatch {
+    /// Where the mesh came from (a path or `builtin:NAME`), for messages.
+    pub origin: String,
+    pub positions: Vec<[f32; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Tile size (W, H) in mesh units: copies repeat at multiples of it.
+    pub tile: [f64; 2],
+    /// Bounds of the vertices the kept triangles use (after any shift).
+    pub bounds: Bounds,
+    /// Zero-area triangles skipped.
+    pub degenerate: usize,
+    /// Translation applied so that the tile starts at (0, 0) (when the tile defaulted to the
+    /// mesh's bounding box), in mesh units.
+    pub shift: [f64; 2],
+    pub seams: [Seam; 2],
+}
+
+impl Swatch {
+    /// Loads `spec`: `builtin:NAME[?k=v…]` or a path to an OBJ file. `tile` overrides the tile
+    /// size; by default a builtin's own tile, or the OBJ's x/y bounding box.
+    pub fn load(spec: &str, tile: Option<[f64; 2]>) -> Result<Self> {
+        match spec.strip_prefix("builtin:") {
+            Some(name) => {
+                let mesh = ptm_swatches::builtin(name).map_err(|e| Error::InvalidMesh {
+                    path: spec.to_string(),
+                    reason: e.to_string(),
+                })?;
+                Self::from_mesh(mesh, tile, spec)
+            }
+            None => Self::from_mesh(load_obj(Path::new(spec))?, tile, spec),
+        }
+    }
+
+    /// Checks `mesh`; `origin` names it in errors. A zero `mesh.tile` means "not given".
+    pub fn from_mesh(mesh: Mesh, tile: Option<[f64; 2]>, origin: &str) -> Result<Self> {
+        let bad = |reason: String| Error::InvalidMesh {
+            path: origin.to_string(),
+            reason,
+        };
+        if mesh.triangles.is_empty() {
+            return Err(bad("no triangles (is the file empty or not an OBJ?)".into()));
+        }
+        for (i, p) in mesh.positions.iter().enumerate() {
+            if let Some(c) = p.iter().find(|c| !c.is_finite()) {
+                return Err(bad(format!(
+                    "vertex {} has a non-finite coordinate {c}",
+                    i + 1
+                )));
+            }
+        }
+        let nv = mesh.positions.len();
+        for (i, t) in mesh.triangles.iter().enumerate() {
+            if let Some(&k) = t.iter().find(|&&k| k as usize >= nv) {
+                return Err(bad(format!(
+                    "triangle {} has vertex index {} but the mesh has {nv} vertices",
+                    i + 1,
+                    k as u64 + 1
+                )));
+            }
+        }
+        let all = bounds(&mesh.positions, &mesh.triangles);
+        let given = tile.or((mesh.tile[0] > 0.0 && mesh.tile[1] > 0.0)
+            .then(|| [mesh.tile[0] as f64, mesh.tile[1] as f64]));
+        let (tile, shift) = match given {
+            Some(t) => (t, [0.0, 0.0]),
+            None => (
+                [all.max[0] - all.min[0], all.max[1] - all.min[1]],
+                [-all.min[0], -all.min[1]],
+            ),
+        };
+        if !(tile[0] > 0.0 && tile[1] > 0.0 && tile[0].is_finite() && tile[1].is_finite()) {
+            return Err(bad(format!(
+                "tile size {}×{} must be positive; the mesh's x/y extent is {}×{}: pass --tile W,H",
+                tile[0],
+                tile[1],
+                all.max[0] - all.min[0],
+                all.max[1] - all.min[1]
+            )));
+        }
+        let mut positions = mesh.positions;
+        if shift != [0.0, 0.0] {
+            for p in &mut positions {
+                p[0] = (p[0] as f64 + shift[0]) as f32;
+                p[1] = (p[1] as f64 + shift[1]) as f32;
+            }
+        }
+        // Degenerate: the doubled area is below what f32 vertex coordinates can resolve at
+        // this scene size (relative, so the test is scale-invariant).
+        let scale = tile[0].max(tile[1]).max(all.max[2] - all.min[2]);
+        let min_area2 = (1e-7 * scale) * (1e-7 * scale);
+        let total = mesh.triangles.len();
+        let triangles: Vec<[u32; 3]> = mesh
+            .triangles
+            .into_iter()
+            .filter(|t| {
+                let [a, b, c] = t.map(|k| positions[k as usize].map(f64::from));
+                norm(cross(sub(b, a), sub(c, a))) > min_area2
+            })
+            .collect();
+        if triangles.is_empty() {
+            return Err(bad(format!("all {total} triangles have zero area")));
+        }
+        let bounds = bounds(&positions, &triangles);
+        let seams = [0, 1].map(|axis| Seam {
+            axis,
+            mismatch: seam_mismatch(&positions, &triangles, axis, tile[axis]),
+        });
+        Ok(Self {
+            origin: origin.to_string(),
+            degenerate: total - triangles.len(),
+            positions,
+            triangles,
+            tile,
+            bounds,
+            shift,
+            seams,
+        })
+    }
+
+    /// The scene's length scale: the largest of tile width, tile height and z-range. Ray
+    /// offsets and tolerances are fractions of it, so a scaled swatch bakes the same.
+    pub fn scale(&self) -> f64 {
+        self.tile[0]
+            .max(self.tile[1])
+            .max(self.bounds.max[2] - self.bounds.min[2])
+    }
+
+    /// Human-readable warnings about the input (non-periodic seams, skipped triangles).
+    pub fn warnings(&self) -> Vec<String> {
+        let mut w = Vec::new();
+        if self.degenerate > 0 {
+            w.push(format!(
+                "{}: skipped {} degenerate (zero-area) triangles",
+                self.origin, self.degenerate
+            ));
+        }
+        let tol = 1e-4 * self.scale();
+        for s in &self.seams {
+            if s.mismatch > tol {
+                let (a, b) = if s.axis == 0 { ("x", "W") } else { ("y", "H") };
+                w.push(format!(
+                    "{}: not periodic over the {}×{} tile: its cross-sections at {a} = 0 and \
+                     {a} = {b} differ by up to {:.3e} (tolerance {tol:.1e}); seams will show",
+                    self.origin, self.tile[0], self.tile[1], s.mismatch
+                ));
+            }
+        }
+        w
+    }
+}
+
+/// Reads an OBJ file (all objects, polygons triangulated) into one mesh.
+pub fn load_obj(path: &Path) -> Result<Mesh> {
+    let name = path.display().to_string();
+    let bad = |reason: String| Error::InvalidMesh {
+        path: name.clone(),
+        reason,
+    };
+    // Read it ourselves first so an unreadable file gives the OS error, not tobj's.
+    let text = std::fs::read(path).map_err(|e| Error::Io {
+        path: name.clone(),
+        source: e,
+    })?;
+    if text.iter().all(u8::is_ascii_whitespace) {
+        return Err(bad("empty file".into()));
+    }
+    let opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, _) = tobj::load_obj_buf(&mut text.as_slice(), &opts, |_| {
+        // Materials do not matter for occlusion.
+        Ok((Vec::new(), Default::default()))
+    })
+    .map_err(|e| match e {
+        tobj::LoadError::FaceVertexOutOfBounds => {
+            bad("a face refers to a vertex index beyond the vertex list".into())
+        }
+        e => bad(format!("not a readable OBJ: {e}")),
+    })?;
+    let mut mesh = Mesh::default();
+    for m in models {
+        let base = mesh.positions.len();
+        let nv = m.mesh.positions.len() / 3;
+        mesh.positions
+            .extend(m.mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+        for t in m.mesh.indices.chunks_exact(3) {
+            let tri = [t[0], t[1], t[2]];
+            if let Some(&k) = tri.iter().find(|&&k| k as usize >= nv) {
+                return Err(bad(format!(
+                    "object {:?} has vertex index {} but {nv} vertices",
+                    m.name,
+                    k as u64 + 1
+                )));
+            }
+            mesh.triangles.push(tri.map(|k| k + base as u32));
+        }
+    }
+    Ok(mesh)
+}
+
+fn bounds(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Bounds {
+    let mut b = Bounds {
+        min: [f64::INFINITY; 3],
+        max: [f64::NEG_INFINITY; 3],
+    };
+    for &k in triangles.iter().flatten() {
+        for (a, &c) in positions[k as usize].iter().enumerate() {
+            b.min[a] = b.min[a].min(c as f64);
+            b.max[a] = b.max[a].max(c as f64);
+        }
+    }
+    b
+}
+
+/// Points and segments of the mesh's section by the plane `p[axis] = c`, in the remaining two
+/// coordinates.
+fn section(
+    positions: &[[f32; 3]],
+    triangles: &[[u32; 3]],
+    axis: usize,
+    c: f64,
+) -> Vec<[[f64; 2]; 2]> {
+    let other = if axis == 0 { [1, 2] } else { [0, 2] };
+    let mut segs = Vec::new();
+    for t in triangles {
+        let v = t.map(|k| positions[k as usize].map(f64::from));
+        let d = v.map(|p| p[axis] - c);
+        if d.iter().all(|&d| d > 0.0) || d.iter().all(|&d| d < 0.0) || d.iter().all(|&d| d == 0.0) {
+            continue;
+        }
+        let mut pts: Vec<[f64; 2]> = Vec::with_capacity(3);
+        for e in 0..3 {
+            let (a, b) = (e, (e + 1) % 3);
+            if d[a] == 0.0 {
+                pts.push(other.map(|o| v[a][o]));
+            } else if d[a] * d[b] < 0.0 {
+                let s = d[a] / (d[a] - d[b]);
+                pts.push(other.map(|o| v[a][o] + s * (v[b][o] - v[a][o])));
+            }
+        }
+        if let (Some(&p), Some(&q)) = (pts.first(), pts.last()) {
+            segs.push([p, q]);
+        }
+    }
+    segs
+}
+
+fn point_segment_distance(p: [f64; 2], s: [[f64; 2]; 2]) -> f64 {
+    let d = [s[1][0] - s[0][0], s[1][1] - s[0][1]];
+    let len2 = d[0] * d[0] + d[1] * d[1];
+    let t = if len2 > 0.0 {
+        (((p[0] - s[0][0]) * d[0] + (p[1] - s[0][1]) * d[1]) / len2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let q = [s[0][0] + t * d[0] - p[0], s[0][1] + t * d[1] - p[1]];
+    (q[0] * q[0] + q[1] * q[1]).sqrt()
+}
+
+/// Symmetric distance between the sections at 0 and at `period` along `axis` (ends and
+/// midpoints of each segment against the other section).
+fn seam_mismatch(positions: &[[f32; 3]], triangles: &[[u32; 3]], axis: usize, period: f64) -> f64 {
+    let a = section(positions, triangles, axis, 0.0);
+    let b = section(positions, triangles, axis, period);
+    match (a.is_empty(), b.is_empty()) {
+        (true, true) => return 0.0,
+        (true, false) | (false, true) => return f64::INFINITY,
+        _ => {}
+    }
+    let one_way = |from: &[[[f64; 2]; 2]], to: &[[[f64; 2]; 2]]| {
+        let mut worst = 0.0f64;
+        for s in from {
+            let mid = [(s[0][0] + s[1][0]) / 2.0, (s[0][1] + s[1][1]) / 2.0];
+            for p in [s[0], s[1], mid] {
+                let d = to
+                    .iter()
+                    .map(|&q| point_segment_distance(p, q))
+                    .fold(f64::INFINITY, f64::min);
+                worst = worst.max(d);
+            }
+        }
+        worst
+    };
+    one_way(&a, &b).max(one_way(&b, &a))
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(dir: &Path, name: &str, text: &str) -> std::path::PathBuf {
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn obj_is_triangulated_shifted_and_checked() {
+        let dir = std::env::temp_dir().join(format!("ptm-bake-swatch-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // A quad (triangulated) plus a degenerate triangle, offset from the origin.
+        let p = write(
+            &dir,
+            "quad.obj",
+            "v 1 1 0\nv 3 1 0\nv 3 2 0\nv 1 2 0\nf 1 2 3 4\nf 1 1 2\n",
+        );
+        let s = Swatch::load(p.to_str().unwrap(), None).unwrap();
+        assert_eq!(s.triangles.len(), 2);
+        assert_eq!(s.degenerate, 1);
+        assert_eq!(s.tile, [2.0, 1.0]);
+        assert_eq!(s.shift, [-1.0, -1.0]);
+        assert_eq!(s.bounds.min, [0.0, 0.0, 0.0]);
+        // A flat quad is periodic: its sections at opposite borders coincide.
+        assert_eq!(s.seams.map(|s| s.mismatch), [0.0, 0.0]);
+        assert_eq!(s.warnings().len(), 1, "{:?}", s.warnings());
+
+        let cases = [
+            ("missing.obj", None, "No such file"),
+            ("empty.obj", Some(""), "empty file"),
+            ("points.obj", Some("v 0 0 0\nv 1 0 0\n"), "no triangles"),
+            (
+                "nan.obj",
+                Some("v 0 0 NaN\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+                "non-finite",
+            ),
+            (
+                "inf.obj",
+                Some("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"),
+                "non-finite",
+            ),
+            (
+                "range.obj",
+                Some("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n"),
+                "index",
+            ),
+            (
+                "line.obj",
+                Some("v 0 0 0\nv 1 1 0\nv 2 2 0\nf 1 2 3\n"),
+                "zero area",
+            ),
+            (
+                "flat.obj",
+                Some("v 0 0 0\nv 0 0 1\nv 0 1 2\nf 1 2 3\n"),
+                "--tile",
+            ),
+        ];
+        for (name, text, want) in cases {
+            let p = match text {
+                Some(t) => write(&dir, name, t),
+                None => dir.join(name),
+            };
+            let e = Swatch::load(p.to_str().unwrap(), None)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(name) && e.contains(want), "{name}: {e}");
+        }
+        // Zero-size tile given explicitly.
+        let p = dir.join("quad.obj");
+        let e = Swatch::load(p.to_str().unwrap(), Some([0.0, 1.0]))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--tile"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn seam_mismatch_is_measured() {
+        // A ramp from z = 0 at x = 0 to z = 0.3 at x = 1: sections differ by 0.3 in z.
+        let mesh = Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.3],
+                [1.0, 1.0, 0.3],
+                [0.0, 1.0, 0.0],
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            tile: [1.0, 1.0],
+        };
+        let s = Swatch::from_mesh(mesh, None, "ramp").unwrap();
+        assert!((s.seams[0].mismatch - 0.3).abs() < 1e-6, "{:?}", s.seams);
+        assert_eq!(s.seams[1].mismatch, 0.0);
+        let w = s.warnings();
+        assert!(
+            w.len() == 1 && w[0].contains("x = 0") && w[0].contains("3.000e-1"),
+            "{w:?}"
+        );
+    }
+}

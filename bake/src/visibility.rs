@@ -1,0 +1,538 @@
+//! The occlusion sampler: orthographic primary hits over the central tile (once), then per
+//! light the occluded fraction K of every texel, traced in coherent 16-ray packets over 4×4
+//! texel blocks and handed light by light to a sink.
+//!
+//! Determinism: sample positions come from a hash of (texel, sample, seed); each texel's K is
+//! an integer count of occluded samples over an integer count of covered samples, so the output
+//! is bit-identical for any thread count and for packets versus single rays.
+use std::collections::HashMap;
+use std::time::Instant;
+
+use ptm_fit::LightSet;
+use rayon::prelude::*;
+
+use crate::embree::{self, Device, Scene};
+use crate::swatch::Swatch;
+use crate::tiling;
+use crate::{Error, Result};
+
+/// Bake settings. Defaults live in the CLI.
+#[derive(Clone, Debug)]
+pub struct BakeConfig {
+    /// Texels (columns, rows) over the central tile.
+    pub res: [usize; 2],
+    /// Footprint samples per texel (stratified over an m×⌈spp/m⌉ grid, m = ⌈√spp⌉, jittered).
+    pub spp: u32,
+    /// Seed of the sample-position hash.
+    pub seed: u64,
+    /// `Some(R)`: point lights on a hemisphere of radius R (mesh units) centred at
+    /// (W/2, H/2, 0) instead of distant lights.
+    pub light_distance: Option<f64>,
+    /// Trace shadow rays in `rtcOccluded16` packets (true) or one by one (same result).
+    pub packets: bool,
+    /// Worker threads (0: one per core).
+    pub threads: usize,
+}
+
+/// Figures of one bake, for `--json` and the benchmark.
+#[derive(Clone, Debug, Default)]
+pub struct BakeReport {
+    pub primary_rays: u64,
+    pub shadow_rays: u64,
+    /// Samples counted occluded without tracing: surface facing away from the light, or the
+    /// light at or below the horizon.
+    pub shadow_rays_skipped: u64,
+    pub seconds_scene: f64,
+    pub seconds_primary: f64,
+    /// Tracing plus the sink's own time.
+    pub seconds_shadow: f64,
+    /// Per light: rings of copies k (the block spans up to (2k+1)² copies).
+    pub rings: Vec<u32>,
+    /// Per light: copies in its shadow scene.
+    pub copies: Vec<usize>,
+    /// Texels whose footprint no primary ray hit (coverage 0).
+    pub uncovered_texels: usize,
+    /// Lights at or below the horizon (K = 1 wherever covered).
+    pub below_horizon: Vec<usize>,
+}
+
+/// One primary sample: shadow-ray origin (hit point moved off the surface) and unit normal
+/// face-forwarded towards the camera; `hit` false where the primary ray missed.
+#[derive(Clone, Copy, Default)]
+struct Sample {
+    org: [f32; 3],
+    n: [f32; 3],
+    hit: bool,
+}
+
+/// Receives each light's K plane (row-major, `res[0]·res[1]` texels, uncovered texels 0) and,
+/// for point lights, each texel's (u, v) of the mean direction to the light.
+pub type Sink<'s> = dyn FnMut(usize, &[f32], Option<&[[f32; 2]]>) -> Result<()> + 's;
+
+/// A scene built once and its primary hits; [`Baker::trace`] then runs any light set.
+pub struct Baker {
+    cfg: BakeConfig,
+    tile: [f64; 2],
+    bounds: crate::swatch::Bounds,
+    /// Offset of shadow-ray origins along the normal, and the top clamp plane (mesh units).
+    eps: f64,
+    z_cap: f64,
+    margin: f64,
+    device: Device,
+    tile_scene: Scene,
+    shadow_scenes: HashMap<Vec<[i32; 2]>, Scene>,
+    pool: rayon::ThreadPool,
+    blocks: [usize; 2],
+    /// Block-major: `samples[(block·spp + s)·16 + lane]`, lane = 4·row + column in the block.
+    samples: Vec<Sample>,
+    coverage: Vec<f32>,
+    report: BakeReport,
+}
+
+impl Baker {
+    /// Builds the Embree scenes and traces the primary hits.
+    pub fn new(swatch: &Swatch, cfg: &BakeConfig) -> Result<Self> {
+        let [nx, ny] = cfg.res;
+        if nx == 0 || ny == 0 || cfg.spp == 0 {
+            return Err(Error::Config(format!(
+                "resolution {nx}×{ny} and spp {} must be positive",
+                cfg.spp
+            )));
+        }
+        if let Some(r) = cfg.light_distance {
+            if !(r.is_finite() && r > 0.0) {
+                return Err(Error::Config(format!(
+                    "--light-distance {r} must be positive"
+                )));
+            }
+        }
+        let t0 = Instant::now();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(cfg.threads)
+            .start_handler(|_| embree::set_ftz_daz())
+            .build()
+            .map_err(|e| Error::Config(format!("thread pool: {e}")))?;
+        let device = Device::new(&if cfg.threads > 0 {
+            format!("threads={}", cfg.threads)
+        } else {
+            String::new()
+        })?;
+        let tile_scene = device.triangle_scene(&swatch.positions, &swatch.triangles)?;
+        let scale = swatch.scale();
+        let mut baker = Self {
+            cfg: cfg.clone(),
+            tile: swatch.tile,
+            bounds: swatch.bounds,
+            // Relative to the scene size: 1e-5 of it is ~100 f32 ulps of the coordinates
+            // and 1e-3 texel at 1024² (see notes: fixed epsilons fail at other scales).
+            eps: 1e-5 * scale,
+            z_cap: swatch.bounds.max[2] + 1e-3 * scale,
+            margin: 1e-6 * scale,
+            device,
+            tile_scene,
+            shadow_scenes: HashMap::new(),
+            pool,
+            blocks: [nx.div_ceil(4), ny.div_ceil(4)],
+            samples: Vec::new(),
+            coverage: Vec::new(),
+            report: BakeReport::default(),
+        };
+        let primary_copies = tiling::copies_meeting(baker.tile, &baker.bounds, &[], baker.margin);
+        baker.scene_for(&primary_copies)?;
+        baker.report.seconds_scene = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        baker.primary(&primary_copies);
+        baker.report.seconds_primary = t1.elapsed().as_secs_f64();
+        Ok(baker)
+    }
+
+    /// Fraction of each texel's samples whose primary ray hit the swatch (row-major).
+    pub fn coverage(&self) -> &[f32] {
+        &self.coverage
+    }
+
+    pub fn config(&self) -> &BakeConfig {
+        &self.cfg
+    }
+
+    pub fn report(&self) -> &BakeReport {
+        &self.report
+    }
+
+    fn scene_for(&mut self, copies: &[[i32; 2]]) -> Result<&Scene> {
+        if !self.shadow_scenes.contains_key(copies) {
+            let offsets: Vec<[f32; 3]> = copies
+                .iter()
+                .map(|c| {
+                    [
+                        (c[0] as f64 * self.tile[0]) as f32,
+                        (c[1] as f64 * self.tile[1]) as f32,
+                        0.0,
+                    ]
+                })
+                .collect();
+            let s = self.device.instance_scene(&self.tile_scene, &offsets)?;
+            self.shadow_scenes.insert(copies.to_vec(), s);
+        }
+        Ok(&self.shadow_scenes[copies])
+    }
+
+    /// Primary pass: one `rtcIntersect1` straight down per footprint sample.
+    fn primary(&mut self, copies: &[[i32; 2]]) {
+        let scene = &self.shadow_scenes[copies];
+        let [nx, ny] = self.cfg.res;
+        let [bx, by] = self.blocks;
+        let spp = self.cfg.spp as usize;
+        let m = (spp as f64).sqrt().ceil() as usize;
+        let rows = spp.div_ceil(m);
+        let (tile, seed, eps) = (self.tile, self.cfg.seed, self.eps);
+        // The camera sits on the clamp plane, above all geometry.
+        let (z_top, t_far) = (self.z_cap as f32, f32::INFINITY);
+        let mut samples = vec![Sample::default(); bx * by * spp * 16];
+        self.pool.install(|| {
+            samples
+                .par_chunks_mut(spp * 16)
+                .enumerate()
+                .for_each(|(b, out)| {
+                    let (bi, bj) = (b % bx, b / bx);
+                    for lane in 0..16 {
+                        let (i, j) = (bi * 4 + lane % 4, bj * 4 + lane / 4);
+                        if i >= nx || j >= ny {
+                            continue;
+                        }
+                        let texel = (j * nx + i) as u64;
+                        for s in 0..spp {
+                            let (jx, jy) = jitter(texel, s as u64, seed);
+                            let fx = ((s % m) as f64 + jx) / m as f64;
+                            let fy = ((s / m) as f64 + jy) / rows as f64;
+                            // Row 0 is the far edge y = H.
+                            let x = (i as f64 + fx) * tile[0] / nx as f64;
+                            let y = tile[1] - (j as f64 + fy) * tile[1] / ny as f64;
+                            let org = [x as f32, y as f32, z_top];
+                            let hit = scene.intersect1(org, [0.0, 0.0, -1.0], 0.0, t_far);
+                            if let Some(h) = hit {
+                                let len =
+                                    (h.ng[0] as f64).hypot(h.ng[1] as f64).hypot(h.ng[2] as f64);
+                                if len > 0.0 {
+                                    let sign = if h.ng[2] < 0.0 { -1.0 } else { 1.0 } / len;
+                                    let n = h.ng.map(|c| c as f64 * sign);
+                                    let p = [x, y, z_top as f64 - h.t as f64];
+                                    out[s * 16 + lane] = Sample {
+                                        org: [0, 1, 2].map(|a| (p[a] + eps * n[a]) as f32),
+                                        n: n.map(|c| c as f32),
+                                        hit: true,
+                                    };
+                                }
+                            }
+                        }
+                    }
+                });
+        });
+        let mut coverage = vec![0.0f32; nx * ny];
+        let mut uncovered = 0;
+        for j in 0..ny {
+            for i in 0..nx {
+                let (b, lane) = ((j / 4) * bx + i / 4, (j % 4) * 4 + i % 4);
+                let hits = (0..spp)
+                    .filter(|s| samples[(b * spp + s) * 16 + lane].hit)
+                    .count();
+                coverage[j * nx + i] = hits as f32 / spp as f32;
+                uncovered += (hits == 0) as usize;
+            }
+        }
+        self.report.primary_rays = (nx * ny * spp) as u64;
+        self.report.uncovered_texels = uncovered;
+        self.samples = samples;
+        self.coverage = coverage;
+    }
+
+    /// Traces every light of `lights` in order and hands each K plane to `sink`.
+    pub fn trace(&mut self, lights: &LightSet, sink: &mut Sink) -> Result<BakeReport> {
+        let t0 = Instant::now();
+        let [nx, ny] = self.cfg.res;
+        let centre = [self.tile[0] / 2.0, self.tile[1] / 2.0, 0.0];
+        let mut rep = BakeReport {
+            primary_rays: self.report.primary_rays,
+            uncovered_texels: self.report.uncovered_texels,
+            seconds_scene: self.report.seconds_scene,
+            seconds_primary: self.report.seconds_primary,
+            ..Default::default()
+        };
+        let mut k_plane = vec![0.0f32; nx * ny];
+        let mut uv_plane = vec![[0.0f32; 2]; nx * ny];
+        // Plan every light and build the scenes it needs first: scenes are built sequentially
+        // and never while tracing.
+        let mut plans = Vec::with_capacity(lights.len());
+        for (li, &l) in lights.dirs.iter().enumerate() {
+            let light = match self.cfg.light_distance {
+                _ if l[2] <= 0.0 => None,
+                None => Some(Light::Distant(l.map(|c| c as f32))),
+                Some(r) => Some(Light::Point([0, 1, 2].map(|a| centre[a] + r * l[a]))),
+            };
+            let copies = match light {
+                None => Vec::new(),
+                Some(Light::Distant(_)) => {
+                    tiling::copies_for_direction(self.tile, &self.bounds, l, self.margin)
+                }
+                Some(Light::Point(p)) => {
+                    tiling::copies_for_point(self.tile, &self.bounds, p, self.margin)
+                }
+            };
+            rep.rings.push(tiling::rings(&copies));
+            rep.copies.push(copies.len());
+            match light {
+                Some(_) => {
+                    self.scene_for(&copies)?;
+                }
+                None => rep.below_horizon.push(li),
+            }
+            plans.push((light, copies));
+        }
+        for (li, (light, copies)) in plans.into_iter().enumerate() {
+            let scene = light.map(|_| &self.shadow_scenes[&copies]);
+            let run = Run {
+                scene,
+                light,
+                spp: self.cfg.spp as usize,
+                z_cap: self.z_cap,
+                packets: self.cfg.packets,
+            };
+            let samples = &self.samples;
+            let blocks: Vec<BlockResult> = self.pool.install(|| {
+                samples
+                    .par_chunks(run.spp * 16)
+                    .map(|chunk| run.block(chunk))
+                    .collect()
+            });
+            let bx = self.blocks[0];
+            for (b, r) in blocks.iter().enumerate() {
+                rep.shadow_rays += r.traced;
+                rep.shadow_rays_skipped += r.skipped;
+                for lane in 0..16 {
+                    let (i, j) = ((b % bx) * 4 + lane % 4, (b / bx) * 4 + lane / 4);
+                    if i < nx && j < ny {
+                        k_plane[j * nx + i] = r.k[lane];
+                        uv_plane[j * nx + i] = r.uv[lane];
+                    }
+                }
+            }
+            let uv = matches!(run.light, Some(Light::Point(_))).then_some(&uv_plane[..]);
+            sink(li, &k_plane, uv)?;
+        }
+        rep.seconds_shadow = t0.elapsed().as_secs_f64();
+        Ok(rep)
+    }
+
+    /// The shadow scene of distant direction `l` (for the raw-Embree benchmark).
+    pub fn scene_for_direction(&mut self, l: [f64; 3]) -> Result<&Scene> {
+        let copies = tiling::copies_for_direction(self.tile, &self.bounds, l, self.margin);
+        self.scene_for(&copies)
+    }
+
+    /// Shadow-ray origins and normals of the primary hits, block-major as traced (for the
+    /// raw-Embree benchmark): `(org, n, hit)`.
+    pub fn primary_samples(&self) -> impl Iterator<Item = ([f32; 3], [f32; 3], bool)> + '_ {
+        self.samples.iter().map(|s| (s.org, s.n, s.hit))
+    }
+
+    /// The clamp plane of shadow rays (mesh units).
+    pub fn z_cap(&self) -> f64 {
+        self.z_cap
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Light {
+    /// Unit direction towards a distant light.
+    Distant([f32; 3]),
+    /// Position of a point light (mesh units).
+    Point([f64; 3]),
+}
+
+struct BlockResult {
+    k: [f32; 16],
+    uv: [[f32; 2]; 16],
+    traced: u64,
+    skipped: u64,
+}
+
+/// One light's tracing state, shared by all blocks.
+struct Run<'a> {
+    scene: Option<&'a Scene>,
+    light: Option<Light>,
+    spp: usize,
+    z_cap: f64,
+    packets: bool,
+}
+
+impl Run<'_> {
+    /// Shadow ray of one sample: direction (unit for distant lights, to the light for point
+    /// lights), tfar, and whether the surface faces the light at all.
+    fn ray(&self, s: &Sample) -> ([f32; 3], f32, bool) {
+        let (dir, z_room) = match self.light {
+            Some(Light::Distant(l)) => (l, self.z_cap as f32 - s.org[2]),
+            Some(Light::Point(p)) => (
+                [0, 1, 2].map(|a| (p[a] - s.org[a] as f64) as f32),
+                self.z_cap as f32 - s.org[2],
+            ),
+            None => return ([0.0; 3], 0.0, false),
+        };
+        let facing = dir[0] * s.n[0] + dir[1] * s.n[1] + dir[2] * s.n[2] > 0.0;
+        // tfar: to the top clamp plane (nothing lies above it) and, for a point light, no
+        // further than the light (t = 1).
+        let mut tfar = if dir[2] > 0.0 {
+            (z_room / dir[2]).max(0.0)
+        } else {
+            f32::INFINITY
+        };
+        if matches!(self.light, Some(Light::Point(_))) {
+            tfar = tfar.min(1.0);
+        }
+        (dir, tfar, facing)
+    }
+
+    fn block(&self, chunk: &[Sample]) -> BlockResult {
+        let mut occluded = [0u32; 16];
+        let mut covered = [0u32; 16];
+        let mut dir_sum = [[0.0f64; 3]; 16];
+        let (mut traced, mut skipped) = (0u64, 0u64);
+        for s in 0..self.spp {
+            let lanes = &chunk[s * 16..s * 16 + 16];
+            let mut valid = embree::Valid16::default();
+            let mut rays = embree::empty_ray16();
+            for (lane, smp) in lanes.iter().enumerate() {
+                if !smp.hit {
+                    continue;
+                }
+                covered[lane] += 1;
+                let (dir, tfar, facing) = self.ray(smp);
+                if let Some(Light::Point(_)) = self.light {
+                    let len = dir.iter().map(|&c| c as f64 * c as f64).sum::<f64>().sqrt();
+                    for a in 0..3 {
+                        dir_sum[lane][a] += dir[a] as f64 / len;
+                    }
+                }
+                if !facing {
+                    occluded[lane] += 1;
+                    skipped += 1;
+                    continue;
+                }
+                match (self.scene, self.packets) {
+                    (Some(scene), false) => {
+                        traced += 1;
+                        occluded[lane] += scene.occluded1(smp.org, dir, 0.0, tfar) as u32;
+                    }
+                    _ => {
+                        valid.0[lane] = -1;
+                        rays.org_x[lane] = smp.org[0];
+                        rays.org_y[lane] = smp.org[1];
+                        rays.org_z[lane] = smp.org[2];
+                        rays.dir_x[lane] = dir[0];
+                        rays.dir_y[lane] = dir[1];
+                        rays.dir_z[lane] = dir[2];
+                        rays.tfar[lane] = tfar;
+                    }
+                }
+            }
+            if let (Some(scene), true) = (self.scene, self.packets) {
+                if valid.0.iter().any(|&v| v != 0) {
+                    scene.occluded16(&valid, &mut rays);
+                    for (lane, occ) in occluded.iter_mut().enumerate() {
+                        if valid.0[lane] != 0 {
+                            traced += 1;
+                            *occ += Scene::lane_occluded(&rays, lane) as u32;
+                        }
+                    }
+                }
+            }
+        }
+        let mut out = BlockResult {
+            k: [0.0; 16],
+            uv: [[0.0; 2]; 16],
+            traced,
+            skipped,
+        };
+        for lane in 0..16 {
+            if covered[lane] > 0 {
+                out.k[lane] = occluded[lane] as f32 / covered[lane] as f32;
+                let d = dir_sum[lane];
+                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                if len > 0.0 {
+                    out.uv[lane] = [(d[0] / len) as f32, (d[1] / len) as f32];
+                }
+            }
+        }
+        out
+    }
+}
+
+/// Two uniform numbers in [0, 1) from (texel, sample, seed): SplitMix64 finalisers over a
+/// combined key, 24 bits each (exact in f32 and f64).
+fn jitter(texel: u64, sample: u64, seed: u64) -> (f64, f64) {
+    let h = mix(mix(seed ^ 0x9e37_79b9_7f4a_7c15).wrapping_add(texel)
+        ^ mix(sample.wrapping_add(0x632b_e59b_d9b4_e019)));
+    let u = (h >> 40) as f64 / (1u64 << 24) as f64;
+    let v = ((h >> 16) & 0xff_ffff) as f64 / (1u64 << 24) as f64;
+    (u, v)
+}
+
+fn mix(mut z: u64) -> u64 {
+    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
+}
+
+/// A plane collector: every light's K plane (and uv planes for point lights) in memory, for
+/// `-o samples.exr` and tests.
+#[derive(Clone, Debug, Default)]
+pub struct Planes {
+    pub k: Vec<Vec<f32>>,
+    pub uv: Option<Vec<Vec<[f32; 2]>>>,
+}
+
+impl Planes {
+    pub fn push(&mut self, index: usize, k: &[f32], uv: Option<&[[f32; 2]]>) -> Result<()> {
+        debug_assert_eq!(index, self.k.len());
+        self.k.push(k.to_vec());
+        if let Some(uv) = uv {
+            self.uv.get_or_insert_with(Vec::new).push(uv.to_vec());
+        }
+        Ok(())
+    }
+}
+
+/// Bakes `lights` over `swatch` into memory: (planes, coverage, report).
+pub fn bake_planes(
+    swatch: &Swatch,
+    lights: &LightSet,
+    cfg: &BakeConfig,
+) -> Result<(Planes, Vec<f32>, BakeReport)> {
+    let mut baker = Baker::new(swatch, cfg)?;
+    let mut planes = Planes::default();
+    let report = baker.trace(lights, &mut |i, k, uv| planes.push(i, k, uv))?;
+    Ok((planes, baker.coverage().to_vec(), report))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn jitter_is_uniform_and_decorrelated() {
+        let mut mean = [0.0; 2];
+        let n = 10_000;
+        for t in 0..n {
+            let (u, v) = jitter(t, 3, 7);
+            assert!((0.0..1.0).contains(&u) && (0.0..1.0).contains(&v));
+            mean[0] += u / n as f64;
+            mean[1] += v / n as f64;
+        }
+        assert!(
+            (mean[0] - 0.5).abs() < 0.01 && (mean[1] - 0.5).abs() < 0.01,
+            "{mean:?}"
+        );
+        assert_ne!(jitter(1, 0, 0), jitter(0, 1, 0));
+        assert_ne!(jitter(0, 0, 1), jitter(0, 0, 0));
+    }
+}
