@@ -15,6 +15,8 @@
 pub mod atomic;
 pub mod basis;
 mod exrio;
+pub mod hp;
+pub mod images;
 pub mod lights;
 pub mod ptm;
 pub mod solve;
