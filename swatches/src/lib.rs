@@ -105,13 +105,28 @@ pub const NAMES: &[(&str, &str)] = &[
 
 /// A builtin swatch by spec `NAME[?k=v&...]`, e.g. `plain-weave` or `twill?n=2&m=1`.
 pub fn builtin(spec: &str) -> Result<Mesh> {
+    build(spec).map(|s| s.mesh)
+}
+
+/// A generated swatch: its mesh, the yarns it was swept from and their closest approach.
+#[derive(Clone, Debug)]
+pub struct Swatch {
+    /// Canonical generator name (`plain-weave`, `jersey`, ...).
+    pub name: String,
+    pub mesh: Mesh,
+    pub cloth: Cloth,
+    pub clearance: yarn::Clearance,
+}
+
+/// [`builtin`], keeping the yarns and the clearance (for reports and tests).
+pub fn build(spec: &str) -> Result<Swatch> {
     let (name, params) = params::parse_spec(spec)?;
     generate(&name, &params)
 }
 
 /// A builtin swatch by name and parameters. Refuses unknown names, unknown parameters, values
 /// out of range and parameter sets whose yarns would overlap.
-pub fn generate(name: &str, p: &Params) -> Result<Mesh> {
+pub fn generate(name: &str, p: &Params) -> Result<Swatch> {
     let canonical = match name {
         "plain" | "plain-weave" => "plain-weave",
         "stockinette" | "jersey" => "jersey",
@@ -171,12 +186,18 @@ pub fn generate(name: &str, p: &Params) -> Result<Mesh> {
         }
     };
     p.finish()?;
-    check_clearance(canonical, &cloth)?;
-    Ok(cloth.mesh(segments))
+    let clearance = check_clearance(canonical, &cloth)?;
+    Ok(Swatch {
+        name: canonical.to_string(),
+        mesh: cloth.mesh(segments),
+        cloth,
+        clearance,
+    })
 }
 
-/// Refuses a cloth whose yarns overlap (beyond rounding: 1e-9 of the tile).
-pub fn check_clearance(swatch: &str, cloth: &Cloth) -> Result<()> {
+/// The cloth's clearance, or an error when its yarns overlap (beyond rounding: 1e-9 of the
+/// tile).
+pub fn check_clearance(swatch: &str, cloth: &Cloth) -> Result<yarn::Clearance> {
     let c = cloth.clearance();
     if c.gap < -1e-9 * cloth.tile[0].max(cloth.tile[1]) {
         return Err(Error::Overlap {
@@ -185,10 +206,17 @@ pub fn check_clearance(swatch: &str, cloth: &Cloth) -> Result<()> {
             a: c.yarns.0,
             b: c.yarns.1,
             at: c.at,
-            hint: "make the yarns thinner or further apart (or raise the crimp)".to_string(),
+            hint: match swatch {
+                "jersey" | "rib" => {
+                    "use a thinner yarn (radius), deeper loops (d) or a larger course spacing (row)"
+                }
+                "velvet" | "terry" => "make the ground yarns thinner or raise the crimp",
+                _ => "make the yarns thinner or further apart, or raise the crimp",
+            }
+            .to_string(),
         });
     }
-    Ok(())
+    Ok(c)
 }
 
 fn line_text(line: &usize) -> String {

@@ -90,12 +90,34 @@ pub fn from_params(name: &str, p: &Params) -> Result<(Cloth, usize)> {
     let z0 = wp.crimp + 0.5 * wp.height + radius * (tilt.sin() + 0.02);
     let target = (density * w * h).round() as usize;
 
-    // Footprints: the xy segment under each tuft's centre line.
+    // Footprints: the xy segment under each tuft's centre line. Discs of diameter `min_gap`
+    // around the feet cannot pack denser than the hexagonal packing: refuse beyond it at once.
+    let min_gap = 2.1 * radius;
+    let packing = 2.0 / (3.0f64.sqrt() * min_gap * min_gap);
+    if density > packing {
+        return Err(p.invalid(
+            "density",
+            density,
+            format!("at most about {packing:.3} tufts per unit area with radius {radius} (hexagonal packing)"),
+        ));
+    }
+    let longest = if loops { 2.0 * half } else { pile * tilt.sin() };
+    // A grid of cells at least one interaction reach wide, by the first endpoint of each foot.
+    let reach = longest + min_gap;
+    let cells = [
+        (w / reach).floor().max(1.0) as usize,
+        (h / reach).floor().max(1.0) as usize,
+    ];
+    let mut grid: Vec<Vec<usize>> = vec![Vec::new(); cells[0] * cells[1]];
+    let cell_of = |q: [f64; 2]| {
+        let cx = ((q[0] / w * cells[0] as f64) as usize).min(cells[0] - 1);
+        let cy = ((q[1] / h * cells[1] as f64) as usize).min(cells[1] - 1);
+        [cx, cy]
+    };
     let mut feet: Vec<([f64; 2], [f64; 2])> = Vec::with_capacity(target);
     let mut rng = Rng(seed ^ 0x005E_ED0F_F1B5);
-    let min_gap = 2.1 * radius;
     let mut attempts = 0;
-    while feet.len() < target && attempts < 200 * target.max(1) {
+    while feet.len() < target && attempts < 100 * target.max(1) {
         attempts += 1;
         let c = [rng.uniform() * w, rng.uniform() * h];
         let phi = rng.uniform() * std::f64::consts::TAU;
@@ -109,7 +131,19 @@ pub fn from_params(name: &str, p: &Params) -> Result<(Cloth, usize)> {
             let lean = pile * (rng.uniform() * tilt).sin();
             (c, [c[0] + lean * cp, c[1] + lean * sp])
         };
-        let ok = feet.iter().all(|&(a, b)| {
+        // Neighbouring cells, wrapped and deduplicated (small grids wrap onto themselves).
+        let home = cell_of(c);
+        let mut near: Vec<usize> = Vec::with_capacity(9);
+        for dx in [cells[0] - 1, 0, 1] {
+            for dy in [cells[1] - 1, 0, 1] {
+                let k = ((home[1] + dy) % cells[1]) * cells[0] + (home[0] + dx) % cells[0];
+                if !near.contains(&k) {
+                    near.push(k);
+                }
+            }
+        }
+        let ok = near.iter().flat_map(|&k| grid[k].iter()).all(|&f| {
+            let (a, b) = feet[f];
             (-1..=1).all(|ox| {
                 (-1..=1).all(|oy| {
                     let o = [ox as f64 * w, oy as f64 * h];
@@ -120,6 +154,8 @@ pub fn from_params(name: &str, p: &Params) -> Result<(Cloth, usize)> {
             })
         });
         if ok {
+            let [cx, cy] = home;
+            grid[cy * cells[0] + cx].push(feet.len());
             feet.push(seg);
         }
     }
@@ -195,7 +231,7 @@ pub fn corduroy(p: &Params) -> Result<(Cloth, usize)> {
     let r = p.positive("radius", 0.4 * s, 0.5 * s)?;
     let slab = p.positive("slab", 0.1 * s, 10.0 * s)?;
     let segments = p.int("segments", 24, 3, 1024)? as usize;
-    let along = p.int("along", 4, 1, 1024)? as usize;
+    let along = p.int("along", 4, 3, 1024)? as usize;
     let tile = [s, s];
     let n = along;
     let centre = (0..=n)
@@ -210,25 +246,36 @@ pub fn corduroy(p: &Params) -> Result<(Cloth, usize)> {
         },
         [0.0, 0.0, 1.0],
     );
-    // The slab: its top and bottom faces, each two triangles spanning the tile. On the tile
-    // torus the four corners are one vertex and the faces close up (see the crate docs).
-    let (w, h) = (s as f32, s as f32);
-    let z1 = -slab as f32;
-    let extra = Mesh {
-        positions: vec![
-            [0.0, 0.0, 0.0],
-            [w, 0.0, 0.0],
-            [w, h, 0.0],
-            [0.0, h, 0.0],
-            [0.0, 0.0, z1],
-            [w, 0.0, z1],
-            [w, h, z1],
-            [0.0, h, z1],
-        ],
-        // Top faces up (counter-clockwise seen from above), bottom faces down.
-        triangles: vec![[0, 1, 2], [0, 2, 3], [4, 6, 5], [4, 7, 6]],
-        tile: [w, h],
+    // The slab: its top and bottom faces, each a 3×3 grid of squares spanning the tile. On the
+    // tile torus the borders are identified and the faces close up (see the crate docs); 3 is
+    // the least grid whose torus edges all join distinct vertices, and odd, so no slab vertex
+    // sits under the wale's axis x = s/2 where the wale's lowest ring vertices touch z = 0.
+    let g = 3;
+    let mut extra = Mesh {
+        tile: [s as f32; 2],
+        ..Mesh::default()
     };
+    for (z, up) in [(0.0, true), (-slab, false)] {
+        let base = extra.positions.len() as u32;
+        for j in 0..=g {
+            for i in 0..=g {
+                let (x, y) = (s * i as f64 / g as f64, s * j as f64 / g as f64);
+                extra.positions.push([x as f32, y as f32, z as f32]);
+            }
+        }
+        let id = |i: usize, j: usize| base + (j * (g + 1) + i) as u32;
+        for j in 0..g {
+            for i in 0..g {
+                let (a, b, c, d) = (id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1));
+                // Top faces up (counter-clockwise seen from above), bottom faces down.
+                if up {
+                    extra.triangles.extend([[a, b, c], [a, c, d]]);
+                } else {
+                    extra.triangles.extend([[a, c, b], [a, d, c]]);
+                }
+            }
+        }
+    }
     Ok((
         Cloth {
             tile,
