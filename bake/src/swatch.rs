@@ -20,8 +20,10 @@ pub struct Seam {
     /// 0: the sections at x = 0 and x = W; 1: at y = 0 and y = H.
     pub axis: usize,
     /// Largest distance from a point of one section to the other section, in mesh units;
-    /// infinite when only one border has geometry, 0 when neither has.
-    pub mismatch: f64,
+    /// infinite when only one border has geometry, 0 when neither has. `None` when the mesh
+    /// reaches across the tile border on this axis: then the neighbours' overhangs complete
+    /// each section and the mesh's own sections need not match.
+    pub mismatch: Option<f64>,
 }
 
 /// A checked swatch ready to bake: non-degenerate triangles, tile and bounds.
@@ -129,9 +131,11 @@ impl Swatch {
             return Err(bad(format!("all {total} triangles have zero area")));
         }
         let bounds = bounds(&positions, &triangles);
+        let tol = 1e-6 * scale;
         let seams = [0, 1].map(|axis| Seam {
             axis,
-            mismatch: seam_mismatch(&positions, &triangles, axis, tile[axis]),
+            mismatch: (bounds.min[axis] >= -tol && bounds.max[axis] <= tile[axis] + tol)
+                .then(|| seam_mismatch(&positions, &triangles, axis, tile[axis])),
         });
         Ok(Self {
             origin: origin.to_string(),
@@ -164,12 +168,15 @@ impl Swatch {
         }
         let tol = 1e-4 * self.scale();
         for s in &self.seams {
-            if s.mismatch > tol {
+            if s.mismatch.is_some_and(|m| m > tol) {
                 let (a, b) = if s.axis == 0 { ("x", "W") } else { ("y", "H") };
                 w.push(format!(
                     "{}: not periodic over the {}×{} tile: its cross-sections at {a} = 0 and \
                      {a} = {b} differ by up to {:.3e} (tolerance {tol:.1e}); seams will show",
-                    self.origin, self.tile[0], self.tile[1], s.mismatch
+                    self.origin,
+                    self.tile[0],
+                    self.tile[1],
+                    s.mismatch.unwrap_or(0.0)
                 ));
             }
         }
@@ -358,7 +365,7 @@ mod tests {
         assert_eq!(s.shift, [-1.0, -1.0]);
         assert_eq!(s.bounds.min, [0.0, 0.0, 0.0]);
         // A flat quad is periodic: its sections at opposite borders coincide.
-        assert_eq!(s.seams.map(|s| s.mismatch), [0.0, 0.0]);
+        assert_eq!(s.seams.map(|s| s.mismatch), [Some(0.0), Some(0.0)]);
         assert_eq!(s.warnings().len(), 1, "{:?}", s.warnings());
 
         let cases = [
@@ -424,8 +431,12 @@ mod tests {
             tile: [1.0, 1.0],
         };
         let s = Swatch::from_mesh(mesh, None, "ramp").unwrap();
-        assert!((s.seams[0].mismatch - 0.3).abs() < 1e-6, "{:?}", s.seams);
-        assert_eq!(s.seams[1].mismatch, 0.0);
+        assert!(
+            (s.seams[0].mismatch.unwrap() - 0.3).abs() < 1e-6,
+            "{:?}",
+            s.seams
+        );
+        assert_eq!(s.seams[1].mismatch, Some(0.0));
         let w = s.warnings();
         assert!(
             w.len() == 1 && w[0].contains("x = 0") && w[0].contains("3.000e-1"),
