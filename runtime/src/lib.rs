@@ -1,2 +1,49 @@
 //! `ptm-runtime`: wgpu/WGSL shading of a cloth plane under spherical area lights, with penumbra-map
 //! soft shadows from a planar caster and micro-occlusion from an occlusion PTM; and its CPU twin.
+//!
+//! Data flow: a [`Scene`] (public-field config) is [`Scene::prepare`]d into [`Prepared`] — the
+//! uniform block, light list, texel-major PTM coefficients and caster opacity exactly as the GPU
+//! sees them. [`gpu::render`] runs the WGSL variant assembled for that scene ([`shader`]);
+//! [`cpu::render`] is its twin in Rust (same names, same maths) and the reference the tests
+//! compare the GPU with. [`penumbra`] holds the blur-radius geometry and the Monte Carlo ground
+//! truth; [`sat`] the summed-area table of the caster opacity (u32 counts, exact).
+
+// Per-channel loops index several parallel arrays (rgb of albedo, colour, opacity) at once, as
+// the WGSL does with vectors; iterator zips would hide that correspondence.
+#![allow(clippy::needless_range_loop)]
+
+pub mod cpu;
+pub mod gpu;
+pub mod output;
+pub mod penumbra;
+pub mod sat;
+pub mod scene;
+pub mod shader;
+
+pub use gpu::{Gpu, Timings};
+pub use output::Image;
+pub use scene::{Blur, Caster, Light, Prepared, Scene};
+
+/// Errors of the runtime crate. Messages name the input and, where there is something to do, what.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(
+        "no GPU adapter found ({0}); install a Vulkan driver (on Debian: apt-get install \
+         mesa-vulkan-drivers libvulkan1 for the lavapipe software adapter)"
+    )]
+    NoAdapter(String),
+    #[error("creating the GPU device on {adapter}: {reason}")]
+    Device { adapter: String, reason: String },
+    #[error("GPU {stage}: {reason}")]
+    Gpu { stage: &'static str, reason: String },
+    #[error("shader variant {variant}: {reason}")]
+    Shader { variant: String, reason: String },
+    #[error("{path}: {reason}")]
+    Image { path: String, reason: String },
+    #[error("invalid scene: {0}")]
+    Scene(String),
+    #[error(transparent)]
+    Fit(#[from] ptm_fit::Error),
+}
+
+pub type Result<T> = std::result::Result<T, Error>;

@@ -1,0 +1,234 @@
+//! The CPU twin of `shade.wgsl`: same function names, same maths, same f32 arithmetic, reading
+//! the same [`Prepared`] buffers. Tests compare the GPU image with it (≤ 1e-3 linear radiance).
+
+use rayon::prelude::*;
+
+use crate::output::Image;
+use crate::sat;
+use crate::scene::{Blur, Frame, LightGpu, Prepared};
+
+/// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
+/// result does not depend on the thread count).
+pub fn render(p: &Prepared) -> Image {
+    let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
+    let table = match p.variant.caster {
+        Some(Blur::Sat) => sat::build_cpu(
+            &p.opacity,
+            p.frame.counts[1] as usize,
+            p.frame.counts[2] as usize,
+            p.variant.sat_channels() as usize,
+        ),
+        _ => Vec::new(),
+    };
+    let twin = Twin { p, sat: &table };
+    let mut pixels = vec![[0f32; 4]; w * h];
+    pixels.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        for (i, px) in row.iter_mut().enumerate() {
+            let frag = [i as f32 + 0.5, j as f32 + 0.5];
+            let r = twin.shade(pixel_world(&p.frame, frag));
+            *px = [r[0], r[1], r[2], 1.0];
+        }
+    });
+    Image {
+        width: w,
+        height: h,
+        pixels,
+    }
+}
+
+/// World (x, y) of a pixel centre; `frag` is the pixel index + 0.5; row 0 is y1.
+pub fn pixel_world(f: &Frame, frag: [f32; 2]) -> [f32; 2] {
+    let t = [frag[0] / f.screen[0], frag[1] / f.screen[1]];
+    [
+        f.view[0] + (f.view[2] - f.view[0]) * t[0],
+        f.view[3] - (f.view[3] - f.view[1]) * t[1],
+    ]
+}
+
+/// Texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights, as `tile_bilinear` in WGSL.
+pub fn tile_bilinear(f: &Frame, p: [f32; 2], n: [u32; 2]) -> ([usize; 4], [f32; 4]) {
+    let s = [p[0] / f.screen[2], p[1] / f.screen[3]];
+    let fr = [s[0] - s[0].floor(), 1.0 - (s[1] - s[1].floor())];
+    let c = [fr[0] * n[0] as f32 - 0.5, fr[1] * n[1] as f32 - 0.5];
+    let c0 = [c[0].floor(), c[1].floor()];
+    let a = [c[0] - c0[0], c[1] - c0[1]];
+    let ni = [n[0] as i32, n[1] as i32];
+    let x0 = (c0[0] as i32).rem_euclid(ni[0]);
+    let y0 = (c0[1] as i32).rem_euclid(ni[1]);
+    let x1 = (x0 + 1) % ni[0];
+    let y1 = (y0 + 1) % ni[1];
+    let idx = |x: i32, y: i32| (y * ni[0] + x) as usize;
+    (
+        [idx(x0, y0), idx(x1, y0), idx(x0, y1), idx(x1, y1)],
+        [
+            (1.0 - a[0]) * (1.0 - a[1]),
+            a[0] * (1.0 - a[1]),
+            (1.0 - a[0]) * a[1],
+            a[0] * a[1],
+        ],
+    )
+}
+
+/// Mean of `n` values per texel at the four bilinear taps.
+fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4])) -> [f32; N] {
+    let mut out = [0f32; N];
+    for (k, o) in out.iter_mut().enumerate().take(n) {
+        let (i, w) = taps;
+        *o = w[0] * data[i[0] * n + k]
+            + w[1] * data[i[1] * n + k]
+            + w[2] * data[i[2] * n + k]
+            + w[3] * data[i[3] * n + k];
+    }
+    out
+}
+
+struct Twin<'a> {
+    p: &'a Prepared,
+    sat: &'a [u32],
+}
+
+impl Twin<'_> {
+    fn f(&self) -> &Frame {
+        &self.p.frame
+    }
+
+    /// Bilinearly filtered PTM coefficients at p.
+    fn ptm_coeffs(&self, p: [f32; 2]) -> [f32; 16] {
+        let f = self.f();
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        let taps = tile_bilinear(f, p, [f.sizes[0], f.sizes[1]]);
+        bilerp::<16>(&self.p.coeffs, n, &taps)
+    }
+
+    /// K(u, v), clamped to [0, 1] after evaluation.
+    fn ptm_k(&self, c: &[f32; 16], u: f32, v: f32) -> f32 {
+        let basis = self.p.variant.basis.expect("ptm_k without a PTM");
+        basis.eval(&c[..basis.len()], u, v).clamp(0.0, 1.0)
+    }
+
+    fn albedo_at(&self, p: [f32; 2]) -> [f32; 3] {
+        let f = self.f();
+        if !self.p.variant.albedo_texture {
+            return [f.albedo[0], f.albedo[1], f.albedo[2]];
+        }
+        let taps = tile_bilinear(f, p, [f.sizes[2], f.sizes[3]]);
+        let flat: &[f32] = bytemuck::cast_slice(&self.p.albedo);
+        let a = bilerp::<4>(flat, 4, &taps);
+        [a[0], a[1], a[2]]
+    }
+
+    fn caster_texel_coords(&self, q: [f32; 2]) -> [f32; 2] {
+        let f = self.f();
+        let r = f.caster_rect;
+        let size = [f.counts[1] as f32, f.counts[2] as f32];
+        [
+            (q[0] - r[0]) / (r[2] - r[0]) * size[0],
+            (r[3] - q[1]) / (r[3] - r[1]) * size[1],
+        ]
+    }
+
+    fn opacity_at(&self, t: [f32; 2]) -> [f32; 3] {
+        opacity_at(&self.p.opacity, self.f().counts[1], self.f().counts[2], t)
+    }
+
+    fn blur_explicit(&self, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+        let cap = self.f().counts[3];
+        let n = ((2.0 * wt[0].max(wt[1])).ceil() as u32 + 1).clamp(4, cap);
+        let mut sum = [0f32; 3];
+        let mut count = 0f32;
+        for j in 0..n {
+            for i in 0..n {
+                let o = [
+                    (i as f32 + 0.5) / n as f32 * 2.0 - 1.0,
+                    (j as f32 + 0.5) / n as f32 * 2.0 - 1.0,
+                ];
+                if o[0] * o[0] + o[1] * o[1] <= 1.0 {
+                    let v = self.opacity_at([t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]]);
+                    for c in 0..3 {
+                        sum[c] += v[c];
+                    }
+                    count += 1.0;
+                }
+            }
+        }
+        sum.map(|s| s / count)
+    }
+
+    fn blur_sat(&self, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+        let f = self.f();
+        sat::box_mean(
+            self.sat,
+            f.counts[1],
+            f.counts[2],
+            self.p.variant.sat_channels(),
+            t,
+            wt,
+        )
+    }
+
+    /// Mean caster opacity seen from p towards light l (see `light_opacity` in WGSL).
+    fn light_opacity(&self, p: [f32; 2], l: &LightGpu) -> [f32; 3] {
+        let f = self.f();
+        let h = f.caster[0];
+        let [lx, ly, lz, radius] = l.position_radius;
+        if lz <= h {
+            return [0.0; 3];
+        }
+        let s = (lz - h) / lz;
+        let q = [lx + s * (p[0] - lx), ly + s * (p[1] - ly)];
+        let w = radius * h / lz;
+        let texel = [
+            (f.caster_rect[2] - f.caster_rect[0]) / f.counts[1] as f32,
+            (f.caster_rect[3] - f.caster_rect[1]) / f.counts[2] as f32,
+        ];
+        let wt = [(w / texel[0]).max(0.5), (w / texel[1]).max(0.5)];
+        let t = self.caster_texel_coords(q);
+        match self.p.variant.caster {
+            Some(Blur::Sat) => self.blur_sat(t, wt),
+            _ => self.blur_explicit(t, wt),
+        }
+    }
+
+    /// Linear radiance leaving acceptor point p.
+    fn shade(&self, p: [f32; 2]) -> [f32; 3] {
+        let albedo = self.albedo_at(p);
+        let c = self.p.variant.basis.map(|_| self.ptm_coeffs(p));
+        let mut radiance = [0f32; 3];
+        for light in &self.p.lights[..self.f().counts[0] as usize] {
+            let lp = light.position_radius;
+            let to_light = [lp[0] - p[0], lp[1] - p[1], lp[2]];
+            let d2 =
+                to_light[0] * to_light[0] + to_light[1] * to_light[1] + to_light[2] * to_light[2];
+            if d2 <= 0.0 || to_light[2] <= 0.0 {
+                continue;
+            }
+            let d = d2.sqrt();
+            let l = to_light.map(|x| x / d);
+            let mut visible = [1f32; 3];
+            if let Some(c) = &c {
+                let k = self.ptm_k(c, l[0], l[1]);
+                visible = visible.map(|v| v * (1.0 - k));
+            }
+            if self.p.variant.caster.is_some() {
+                let o = self.light_opacity(p, light);
+                for ch in 0..3 {
+                    visible[ch] *= 1.0 - o[ch];
+                }
+            }
+            for ch in 0..3 {
+                radiance[ch] += albedo[ch] * light.color[ch] * (l[2] / d2) * visible[ch];
+            }
+        }
+        radiance
+    }
+}
+
+/// Opacity (per channel, 0..1) of the caster texel containing texel coordinate t; transparent
+/// outside the caster.
+pub fn opacity_at(opacity: &[u32], w: u32, h: u32, t: [f32; 2]) -> [f32; 3] {
+    if t[0] < 0.0 || t[1] < 0.0 || t[0] >= w as f32 || t[1] >= h as f32 {
+        return [0.0; 3];
+    }
+    let o = opacity[t[1] as usize * w as usize + t[0] as usize];
+    [o & 255, (o >> 8) & 255, (o >> 16) & 255].map(|c| c as f32 / 255.0)
+}

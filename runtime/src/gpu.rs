@@ -1,0 +1,450 @@
+//! Headless wgpu: device creation, buffers of a [`Prepared`] scene, the SAT compute passes,
+//! the shading render pass into an `Rgba32Float` target, and readback (rows padded to 256 B).
+//!
+//! Timings are wall-clock seconds around each submission plus a blocking wait, so they include
+//! submission overhead; on lavapipe the "GPU" is the CPU.
+
+use std::time::Instant;
+
+use wgpu::util::DeviceExt;
+
+use crate::output::Image;
+use crate::scene::{Blur, Prepared};
+use crate::{sat, shader, Error, Result};
+
+/// Seconds per pass, in execution order (e.g. `upload`, `sat_build`, `shade`, `readback`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Timings {
+    pub passes: Vec<(&'static str, f64)>,
+}
+
+impl Timings {
+    pub fn get(&self, name: &str) -> Option<f64> {
+        self.passes
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, s)| s)
+    }
+}
+
+/// A headless device and queue.
+pub struct Gpu {
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub adapter: wgpu::AdapterInfo,
+}
+
+impl Gpu {
+    /// Opens the default adapter (honours `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`,
+    /// `WGPU_POWER_PREF`); on a machine without a GPU that is lavapipe ("llvmpipe").
+    pub fn new() -> Result<Gpu> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            &instance, None,
+        ))
+        .map_err(|e| Error::NoAdapter(e.to_string()))?;
+        let info = adapter.get_info();
+        // The adapter's own limits: large casters need storage buffers beyond the defaults.
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("ptm-runtime"),
+            required_features: wgpu::Features::empty(),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error::Device {
+            adapter: info.name.clone(),
+            reason: e.to_string(),
+        })?;
+        Ok(Gpu {
+            device,
+            queue,
+            adapter: info,
+        })
+    }
+
+    /// "name (backend, device type)".
+    pub fn describe(&self) -> String {
+        format!(
+            "{} ({:?}, {:?})",
+            self.adapter.name, self.adapter.backend, self.adapter.device_type
+        )
+    }
+
+    fn wait(&self, stage: &'static str) -> Result<()> {
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map(|_| ())
+            .map_err(|e| Error::Gpu {
+                stage,
+                reason: e.to_string(),
+            })
+    }
+
+    fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        // Storage bindings cannot be empty; a feature the scene lacks has no binding at all, but
+        // e.g. zero lights still binds a (never read) buffer of at least one element.
+        let padded;
+        let contents = if bytes.len() < 64 {
+            padded = [bytes, &[0u8; 64][bytes.len()..]].concat();
+            &padded[..]
+        } else {
+            bytes
+        };
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE,
+            })
+    }
+}
+
+/// A scene uploaded to the GPU with its pipeline: render repeatedly with [`Renderer::frame`].
+pub struct Renderer<'g> {
+    gpu: &'g Gpu,
+    pipeline: wgpu::RenderPipeline,
+    bind_group: wgpu::BindGroup,
+    target: wgpu::Texture,
+    size: [u32; 2],
+    /// Setup timings (`compile`, `upload`, `sat_build`).
+    pub setup: Timings,
+}
+
+const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+
+impl<'g> Renderer<'g> {
+    pub fn new(gpu: &'g Gpu, p: &Prepared) -> Result<Renderer<'g>> {
+        let v = &p.variant;
+        let mut setup = Timings::default();
+        let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
+
+        let t = Instant::now();
+        let src = shader::shade_source(v)?;
+        let module = gpu
+            .device
+            .create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some("shade.wgsl"),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            });
+        let pipeline = gpu
+            .device
+            .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("shade"),
+                layout: None,
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_main"),
+                    compilation_options: Default::default(),
+                    buffers: &[],
+                },
+                primitive: Default::default(),
+                depth_stencil: None,
+                multisample: Default::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_main"),
+                    compilation_options: Default::default(),
+                    targets: &[Some(TARGET_FORMAT.into())],
+                }),
+                multiview_mask: None,
+                cache: None,
+            });
+        setup.passes.push(("compile", t.elapsed().as_secs_f64()));
+
+        let t = Instant::now();
+        let uniform = gpu
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("frame"),
+                contents: bytemuck::bytes_of(&p.frame),
+                usage: wgpu::BufferUsages::UNIFORM,
+            });
+        let lights = gpu.storage("lights", bytemuck::cast_slice(&p.lights));
+        let mut entries = vec![(0u32, uniform), (1, lights)];
+        if v.basis.is_some() {
+            entries.push((2, gpu.storage("coeffs", bytemuck::cast_slice(&p.coeffs))));
+        }
+        if v.albedo_texture {
+            entries.push((3, gpu.storage("albedo", bytemuck::cast_slice(&p.albedo))));
+        }
+        let mut opacity = None;
+        if v.caster.is_some() {
+            let b = gpu.storage_copyable("opacity", bytemuck::cast_slice(&p.opacity));
+            opacity = Some(b.clone());
+            // The SAT variant reads only the table built from it.
+            if v.caster == Some(Blur::Explicit) {
+                entries.push((4, b));
+            }
+        }
+        gpu.wait("upload")?;
+        setup.passes.push(("upload", t.elapsed().as_secs_f64()));
+
+        if v.caster == Some(Blur::Sat) {
+            let t = Instant::now();
+            let table = build_sat(
+                gpu,
+                opacity.as_ref().expect("caster without opacity"),
+                p.frame.counts[1],
+                p.frame.counts[2],
+                v.sat_channels(),
+            )?;
+            setup.passes.push(("sat_build", t.elapsed().as_secs_f64()));
+            entries.push((5, table));
+        }
+
+        let layout = pipeline.get_bind_group_layout(0);
+        let bind_entries: Vec<wgpu::BindGroupEntry> = entries
+            .iter()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding: *binding,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
+        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shade"),
+            layout: &layout,
+            entries: &bind_entries,
+        });
+        let size = [p.frame.screen[0] as u32, p.frame.screen[1] as u32];
+        let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("radiance"),
+            size: wgpu::Extent3d {
+                width: size[0],
+                height: size[1],
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: TARGET_FORMAT,
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+            view_formats: &[],
+        });
+        if let Some(e) = pollster::block_on(scope.pop()) {
+            return Err(Error::Shader {
+                variant: v.name(),
+                reason: e.to_string(),
+            });
+        }
+        Ok(Renderer {
+            gpu,
+            pipeline,
+            bind_group,
+            target,
+            size,
+            setup,
+        })
+    }
+
+    /// Renders one frame and waits for it; returns the seconds it took.
+    pub fn frame(&self) -> Result<f64> {
+        let t = Instant::now();
+        let view = self.target.create_view(&Default::default());
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("shade"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &self.bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        self.gpu.queue.submit([enc.finish()]);
+        self.gpu.wait("shade")?;
+        Ok(t.elapsed().as_secs_f64())
+    }
+
+    /// Copies the last frame back (rows padded to 256 bytes on the GPU side, stripped here).
+    pub fn readback(&self) -> Result<Image> {
+        let [w, h] = self.size;
+        let pixel_bytes = 16u32;
+        let bytes_per_row = (w * pixel_bytes).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let rows = read_texture(self.gpu, &self.target, bytes_per_row, h)?;
+        let mut pixels = Vec::with_capacity((w * h) as usize);
+        for row in rows.chunks_exact(bytes_per_row as usize) {
+            // The Vec<u8> need not be 4-byte aligned: copy out rather than cast in place.
+            let floats: Vec<f32> = bytemuck::pod_collect_to_vec(&row[..(w * pixel_bytes) as usize]);
+            pixels.extend(floats.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]));
+        }
+        Ok(Image {
+            width: w as usize,
+            height: h as usize,
+            pixels,
+        })
+    }
+}
+
+impl Gpu {
+    /// A storage buffer that can also be copied from (inputs to compute passes, tests).
+    fn storage_copyable(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        let contents = if bytes.is_empty() {
+            &[0u8; 16][..]
+        } else {
+            bytes
+        };
+        self.device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents,
+                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            })
+    }
+}
+
+fn read_texture(
+    gpu: &Gpu,
+    texture: &wgpu::Texture,
+    bytes_per_row: u32,
+    rows: u32,
+) -> Result<Vec<u8>> {
+    let size = (bytes_per_row * rows) as u64;
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_texture_to_buffer(
+        wgpu::TexelCopyTextureInfo {
+            texture,
+            mip_level: 0,
+            origin: wgpu::Origin3d::ZERO,
+            aspect: wgpu::TextureAspect::All,
+        },
+        wgpu::TexelCopyBufferInfo {
+            buffer: &staging,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(bytes_per_row),
+                rows_per_image: Some(rows),
+            },
+        },
+        texture.size(),
+    );
+    gpu.queue.submit([enc.finish()]);
+    map_read(gpu, &staging)
+}
+
+fn map_read(gpu: &Gpu, staging: &wgpu::Buffer) -> Result<Vec<u8>> {
+    let slice = staging.slice(..);
+    slice.map_async(wgpu::MapMode::Read, |_| {});
+    gpu.wait("readback")?;
+    let data = slice.get_mapped_range().map_err(|e| Error::Gpu {
+        stage: "readback",
+        reason: e.to_string(),
+    })?;
+    let out = data.to_vec();
+    drop(data);
+    staging.unmap();
+    Ok(out)
+}
+
+/// Builds the u32 summed-area table of a packed-opacity buffer on the GPU (`sat.wgsl`).
+pub fn build_sat(
+    gpu: &Gpu,
+    opacity: &wgpu::Buffer,
+    w: u32,
+    h: u32,
+    channels: u32,
+) -> Result<wgpu::Buffer> {
+    let module = gpu
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("sat.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(sat::SAT_WGSL.into()),
+        });
+    let params = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("sat params"),
+            contents: bytemuck::cast_slice(&[w, h, channels, 0]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    // wgpu zero-initialises buffers: row 0 and column 0 of the table stay 0.
+    let table = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("sat"),
+        size: ((w + 1) as u64 * (h + 1) as u64 * channels as u64 * 4).max(16),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    for (entry, threads) in [("sat_rows", h * channels), ("sat_columns", w * channels)] {
+        let pipeline = gpu
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        // Auto layouts hold only what the entry point uses: the column pass reads no opacity.
+        let mut entries = vec![(0, &params), (2, &table)];
+        if entry == "sat_rows" {
+            entries.push((1, opacity));
+        }
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .into_iter()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
+        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(entry),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups(threads.div_ceil(64), 1, 1);
+    }
+    gpu.queue.submit([enc.finish()]);
+    gpu.wait("sat_build")?;
+    Ok(table)
+}
+
+/// Builds the SAT of `opacity` on the GPU and reads it back (for tests and benchmarks).
+pub fn sat_table(gpu: &Gpu, opacity: &[u32], w: u32, h: u32, channels: u32) -> Result<Vec<u32>> {
+    let input = gpu.storage_copyable("opacity", bytemuck::cast_slice(opacity));
+    let table = build_sat(gpu, &input, w, h, channels)?;
+    let n = (w + 1) as u64 * (h + 1) as u64 * channels as u64 * 4;
+    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("sat readback"),
+        size: n,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    enc.copy_buffer_to_buffer(&table, 0, &staging, 0, n);
+    gpu.queue.submit([enc.finish()]);
+    Ok(bytemuck::pod_collect_to_vec(&map_read(gpu, &staging)?))
+}
+
+/// Renders a prepared scene once: setup timings, then `shade` and `readback`.
+pub fn render(gpu: &Gpu, p: &Prepared) -> Result<(Image, Timings)> {
+    let r = Renderer::new(gpu, p)?;
+    let mut timings = r.setup.clone();
+    timings.passes.push(("shade", r.frame()?));
+    let t = Instant::now();
+    let image = r.readback()?;
+    timings.passes.push(("readback", t.elapsed().as_secs_f64()));
+    Ok((image, timings))
+}

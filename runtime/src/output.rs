@@ -1,0 +1,114 @@
+//! Rendered images: linear float RGBA in memory, written as an sRGB PNG with an exposure
+//! setting or as a linear float EXR, atomically.
+
+use std::path::Path;
+
+use crate::{Error, Result};
+
+/// Linear radiance, row-major, row 0 at the top of the picture (the far edge y1 of the view).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub pixels: Vec<[f32; 4]>,
+}
+
+/// sRGB transfer function of a linear value in [0, 1].
+pub fn srgb_encode(x: f32) -> f32 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// Inverse sRGB transfer function (8-bit texture values to linear).
+pub fn srgb_decode(x: f32) -> f32 {
+    if x <= 0.040_45 {
+        x / 12.92
+    } else {
+        ((x + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+impl Image {
+    /// Largest |a − b| over all pixels and RGB channels; `None` if the sizes differ.
+    pub fn max_abs_diff(&self, other: &Image) -> Option<f32> {
+        if (self.width, self.height) != (other.width, other.height) {
+            return None;
+        }
+        let mut m = 0f32;
+        for (a, b) in self.pixels.iter().zip(&other.pixels) {
+            for c in 0..3 {
+                m = m.max((a[c] - b[c]).abs());
+            }
+        }
+        Some(m)
+    }
+
+    /// 8-bit sRGB RGBA: linear × 2^exposure, clamped, encoded; alpha 255.
+    pub fn to_srgb8(&self, exposure: f32) -> Vec<u8> {
+        let scale = exposure.exp2();
+        let mut out = Vec::with_capacity(self.pixels.len() * 4);
+        for p in &self.pixels {
+            for &c in &p[..3] {
+                out.push((srgb_encode(c * scale) * 255.0 + 0.5) as u8);
+            }
+            out.push(255);
+        }
+        out
+    }
+
+    /// Writes an sRGB PNG (see [`Image::to_srgb8`]) atomically.
+    pub fn write_png(&self, path: &Path, exposure: f32) -> Result<()> {
+        write_png_rgba8(path, self.width, self.height, &self.to_srgb8(exposure))
+    }
+
+    /// Writes the linear radiance as an RGB f32 EXR atomically.
+    pub fn write_exr(&self, path: &Path) -> Result<()> {
+        use exr::prelude::*;
+        let tmp = ptm_fit::atomic::tmp_path(path);
+        let written = write_rgb_file(&tmp, self.width, self.height, |x, y| {
+            let p = self.pixels[y * self.width + x];
+            (p[0], p[1], p[2])
+        })
+        .map_err(|e| crate::Error::Image {
+            path: path.display().to_string(),
+            reason: e.to_string(),
+        });
+        let committed = ptm_fit::atomic::commit_tmp(&tmp, path, Ok(()));
+        written?;
+        Ok(committed?)
+    }
+}
+
+/// Writes 8-bit RGBA pixels as a PNG atomically.
+pub fn write_png_rgba8(path: &Path, width: usize, height: usize, rgba: &[u8]) -> Result<()> {
+    let img = image::RgbaImage::from_raw(width as u32, height as u32, rgba.to_vec()).ok_or_else(
+        || Error::Image {
+            path: path.display().to_string(),
+            reason: format!(
+                "{} bytes do not make a {width}×{height} RGBA image",
+                rgba.len()
+            ),
+        },
+    )?;
+    ptm_fit::atomic::write_atomic(path, |w| {
+        img.write_to(w, image::ImageFormat::Png)
+            .map_err(std::io::Error::other)
+    })?;
+    Ok(())
+}
+
+/// Reads a PNG (or any format the `image` crate was built with) as 8-bit RGBA.
+pub fn read_rgba8(path: &Path) -> Result<(usize, usize, Vec<[u8; 4]>)> {
+    let img = image::open(path).map_err(|e| Error::Image {
+        path: path.display().to_string(),
+        reason: format!("{e}; give an 8-bit PNG"),
+    })?;
+    let rgba = img.to_rgba8();
+    let (w, h) = rgba.dimensions();
+    let texels = rgba.pixels().map(|p| p.0).collect();
+    Ok((w as usize, h as usize, texels))
+}

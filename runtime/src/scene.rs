@@ -1,0 +1,407 @@
+//! The scene (acceptor plane, PTM, albedo, lights, caster) and its preparation into the exact
+//! buffers both the GPU shader and the CPU twin consume.
+//!
+//! World space is the swatch frame: the acceptor is the plane z = 0, tangent +X, bitangent +Y,
+//! normal +Z. Lengths are swatch units (the PTM tile is `ptm.tile` = [W, H] of them).
+
+use ptm_fit::Ptm;
+
+use crate::{Error, Result};
+
+/// Largest caster side kept as is. A u32 summed-area table of 8-bit opacity gives exact box sums
+/// for any box up to 4096×4096 texels (4096²·255 < 2³²); larger casters are box-downsampled by
+/// an integer factor first and the factor is reported.
+pub const MAX_CASTER_SIDE: usize = 4096;
+
+/// Upper bound on the explicit blur's samples per axis (it grows as the radius in texels).
+pub const MAX_EXPLICIT_SAMPLES: u32 = 512;
+
+/// A spherical area light.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Light {
+    /// Centre in world space (swatch units; z above the acceptor).
+    pub position: [f32; 3],
+    /// Sphere radius R in swatch units (0 = point light: a hard shadow).
+    pub radius: f32,
+    /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
+    pub intensity: f32,
+    /// Linear RGB colour.
+    pub color: [f32; 3],
+}
+
+/// How the caster opacity is averaged over the penumbra kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Blur {
+    /// The reference: a regular grid of samples over the disk of radius w (cost grows as w²).
+    Explicit,
+    /// Box of half-side w from a summed-area table of u32 counts (constant cost, exact sums).
+    Sat,
+}
+
+impl Blur {
+    pub const ALL: [Blur; 2] = [Blur::Explicit, Blur::Sat];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Blur::Explicit => "explicit",
+            Blur::Sat => "sat",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Blur> {
+        Blur::ALL.into_iter().find(|b| b.name() == name)
+    }
+}
+
+/// A planar RGBA caster parallel to the acceptor.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Caster {
+    /// Texels per row.
+    pub width: usize,
+    /// Rows; row 0 is the far edge (largest y), as for every image in ptm.
+    pub height: usize,
+    /// Straight (non-premultiplied) sRGB-encoded RGBA8, row-major.
+    pub rgba: Vec<[u8; 4]>,
+    /// World rectangle [x0, y0, x1, y1] the caster image covers.
+    pub rect: [f32; 4],
+    /// Height of the caster plane above the acceptor (d_ca, swatch units, ≥ 0).
+    pub elevation: f32,
+}
+
+/// Everything one frame shows.
+#[derive(Clone, Debug)]
+pub struct Scene {
+    /// Output size in pixels.
+    pub size: [u32; 2],
+    /// World rectangle [x0, y0, x1, y1] seen by the top-down orthographic camera; pixel row 0
+    /// is the far edge y1.
+    pub view: [f32; 4],
+    /// The occlusion PTM tiled over the plane with period `ptm.tile`; `None` renders without K.
+    pub ptm: Option<Ptm>,
+    /// Linear RGB albedo used when `albedo_texture` is `None`.
+    pub albedo: [f32; 3],
+    /// Optional albedo texture (linear RGB, row 0 at the far edge), tiled with the PTM's period
+    /// (or the view's size without a PTM): (width, height, texels).
+    pub albedo_texture: Option<(usize, usize, Vec<[f32; 3]>)>,
+    pub lights: Vec<Light>,
+    pub caster: Option<Caster>,
+    /// With a caster: its RGB transmits coloured light (stained glass) instead of grey.
+    pub colored_shadow: bool,
+    pub blur: Blur,
+}
+
+impl Scene {
+    /// A scene viewing `repeat`×`repeat` tiles of `ptm` from above, no lights, no caster.
+    pub fn over_ptm(ptm: Ptm, repeat: u32, size: [u32; 2]) -> Scene {
+        let view = [
+            0.0,
+            0.0,
+            (ptm.tile[0] * repeat as f64) as f32,
+            (ptm.tile[1] * repeat as f64) as f32,
+        ];
+        Scene {
+            size,
+            view,
+            ptm: Some(ptm),
+            albedo: [0.8, 0.8, 0.8],
+            albedo_texture: None,
+            lights: Vec::new(),
+            caster: None,
+            colored_shadow: false,
+            blur: Blur::Sat,
+        }
+    }
+
+    /// Validates and lays the scene out as the shader's buffers.
+    pub fn prepare(&self) -> Result<Prepared> {
+        let [w, h] = self.size;
+        if w == 0 || h == 0 {
+            return Err(Error::Scene(format!("output size {w}×{h} is empty")));
+        }
+        let [x0, y0, x1, y1] = self.view;
+        if !(x1 > x0 && y1 > y0) {
+            return Err(Error::Scene(format!(
+                "view rectangle {:?} must have x1 > x0 and y1 > y0",
+                self.view
+            )));
+        }
+        let mut frame = Frame {
+            view: self.view,
+            screen: [w as f32, h as f32, x1 - x0, y1 - y0],
+            albedo: [self.albedo[0], self.albedo[1], self.albedo[2], 1.0],
+            ..Frame::zeroed()
+        };
+        frame.counts[0] = self.lights.len() as u32;
+        frame.counts[3] = MAX_EXPLICIT_SAMPLES;
+
+        let mut coeffs = Vec::new();
+        let mut basis = None;
+        if let Some(ptm) = &self.ptm {
+            let n = ptm.basis.len();
+            if ptm.width == 0 || ptm.height == 0 || ptm.planes.len() != n {
+                return Err(Error::Scene(format!(
+                    "PTM is {}×{} with {} planes; {} needs {n} and a non-empty image",
+                    ptm.width,
+                    ptm.height,
+                    ptm.planes.len(),
+                    ptm.basis.name()
+                )));
+            }
+            if !(ptm.tile[0] > 0.0 && ptm.tile[1] > 0.0) {
+                return Err(Error::Scene(format!(
+                    "PTM tile size {:?} must be positive",
+                    ptm.tile
+                )));
+            }
+            // Texel-major (all coefficients of a texel together): one cache line per lookup.
+            let texels = ptm.width * ptm.height;
+            coeffs.reserve(texels * n);
+            for t in 0..texels {
+                coeffs.extend(ptm.planes.iter().map(|p| p[t]));
+            }
+            frame.screen[2] = ptm.tile[0] as f32;
+            frame.screen[3] = ptm.tile[1] as f32;
+            frame.sizes[0] = ptm.width as u32;
+            frame.sizes[1] = ptm.height as u32;
+            basis = Some(ptm.basis);
+        }
+
+        let mut albedo = Vec::new();
+        if let Some((aw, ah, texels)) = &self.albedo_texture {
+            if *aw == 0 || *ah == 0 || texels.len() != aw * ah {
+                return Err(Error::Scene(format!(
+                    "albedo texture {aw}×{ah} has {} texels",
+                    texels.len()
+                )));
+            }
+            albedo = texels.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+            frame.sizes[2] = *aw as u32;
+            frame.sizes[3] = *ah as u32;
+        }
+
+        let lights = self
+            .lights
+            .iter()
+            .map(|l| LightGpu {
+                position_radius: [
+                    l.position[0],
+                    l.position[1],
+                    l.position[2],
+                    l.radius.max(0.0),
+                ],
+                color: [
+                    l.color[0] * l.intensity,
+                    l.color[1] * l.intensity,
+                    l.color[2] * l.intensity,
+                    0.0,
+                ],
+            })
+            .collect();
+
+        let mut opacity = Vec::new();
+        let mut caster_downsample = 1;
+        if let Some(c) = &self.caster {
+            if c.width == 0 || c.height == 0 || c.rgba.len() != c.width * c.height {
+                return Err(Error::Scene(format!(
+                    "caster image {}×{} has {} texels",
+                    c.width,
+                    c.height,
+                    c.rgba.len()
+                )));
+            }
+            let [cx0, cy0, cx1, cy1] = c.rect;
+            if !(cx1 > cx0 && cy1 > cy0 && c.elevation >= 0.0) {
+                return Err(Error::Scene(format!(
+                    "caster rectangle {:?} must be non-empty and its height {} ≥ 0",
+                    c.rect, c.elevation
+                )));
+            }
+            let (cw, ch, texels, factor) = fit_caster(c);
+            caster_downsample = factor;
+            opacity = opacity_texels(&texels, self.colored_shadow);
+            frame.caster_rect = c.rect;
+            frame.caster = [c.elevation, 0.0, 0.0, 0.0];
+            frame.counts[1] = cw as u32;
+            frame.counts[2] = ch as u32;
+        }
+
+        let variant = Variant {
+            basis,
+            albedo_texture: self.albedo_texture.is_some(),
+            caster: self.caster.as_ref().map(|_| self.blur),
+            colored: self.caster.is_some() && self.colored_shadow,
+        };
+        Ok(Prepared {
+            frame,
+            lights,
+            coeffs,
+            albedo,
+            opacity,
+            variant,
+            caster_downsample,
+        })
+    }
+}
+
+/// Which source-level shader variant a scene needs (features it lacks have no code and no
+/// bindings).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant {
+    pub basis: Option<ptm_fit::Basis>,
+    pub albedo_texture: bool,
+    /// The blur method when there is a caster.
+    pub caster: Option<Blur>,
+    /// Three opacity channels (stained glass) instead of one.
+    pub colored: bool,
+}
+
+impl Variant {
+    /// Every distinct variant, for validation tests.
+    pub fn all() -> Vec<Variant> {
+        let mut out = Vec::new();
+        for basis in [
+            None,
+            Some(ptm_fit::Basis::Ptm6),
+            Some(ptm_fit::Basis::Ptm11),
+        ] {
+            for albedo_texture in [false, true] {
+                for caster in [None, Some(Blur::Explicit), Some(Blur::Sat)] {
+                    for colored in [false, true] {
+                        if caster.is_none() && colored {
+                            continue;
+                        }
+                        out.push(Variant {
+                            basis,
+                            albedo_texture,
+                            caster,
+                            colored,
+                        });
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Short name, e.g. `ptm11+albedo+sat+colored`.
+    pub fn name(&self) -> String {
+        let mut parts = vec![self.basis.map_or("nok", |b| b.name()).to_string()];
+        if self.albedo_texture {
+            parts.push("albedo".into());
+        }
+        if let Some(b) = self.caster {
+            parts.push(b.name().into());
+        }
+        if self.colored {
+            parts.push("colored".into());
+        }
+        parts.join("+")
+    }
+
+    /// Opacity channels stored in the summed-area table.
+    pub fn sat_channels(&self) -> u32 {
+        if self.colored {
+            3
+        } else {
+            1
+        }
+    }
+}
+
+/// The uniform block, field for field with `struct Frame` in `shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Frame {
+    /// World rectangle x0, y0, x1, y1 seen by the orthographic camera.
+    pub view: [f32; 4],
+    /// Output width, height (pixels); tile period W, H (swatch units) of PTM and albedo.
+    pub screen: [f32; 4],
+    /// Constant linear albedo (rgb; a unused).
+    pub albedo: [f32; 4],
+    /// World rectangle x0, y0, x1, y1 of the caster.
+    pub caster_rect: [f32; 4],
+    /// Caster elevation d_ca above the acceptor; yzw unused.
+    pub caster: [f32; 4],
+    /// PTM texels nx, ny; albedo texels nx, ny.
+    pub sizes: [u32; 4],
+    /// Light count; caster texels w, h (after downsampling); explicit-blur sample cap per axis.
+    pub counts: [u32; 4],
+}
+
+impl Frame {
+    fn zeroed() -> Frame {
+        bytemuck::Zeroable::zeroed()
+    }
+}
+
+/// One light as the shader reads it, field for field with `struct Light` in `shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct LightGpu {
+    /// Centre xyz (world), radius R.
+    pub position_radius: [f32; 4],
+    /// Colour × intensity (linear rgb); a unused.
+    pub color: [f32; 4],
+}
+
+/// A scene laid out as shader buffers; the GPU and the CPU twin both read exactly this.
+#[derive(Clone, Debug)]
+pub struct Prepared {
+    pub frame: Frame,
+    pub lights: Vec<LightGpu>,
+    /// PTM coefficients, texel-major: `coeffs[(row·nx + col)·n + k]`.
+    pub coeffs: Vec<f32>,
+    /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
+    pub albedo: Vec<[f32; 4]>,
+    /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three
+    /// equal without `colored_shadow`.
+    pub opacity: Vec<u32>,
+    pub variant: Variant,
+    /// Integer factor the caster image was box-downsampled by (1 = as given).
+    pub caster_downsample: usize,
+}
+
+/// Box-downsamples a caster whose larger side exceeds [`MAX_CASTER_SIDE`] by the smallest
+/// integer factor that fits; returns (width, height, texels, factor).
+fn fit_caster(c: &Caster) -> (usize, usize, Vec<[u8; 4]>, usize) {
+    let factor = c.width.max(c.height).div_ceil(MAX_CASTER_SIDE);
+    if factor <= 1 {
+        return (c.width, c.height, c.rgba.clone(), 1);
+    }
+    let (w, h) = (c.width.div_ceil(factor), c.height.div_ceil(factor));
+    let mut out = Vec::with_capacity(w * h);
+    for j in 0..h {
+        for i in 0..w {
+            let mut sum = [0u32; 4];
+            let mut n = 0u32;
+            for y in j * factor..((j + 1) * factor).min(c.height) {
+                for x in i * factor..((i + 1) * factor).min(c.width) {
+                    let p = c.rgba[y * c.width + x];
+                    for k in 0..4 {
+                        sum[k] += p[k] as u32;
+                    }
+                    n += 1;
+                }
+            }
+            out.push(sum.map(|s| ((s + n / 2) / n) as u8));
+        }
+    }
+    (w, h, out, factor)
+}
+
+/// Caster opacity per channel as 8-bit integers (exact in a u32 summed-area table).
+/// Grey: o = α. Coloured: o_c = α·(1 − rgb_c), so an opaque red pane passes red light only;
+/// rgb is taken as stored (its transmittance), quantised to the nearest 1/255.
+pub fn opacity_texels(rgba: &[[u8; 4]], colored: bool) -> Vec<u32> {
+    rgba.iter()
+        .map(|p| {
+            let a = p[3] as u32;
+            let o = if colored {
+                [0, 1, 2].map(|c| (a * (255 - p[c] as u32) + 127) / 255)
+            } else {
+                [a; 3]
+            };
+            o[0] | (o[1] << 8) | (o[2] << 16)
+        })
+        .collect()
+}

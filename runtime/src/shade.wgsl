@@ -1,0 +1,286 @@
+// shade.wgsl: the acceptor plane seen from above under spherical lights, radiance multiplied by
+// (1 − K) from the occlusion PTM and by (1 − opacity) from the penumbra map of a planar caster.
+//
+// Source-level variants (shader.rs): `//#if NAME` … `//#else` … `//#endif` lines keep or drop
+// code and bindings; {{NC}}, {{PTM_EVAL}} and {{SAT_CHANNELS}} are filled in. The CPU twin is
+// cpu.rs: same function names, same maths.
+
+struct Frame {
+    view: vec4<f32>,        // world rect x0, y0, x1, y1 of the orthographic camera
+    screen: vec4<f32>,      // output width, height (px); tile period W, H (swatch units)
+    albedo: vec4<f32>,      // constant linear albedo rgb
+    caster_rect: vec4<f32>, // world rect x0, y0, x1, y1 of the caster
+    caster: vec4<f32>,      // x: caster elevation d_ca above the acceptor
+    sizes: vec4<u32>,       // PTM texels nx, ny; albedo texels nx, ny
+    counts: vec4<u32>,      // lights; caster texels w, h; explicit samples cap per axis
+}
+
+struct Light {
+    position_radius: vec4<f32>, // centre xyz, radius R
+    color: vec4<f32>,           // colour × intensity
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> lights: array<Light>;
+//#if PTM
+@group(0) @binding(2) var<storage, read> coeffs: array<f32>;
+//#endif
+//#if ALBEDO_TEX
+@group(0) @binding(3) var<storage, read> albedo_tex: array<vec4<f32>>;
+//#endif
+//#if BLUR_EXPLICIT
+@group(0) @binding(4) var<storage, read> opacity_tex: array<u32>;
+//#endif
+//#if BLUR_SAT
+@group(0) @binding(5) var<storage, read> sat: array<u32>;
+//#endif
+
+// Full-screen triangle: vertices (−1, −1), (3, −1), (−1, 3).
+@vertex
+fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let x = f32(i32(i & 1u) * 4 - 1);
+    let y = f32(i32(i >> 1u) * 4 - 1);
+    return vec4<f32>(x, y, 0.0, 1.0);
+}
+
+// World (x, y) of a pixel centre; `frag` is @builtin(position).xy (pixel + 0.5); row 0 is y1.
+fn pixel_world(frag: vec2<f32>) -> vec2<f32> {
+    let t = frag / frame.screen.xy;
+    return vec2<f32>(
+        frame.view.x + (frame.view.z - frame.view.x) * t.x,
+        frame.view.w - (frame.view.w - frame.view.y) * t.y,
+    );
+}
+
+// Four texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights for a texture of `n` texels
+// tiled with period frame.screen.zw; texel centres at (i + 0.5)/n, row 0 at the far edge.
+struct Bilinear {
+    index: vec4<u32>,
+    weight: vec4<f32>,
+}
+
+fn tile_bilinear(p: vec2<f32>, n: vec2<u32>) -> Bilinear {
+    let s = p / frame.screen.zw;
+    let f = vec2<f32>(s.x - floor(s.x), 1.0 - (s.y - floor(s.y)));
+    let c = f * vec2<f32>(n) - 0.5;
+    let c0 = floor(c);
+    let a = c - c0;
+    let ni = vec2<i32>(n);
+    let x0 = ((i32(c0.x) % ni.x) + ni.x) % ni.x;
+    let y0 = ((i32(c0.y) % ni.y) + ni.y) % ni.y;
+    let x1 = (x0 + 1) % ni.x;
+    let y1 = (y0 + 1) % ni.y;
+    var b: Bilinear;
+    b.index = vec4<u32>(
+        u32(y0 * ni.x + x0),
+        u32(y0 * ni.x + x1),
+        u32(y1 * ni.x + x0),
+        u32(y1 * ni.x + x1),
+    );
+    b.weight = vec4<f32>((1.0 - a.x) * (1.0 - a.y), a.x * (1.0 - a.y), (1.0 - a.x) * a.y, a.x * a.y);
+    return b;
+}
+
+//#if PTM
+const NC: u32 = {{NC}}u;
+
+// Bilinearly filtered coefficients at p (K is linear in them, so filtering them filters K).
+fn ptm_coeffs(p: vec2<f32>) -> array<f32, {{NC}}> {
+    let b = tile_bilinear(p, frame.sizes.xy);
+    var c: array<f32, {{NC}}>;
+    for (var k = 0u; k < NC; k++) {
+        c[k] = b.weight.x * coeffs[b.index.x * NC + k] + b.weight.y * coeffs[b.index.y * NC + k]
+            + b.weight.z * coeffs[b.index.z * NC + k] + b.weight.w * coeffs[b.index.w * NC + k];
+    }
+    return c;
+}
+
+// K(u, v) of the basis, clamped to [0, 1] after evaluation (fits overshoot at grazing angles).
+fn ptm_k(c: array<f32, {{NC}}>, u: f32, v: f32) -> f32 {
+    let k = {{PTM_EVAL}};
+    return clamp(k, 0.0, 1.0);
+}
+//#endif
+
+fn albedo_at(p: vec2<f32>) -> vec3<f32> {
+//#if ALBEDO_TEX
+    let b = tile_bilinear(p, frame.sizes.zw);
+    return (b.weight.x * albedo_tex[b.index.x] + b.weight.y * albedo_tex[b.index.y]
+        + b.weight.z * albedo_tex[b.index.z] + b.weight.w * albedo_tex[b.index.w]).xyz;
+//#else
+    return frame.albedo.xyz;
+//#endif
+}
+
+//#if CASTER
+// Continuous caster texel coordinates (column, row from the far edge) of a caster-plane point.
+fn caster_texel_coords(q: vec2<f32>) -> vec2<f32> {
+    let r = frame.caster_rect;
+    let size = vec2<f32>(frame.counts.yz);
+    return vec2<f32>((q.x - r.x) / (r.z - r.x) * size.x, (r.w - q.y) / (r.w - r.y) * size.y);
+}
+
+//#endif
+
+//#if BLUR_EXPLICIT
+// Opacity of the texel containing texel coordinate t (transparent outside the caster).
+fn opacity_at(t: vec2<f32>) -> vec3<f32> {
+    let size = vec2<f32>(frame.counts.yz);
+    if (t.x < 0.0 || t.y < 0.0 || t.x >= size.x || t.y >= size.y) {
+        return vec3<f32>(0.0);
+    }
+    let i = u32(t.x);
+    let j = u32(t.y);
+    let o = opacity_tex[j * frame.counts.y + i];
+    return vec3<f32>(f32(o & 255u), f32((o >> 8u) & 255u), f32((o >> 16u) & 255u)) / 255.0;
+}
+//#endif
+
+//#if BLUR_EXPLICIT
+// Reference blur: mean opacity over an n×n grid of samples inside the ellipse of radii `wt`
+// (texels) around t; n grows with the radius (n ≥ 4, ≤ counts.w).
+fn blur_explicit(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+    let n = clamp(u32(ceil(2.0 * max(wt.x, wt.y))) + 1u, 4u, frame.counts.w);
+    var sum = vec3<f32>(0.0);
+    var count = 0.0;
+    for (var j = 0u; j < n; j++) {
+        for (var i = 0u; i < n; i++) {
+            let o = (vec2<f32>(f32(i), f32(j)) + 0.5) / f32(n) * 2.0 - 1.0;
+            if (dot(o, o) <= 1.0) {
+                sum += opacity_at(t + o * wt);
+                count += 1.0;
+            }
+        }
+    }
+    return sum / count;
+}
+//#endif
+
+//#if BLUR_SAT
+const SAT_CHANNELS: u32 = {{SAT_CHANNELS}}u;
+
+fn sat_load(i: u32, j: u32, ch: u32) -> u32 {
+    return sat[(j * (frame.counts.y + 1u) + i) * SAT_CHANNELS + ch];
+}
+
+// One axis of a box [lo, hi] (texel units, clamped to the table) split into whole-texel spans
+// of a piecewise-constant image: corner indices [i0, i0+1, i1, i1+1] (clamped to n) and weights
+// of the spans inner (c1→c2), right (c2→c3), left (c0→c1). Integral = Σ weight·span sum, exact
+// for the bilinear interpolant of the table. When lo and hi share a texel the inner span is
+// empty and the right span carries a1 − a0, so every span sum is non-negative.
+struct Spans {
+    corner: vec4<u32>,
+    weight: vec3<f32>,
+}
+
+fn sat_spans(lo: f32, hi: f32, n: u32) -> Spans {
+    let i0 = u32(floor(lo));
+    let i1 = u32(floor(hi));
+    let a0 = lo - floor(lo);
+    let a1 = hi - floor(hi);
+    var s: Spans;
+    if (i1 > i0) {
+        s.corner = vec4<u32>(i0, min(i0 + 1u, n), i1, min(i1 + 1u, n));
+        s.weight = vec3<f32>(1.0, a1, 1.0 - a0);
+    } else {
+        s.corner = vec4<u32>(i0, i1, i1, min(i1 + 1u, n));
+        s.weight = vec3<f32>(0.0, a1 - a0, 0.0);
+    }
+    return s;
+}
+
+// Summed-area lookup: mean opacity over the box t ± wt (texels); outside the caster counts as
+// transparent, so the sum is divided by the full box area. Corner differences are taken in
+// wrapping u32 (exact for any box up to 4096² texels), converted to f32 only after.
+fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+    let size = vec2<f32>(frame.counts.yz);
+    let lo = clamp(t - wt, vec2<f32>(0.0), size);
+    let hi = clamp(t + wt, vec2<f32>(0.0), size);
+    let sx = sat_spans(lo.x, hi.x, frame.counts.y);
+    let sy = sat_spans(lo.y, hi.y, frame.counts.z);
+    var out = vec3<f32>(0.0);
+    for (var ch = 0u; ch < SAT_CHANNELS; ch++) {
+        var s: array<array<u32, 4>, 4>;
+        for (var b = 0u; b < 4u; b++) {
+            for (var a = 0u; a < 4u; a++) {
+                s[b][a] = sat_load(sx.corner[a], sy.corner[b], ch);
+            }
+        }
+        var total = 0.0;
+        for (var m = 0u; m < 3u; m++) {
+            // Span m of an axis runs from corner ca[m] to cb[m]: inner 1→2, right 2→3, left 0→1.
+            let xa = select(select(0u, 2u, m == 1u), 1u, m == 0u);
+            let xb = select(select(1u, 3u, m == 1u), 2u, m == 0u);
+            for (var k = 0u; k < 3u; k++) {
+                let ya = select(select(0u, 2u, k == 1u), 1u, k == 0u);
+                let yb = select(select(1u, 3u, k == 1u), 2u, k == 0u);
+                let span_sum = s[yb][xb] - s[yb][xa] - s[ya][xb] + s[ya][xa];
+                total += sx.weight[m] * sy.weight[k] * f32(span_sum);
+            }
+        }
+        out[ch] = total / (4.0 * wt.x * wt.y * 255.0);
+    }
+    if (SAT_CHANNELS == 1u) {
+        return vec3<f32>(out.x);
+    }
+    return out;
+}
+//#endif
+
+//#if CASTER
+// Mean caster opacity seen from acceptor point p towards light `l` (penumbra map, direct form):
+// the ray from the light centre through p meets the caster plane at q; the light's cone from p
+// cuts that plane in a circle of radius w = R·d_ca/(d_lc + d_ca) (similar triangles), at least
+// half a caster texel. A light on or below the caster plane casts no caster shadow.
+fn light_opacity(p: vec2<f32>, l: Light) -> vec3<f32> {
+    let h = frame.caster.x;
+    let lz = l.position_radius.z;
+    if (lz <= h) {
+        return vec3<f32>(0.0);
+    }
+    let s = (lz - h) / lz;
+    let q = l.position_radius.xy + s * (p - l.position_radius.xy);
+    let w = l.position_radius.w * h / lz;
+    let texel = (frame.caster_rect.zw - frame.caster_rect.xy) / vec2<f32>(frame.counts.yz);
+    let wt = max(vec2<f32>(w) / texel, vec2<f32>(0.5));
+    let t = caster_texel_coords(q);
+//#if BLUR_SAT
+    return blur_sat(t, wt);
+//#else
+    return blur_explicit(t, wt);
+//#endif
+}
+//#endif
+
+// Linear radiance leaving acceptor point p (normal +Z):
+// Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K).
+fn shade(p: vec2<f32>) -> vec3<f32> {
+    let albedo = albedo_at(p);
+//#if PTM
+    let c = ptm_coeffs(p);
+//#endif
+    var radiance = vec3<f32>(0.0);
+    for (var i = 0u; i < frame.counts.x; i++) {
+        let light = lights[i];
+        let to_light = vec3<f32>(light.position_radius.xy - p, light.position_radius.z);
+        let d2 = dot(to_light, to_light);
+        if (d2 <= 0.0 || to_light.z <= 0.0) {
+            continue;
+        }
+        let l = to_light / sqrt(d2);
+        var visible = vec3<f32>(1.0);
+//#if PTM
+        visible *= 1.0 - ptm_k(c, l.x, l.y);
+//#endif
+//#if CASTER
+        visible *= 1.0 - light_opacity(p, light);
+//#endif
+        radiance += albedo * light.color.xyz * (l.z / d2) * visible;
+    }
+    return radiance;
+}
+
+@fragment
+fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
+    return vec4<f32>(shade(pixel_world(frag.xy)), 1.0);
+}

@@ -1,0 +1,183 @@
+//! WGSL source assembly: one source-level variant per scene shape (override constants cannot
+//! remove bindings, so what a scene lacks is cut out of the text), and naga validation.
+//!
+//! Directives are whole lines `//#if NAME`, `//#else`, `//#endif` (nestable); placeholders
+//! `{{NC}}`, `{{PTM_EVAL}}`, `{{SAT_CHANNELS}}`. The PTM polynomial is generated from the fit
+//! crate's monomial table, so the shader and `Basis::eval` cannot disagree on the order.
+
+use ptm_fit::Basis;
+
+use crate::scene::{Blur, Variant};
+use crate::{Error, Result};
+
+/// The shading shader, with directives.
+pub const SHADE_WGSL: &str = include_str!("shade.wgsl");
+
+/// The defines a variant switches on.
+pub fn defines(v: &Variant) -> Vec<&'static str> {
+    let mut d = Vec::new();
+    if v.basis.is_some() {
+        d.push("PTM");
+    }
+    if v.albedo_texture {
+        d.push("ALBEDO_TEX");
+    }
+    if let Some(b) = v.caster {
+        d.push("CASTER");
+        d.push(match b {
+            Blur::Explicit => "BLUR_EXPLICIT",
+            Blur::Sat => "BLUR_SAT",
+        });
+    }
+    if v.colored {
+        d.push("COLORED");
+    }
+    d
+}
+
+/// The WGSL expression Σ c[i]·u^a·v^b in basis order, e.g. `c[0] * (u * u) + c[1] * (u) + …`.
+pub fn ptm_eval_expr(basis: Basis) -> String {
+    let terms: Vec<String> = basis
+        .monomials()
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            let factors: Vec<&str> = std::iter::repeat_n("u", m.pu as usize)
+                .chain(std::iter::repeat_n("v", m.pv as usize))
+                .collect();
+            if factors.is_empty() {
+                format!("c[{i}]")
+            } else {
+                format!("c[{i}] * ({})", factors.join(" * "))
+            }
+        })
+        .collect();
+    terms.join(" + ")
+}
+
+/// Keeps the lines whose enclosing `//#if` conditions hold.
+pub fn preprocess(src: &str, defined: &[&str]) -> Result<String> {
+    let mut out = String::with_capacity(src.len());
+    // One entry per open `#if`: whether its current branch is taken.
+    let mut stack: Vec<bool> = Vec::new();
+    let active = |stack: &[bool]| stack.iter().all(|&a| a);
+    for (n, line) in src.lines().enumerate() {
+        let t = line.trim();
+        if let Some(name) = t.strip_prefix("//#if ") {
+            stack.push(defined.contains(&name.trim()));
+        } else if t == "//#else" {
+            let top = stack
+                .last_mut()
+                .ok_or_else(|| bad(n, "#else without #if"))?;
+            *top = !*top;
+        } else if t == "//#endif" {
+            stack.pop().ok_or_else(|| bad(n, "#endif without #if"))?;
+        } else if active(&stack) {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    if !stack.is_empty() {
+        return Err(bad(src.lines().count(), "unclosed #if"));
+    }
+    Ok(out)
+}
+
+fn bad(line: usize, what: &str) -> Error {
+    Error::Shader {
+        variant: "(preprocessing)".into(),
+        reason: format!("shade.wgsl line {}: {what}", line + 1),
+    }
+}
+
+/// The complete WGSL source of a variant.
+pub fn shade_source(v: &Variant) -> Result<String> {
+    let src = preprocess(SHADE_WGSL, &defines(v))?;
+    let nc = v.basis.map_or(0, |b| b.len());
+    let eval = v.basis.map(ptm_eval_expr).unwrap_or_default();
+    Ok(src
+        .replace("{{NC}}", &nc.to_string())
+        .replace("{{PTM_EVAL}}", &eval)
+        .replace("{{SAT_CHANNELS}}", &v.sat_channels().to_string()))
+}
+
+/// Parses and validates WGSL with naga (no GPU needed).
+pub fn validate(name: &str, src: &str) -> Result<naga::Module> {
+    let module = naga::front::wgsl::parse_str(src).map_err(|e| Error::Shader {
+        variant: name.into(),
+        reason: e.emit_to_string(src),
+    })?;
+    naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::all(),
+    )
+    .validate(&module)
+    .map_err(|e| Error::Shader {
+        variant: name.into(),
+        reason: format!("{e:?}"),
+    })?;
+    Ok(module)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_shade_variant_validates_with_naga() {
+        let all = Variant::all();
+        assert_eq!(all.len(), 3 * 2 * 5);
+        for v in all {
+            let src = shade_source(&v).unwrap();
+            assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
+            assert!(
+                !src.lines().any(|l| l.trim_start().starts_with("//#")),
+                "{}: directive left",
+                v.name()
+            );
+            if let Err(e) = validate(&v.name(), &src) {
+                panic!("{e}");
+            }
+        }
+    }
+
+    #[test]
+    fn variants_without_a_feature_have_no_binding_for_it() {
+        let v = Variant {
+            basis: None,
+            albedo_texture: false,
+            caster: None,
+            colored: false,
+        };
+        let src = shade_source(&v).unwrap();
+        for name in [
+            "coeffs",
+            "albedo_tex",
+            "opacity_tex",
+            "var<storage, read> sat",
+        ] {
+            assert!(!src.contains(name), "plain variant still mentions {name}");
+        }
+        let module = validate("plain", &src).unwrap();
+        assert_eq!(module.global_variables.len(), 2, "only frame and lights");
+    }
+
+    #[test]
+    fn generated_polynomial_matches_the_basis_order() {
+        assert_eq!(
+            ptm_eval_expr(Basis::Ptm6),
+            "c[0] * (u * u) + c[1] * (u) + c[2] * (u * v) + c[3] * (v) + c[4] * (v * v) + c[5]"
+        );
+        assert!(ptm_eval_expr(Basis::Ptm11).starts_with("c[0] * (u * u * u) + c[1] * (v * v * v)"));
+    }
+
+    #[test]
+    fn preprocess_nests_and_rejects_unbalanced() {
+        let src = "a\n//#if X\nb\n//#if Y\nc\n//#else\nd\n//#endif\n//#else\ne\n//#endif\nf\n";
+        assert_eq!(preprocess(src, &["X"]).unwrap(), "a\nb\nd\nf\n");
+        assert_eq!(preprocess(src, &["X", "Y"]).unwrap(), "a\nb\nc\nf\n");
+        assert_eq!(preprocess(src, &["Y"]).unwrap(), "a\ne\nf\n");
+        assert!(preprocess("//#if X\n", &[]).is_err());
+        assert!(preprocess("//#endif\n", &[]).is_err());
+    }
+}

@@ -1,0 +1,82 @@
+//! Shared helpers of the runtime tests: deterministic in-memory PTMs, casters and the GPU.
+#![allow(dead_code)]
+
+use ptm_fit::{Basis, Ptm};
+use ptm_runtime::{Caster, Gpu, Light};
+
+pub fn hash(i: u64) -> u64 {
+    let mut x = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^ (x >> 31)
+}
+
+/// Uniform in [lo, hi) from a key.
+pub fn rand(key: u64, lo: f32, hi: f32) -> f32 {
+    lo + (hi - lo) * ((hash(key) >> 40) as f32 / (1u64 << 24) as f32)
+}
+
+/// A PTM with smooth-ish random coefficients whose K leaves [0, 1] in places (tests clamping).
+pub fn random_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
+    let n = basis.len();
+    let planes = (0..n)
+        .map(|k| {
+            (0..width * height)
+                .map(|t| {
+                    let key = seed * 1_000_003 + (k * 65_537 + t) as u64;
+                    if basis.monomials()[k].pu + basis.monomials()[k].pv == 0 {
+                        rand(key, -0.2, 0.9)
+                    } else {
+                        rand(key, -0.8, 0.8)
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    Ptm {
+        basis,
+        width,
+        height,
+        tile: [1.0, 1.0],
+        planes,
+    }
+}
+
+/// The GPU, or a loud failure: these tests must not pass silently without an adapter.
+pub fn gpu() -> Gpu {
+    match Gpu::new() {
+        Ok(g) => g,
+        Err(e) => {
+            panic!("GPU tests need a wgpu adapter (lavapipe in CI): {e}. Run scripts/setup.sh.")
+        }
+    }
+}
+
+pub fn light(position: [f32; 3], radius: f32, intensity: f32) -> Light {
+    Light {
+        position,
+        radius,
+        intensity,
+        color: [1.0, 1.0, 1.0],
+    }
+}
+
+/// A w×h caster of random 8-bit RGBA with some fully transparent and opaque blobs.
+pub fn random_caster(w: usize, h: usize, rect: [f32; 4], elevation: f32, seed: u64) -> Caster {
+    let rgba = (0..w * h)
+        .map(|t| {
+            let r = hash(seed ^ (t as u64 * 0x1234_5677));
+            let (i, j) = ((t % w) as f32 / w as f32, (t / w) as f32 / h as f32);
+            let blob = ((i * 6.0).sin() * (j * 5.0).cos() * 2.0).clamp(0.0, 1.0);
+            let a = (blob * 255.0) as u8 | ((r & 0x3F) as u8);
+            [(r >> 8) as u8, (r >> 16) as u8, (r >> 24) as u8, a]
+        })
+        .collect();
+    Caster {
+        width: w,
+        height: h,
+        rgba,
+        rect,
+        elevation,
+    }
+}

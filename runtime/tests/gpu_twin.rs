@@ -1,0 +1,98 @@
+//! The GPU (lavapipe in CI) against the CPU twin: every shader variant, ≤ 1e-3 linear radiance;
+//! and the GPU summed-area table against the CPU one, bit for bit.
+
+mod common;
+
+use common::*;
+use ptm_fit::Basis;
+use ptm_runtime::{cpu, gpu, Blur, Scene};
+
+fn scene(basis: Option<Basis>, size: [u32; 2]) -> Scene {
+    let ptm = random_ptm(basis.unwrap_or(Basis::Ptm6), 13, 9, 7);
+    let mut s = Scene::over_ptm(ptm, 3, size);
+    if basis.is_none() {
+        s.ptm = None;
+    }
+    s.lights = vec![
+        light([1.2, 2.1, 2.0], 0.3, 6.0),
+        light([-1.0, 0.5, 1.0], 0.0, 2.0),
+        light([4.0, 4.0, 0.7], 0.5, 3.0),
+        light([1.0, 1.0, -1.0], 0.2, 5.0), // below the acceptor: contributes nothing
+    ];
+    s
+}
+
+fn check(s: &Scene, what: &str) {
+    let g = gpu();
+    let p = s.prepare().unwrap();
+    let (gpu_img, timings) = gpu::render(&g, &p).unwrap();
+    let cpu_img = cpu::render(&p);
+    let diff = gpu_img.max_abs_diff(&cpu_img).unwrap();
+    let peak = cpu_img
+        .pixels
+        .iter()
+        .map(|p| p[0].max(p[1]).max(p[2]))
+        .fold(0f32, f32::max);
+    eprintln!(
+        "{what} [{}]: max |gpu − cpu| = {diff:.2e} (peak {peak:.3}) {timings:?}",
+        p.variant.name()
+    );
+    assert!(peak > 0.1, "{what}: the scene is too dark to test anything");
+    assert!(diff <= 1e-3, "{what}: GPU and CPU twin differ by {diff}");
+}
+
+#[test]
+fn gpu_matches_twin_without_caster() {
+    // 70 px rows = 1120 bytes: exercises the 256-byte row padding of the readback.
+    check(&scene(Some(Basis::Ptm6), [70, 50]), "ptm6");
+    check(&scene(Some(Basis::Ptm11), [64, 64]), "ptm11");
+    check(&scene(None, [33, 17]), "no PTM");
+}
+
+#[test]
+fn gpu_matches_twin_with_albedo_texture_and_casters() {
+    let mut s = scene(Some(Basis::Ptm11), [72, 56]);
+    s.albedo_texture = Some((
+        5,
+        4,
+        (0..20)
+            .map(|i| [0.2 + 0.04 * i as f32, 0.9 - 0.03 * i as f32, 0.5])
+            .collect(),
+    ));
+    s.caster = Some(random_caster(40, 30, [0.3, 0.2, 2.6, 2.4], 0.6, 3));
+    for blur in Blur::ALL {
+        for colored in [false, true] {
+            s.blur = blur;
+            s.colored_shadow = colored;
+            check(&s, &format!("caster {} colored {colored}", blur.name()));
+        }
+    }
+}
+
+#[test]
+fn gpu_sat_equals_cpu_sat_bit_for_bit() {
+    let g = gpu();
+    let (w, h) = (301usize, 97usize);
+    let op: Vec<u32> = (0..w * h)
+        .map(|i| hash(i as u64) as u32 & 0x00FF_FFFF)
+        .collect();
+    for channels in [1u32, 3] {
+        let gpu_table = gpu::sat_table(&g, &op, w as u32, h as u32, channels).unwrap();
+        let cpu_table = ptm_runtime::sat::build_cpu(&op, w, h, channels as usize);
+        assert_eq!(gpu_table.len(), cpu_table.len());
+        let first = gpu_table.iter().zip(&cpu_table).position(|(a, b)| a != b);
+        assert_eq!(
+            first, None,
+            "channels {channels}: first mismatch at index {first:?}"
+        );
+    }
+}
+
+#[test]
+fn no_lights_render_black() {
+    let mut s = scene(Some(Basis::Ptm6), [16, 16]);
+    s.lights.clear();
+    let p = s.prepare().unwrap();
+    let (img, _) = gpu::render(&gpu(), &p).unwrap();
+    assert!(img.pixels.iter().all(|px| px[..3] == [0.0; 3]));
+}
