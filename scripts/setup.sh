@@ -9,7 +9,7 @@ say() { printf 'setup: %s\n' "$*" >&2; }
 
 # --- system packages -------------------------------------------------------------------------
 need_pkgs=()
-for p in libclang-dev mesa-vulkan-drivers libvulkan1; do
+for p in libclang-dev mesa-vulkan-drivers libvulkan1 fonts-dejavu-core; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
 done
 if ((${#need_pkgs[@]})); then

@@ -7,6 +7,7 @@
 mod bake;
 mod fit;
 mod preview;
+mod report;
 mod swatch;
 
 use std::process::ExitCode;
@@ -37,6 +38,8 @@ enum Command {
     Preview(preview::Args),
     /// Generate a procedural tileable swatch as an OBJ file.
     Swatch(swatch::Args),
+    /// Measured study: error of K against run time per setting, and stiff/extreme cases.
+    Report(report::Args),
 }
 
 fn main() -> ExitCode {
@@ -46,6 +49,7 @@ fn main() -> ExitCode {
         Command::Fit(a) => fit::run(a),
         Command::Preview(a) => preview::run(a),
         Command::Swatch(a) => swatch::run(a),
+        Command::Report(a) => report::run(a),
     };
     match result {
         Ok(report) => {

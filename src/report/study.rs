@@ -1,0 +1,320 @@
+//! Error against run time: bake + fit a swatch under many settings and measure the error of the
+//! fitted (clamped) K against a dense ground-truth bake on held-out light directions.
+use std::time::Instant;
+
+use anyhow::Result;
+use ptm_bake::{dome, BakeConfig, Baker, Swatch};
+use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, Ptm, Weight};
+use rayon::prelude::*;
+
+/// Held-out directions: Fibonacci above 5°, turned 0.7 rad in azimuth so that no test light
+/// coincides with a light of any training dome (those are unturned Fibonacci domes).
+pub fn test_lights(n: usize) -> Result<LightSet> {
+    let f = dome::fibonacci(n, 5.0)?;
+    let (s, c) = 0.7f64.sin_cos();
+    Ok(LightSet::from_dirs(
+        f.dirs
+            .iter()
+            .map(|d| [c * d[0] - s * d[1], s * d[0] + c * d[1], d[2]]),
+    ))
+}
+
+/// A dense bake of the held-out lights: the reference every setting is measured against.
+pub struct Truth {
+    pub res: usize,
+    pub lights: LightSet,
+    /// `k[light][texel]` at `res`².
+    pub k: Vec<Vec<f32>>,
+    pub coverage: Vec<f32>,
+    /// RMS sampling noise of K in the truth itself: errors below it are not resolved.
+    pub noise: f64,
+    pub seconds: f64,
+}
+
+/// Deterministic bake settings shared by the study (all cores, packets).
+pub fn bake_config(res: usize, spp: u32, seed: u64) -> BakeConfig {
+    BakeConfig {
+        res: [res, res],
+        spp,
+        seed,
+        light_distance: None,
+        packets: true,
+        threads: 0,
+    }
+}
+
+impl Truth {
+    /// Bakes the truth twice with independent sample positions and keeps their mean; half the
+    /// RMS difference of the two is the mean's own sampling noise (returned as `noise`).
+    pub fn bake(swatch: &Swatch, res: usize, spp: u32, lights: LightSet) -> Result<Truth> {
+        let t = Instant::now();
+        // Seeds no setting uses: the truth's sample positions are independent of theirs.
+        let (a, coverage, _) =
+            ptm_bake::bake_planes(swatch, &lights, &bake_config(res, spp, 0x7e57))?;
+        let (b, _, _) = ptm_bake::bake_planes(swatch, &lights, &bake_config(res, spp, 0x7e58))?;
+        let (mut d2, mut n) = (0.0f64, 0usize);
+        let k =
+            a.k.iter()
+                .zip(&b.k)
+                .map(|(pa, pb)| {
+                    pa.iter()
+                        .zip(pb)
+                        .zip(&coverage)
+                        .map(|((&x, &y), &c)| {
+                            if c > 0.0 {
+                                d2 += ((x - y) as f64).powi(2);
+                                n += 1;
+                            }
+                            0.5 * (x + y)
+                        })
+                        .collect()
+                })
+                .collect();
+        let noise = 0.5 * (d2 / n.max(1) as f64).sqrt();
+        Ok(Truth {
+            res,
+            lights,
+            k,
+            coverage,
+            noise,
+            seconds: t.elapsed().as_secs_f64(),
+        })
+    }
+
+    /// The truth at a coarser resolution `res` (dividing `self.res`): per coarse texel the
+    /// coverage-weighted mean of its children, which is what a bake at `res` estimates (K is
+    /// occluded over covered samples). Returns (k planes, coverage).
+    pub fn at(&self, res: usize) -> (Vec<Vec<f32>>, Vec<f32>) {
+        assert!(
+            self.res % res == 0,
+            "truth resolution {} is not a multiple of {res}",
+            self.res
+        );
+        let f = self.res / res;
+        let mut cov = vec![0f32; res * res];
+        for (j, row) in cov.chunks_mut(res).enumerate() {
+            for (i, c) in row.iter_mut().enumerate() {
+                let mut s = 0.0;
+                for y in 0..f {
+                    for x in 0..f {
+                        s += self.coverage[(j * f + y) * self.res + i * f + x];
+                    }
+                }
+                *c = s / (f * f) as f32;
+            }
+        }
+        let k = self
+            .k
+            .par_iter()
+            .map(|plane| {
+                let mut out = vec![0f32; res * res];
+                for j in 0..res {
+                    for i in 0..res {
+                        let (mut s, mut w) = (0.0f64, 0.0f64);
+                        for y in 0..f {
+                            for x in 0..f {
+                                let t = (j * f + y) * self.res + i * f + x;
+                                s += (plane[t] * self.coverage[t]) as f64;
+                                w += self.coverage[t] as f64;
+                            }
+                        }
+                        out[j * res + i] = if w > 0.0 { (s / w) as f32 } else { 0.0 };
+                    }
+                }
+                out
+            })
+            .collect();
+        (k, cov)
+    }
+}
+
+/// Error of a PTM against reference planes on the test lights, over covered texels.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Errors {
+    /// RMS and 99th percentile of |K_fit − K_true| (K_fit clamped to [0, 1], as rendered).
+    pub rms: f64,
+    pub p99: f64,
+    pub max: f64,
+    /// Fraction of (texel, light) pairs whose unclamped K leaves [0, 1], and by how much at most.
+    pub outside: f64,
+    pub outside_max: f64,
+}
+
+pub fn measure(ptm: &Ptm, lights: &LightSet, k_true: &[Vec<f32>], coverage: &[f32]) -> Errors {
+    let n = ptm.width * ptm.height;
+    let per_light: Vec<(Vec<f32>, usize, f64)> = lights
+        .dirs
+        .par_iter()
+        .zip(k_true)
+        .map(|(d, truth)| {
+            let (u, v) = (d[0] as f32, d[1] as f32);
+            let (mut errs, mut outside, mut out_max) = (Vec::with_capacity(n), 0usize, 0f64);
+            for t in (0..n).filter(|&t| coverage[t] > 0.0) {
+                let k = ptm.eval_unclamped(t % ptm.width, t / ptm.width, u, v);
+                let excess = (k - 1.0).max(-k).max(0.0) as f64;
+                if excess > 0.0 {
+                    outside += 1;
+                    out_max = out_max.max(excess);
+                }
+                errs.push((k.clamp(0.0, 1.0) - truth[t]).abs());
+            }
+            (errs, outside, out_max)
+        })
+        .collect();
+    let mut all: Vec<f32> = per_light.iter().flat_map(|p| p.0.iter().copied()).collect();
+    if all.is_empty() {
+        return Errors::default();
+    }
+    let count = all.len() as f64;
+    let rms = (all.iter().map(|&e| (e as f64).powi(2)).sum::<f64>() / count).sqrt();
+    all.sort_by(f32::total_cmp);
+    let p99 = all[((count * 0.99).ceil() as usize).clamp(1, all.len()) - 1] as f64;
+    Errors {
+        rms,
+        p99,
+        max: *all.last().unwrap() as f64,
+        outside: per_light.iter().map(|p| p.1).sum::<usize>() as f64 / count,
+        outside_max: per_light.iter().map(|p| p.2).fold(0.0, f64::max),
+    }
+}
+
+/// One point of the sweep.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Setting {
+    pub dirs: usize,
+    pub spp: u32,
+    pub res: usize,
+    pub basis: Basis,
+    pub weight: Weight,
+}
+
+impl Setting {
+    pub fn label(&self) -> String {
+        format!(
+            "{} lights, spp {}, {}², {}, {}",
+            self.dirs,
+            self.spp,
+            self.res,
+            self.basis.name(),
+            self.weight.name()
+        )
+    }
+}
+
+/// What a setting cost and bought.
+#[derive(Clone, Debug)]
+pub struct Outcome {
+    pub setting: Setting,
+    /// Scene build + primary hits + shadow rays, and the streaming fit (accumulate + solve).
+    pub bake_s: f64,
+    pub fit_s: f64,
+    pub errors: Errors,
+}
+
+impl Outcome {
+    pub fn seconds(&self) -> f64 {
+        self.bake_s + self.fit_s
+    }
+}
+
+/// Bakes the Fibonacci dome of `s.dirs` lights and fits it streaming (the `ptm bake --fit`
+/// path), timing each, then measures against `truth` resampled to `s.res`.
+pub fn run_setting(
+    swatch: &Swatch,
+    truth: &Truth,
+    coarse: &(Vec<Vec<f32>>, Vec<f32>),
+    s: &Setting,
+) -> Result<Outcome> {
+    let lights = dome::fibonacci(s.dirs, 5.0)?;
+    let opts = FitOptions {
+        weight: s.weight,
+        ..FitOptions::new(s.basis)
+    };
+    let t0 = Instant::now();
+    let mut acc = Accumulator::new(&lights, s.res, s.res, &opts)?;
+    let factor_s = t0.elapsed().as_secs_f64();
+    let mut stream_s = 0.0;
+    let t1 = Instant::now();
+    let mut baker = Baker::new(swatch, &bake_config(s.res, s.spp, 1))?;
+    acc.set_coverage(baker.coverage())?;
+    baker.trace(&lights, &mut |i, k, _| {
+        let t = Instant::now();
+        acc.add_light(i, k)?;
+        stream_s += t.elapsed().as_secs_f64();
+        Ok(())
+    })?;
+    let traced = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let (ptm, _) = acc.finish(swatch.tile)?;
+    let fit_s = factor_s + stream_s + t2.elapsed().as_secs_f64();
+    let bake_s = (traced - stream_s).max(0.0);
+    Ok(Outcome {
+        setting: s.clone(),
+        bake_s,
+        fit_s,
+        errors: measure(&ptm, &truth.lights, &coarse.0, &coarse.1),
+    })
+}
+
+/// Indices of the Pareto front (no other outcome is both faster and more accurate), by time.
+pub fn pareto(outcomes: &[Outcome]) -> Vec<usize> {
+    let mut idx: Vec<usize> = (0..outcomes.len()).collect();
+    idx.sort_by(|&a, &b| outcomes[a].seconds().total_cmp(&outcomes[b].seconds()));
+    let mut front = Vec::new();
+    let mut best = f64::INFINITY;
+    for i in idx {
+        if outcomes[i].errors.rms < best {
+            best = outcomes[i].errors.rms;
+            front.push(i);
+        }
+    }
+    front
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn outcome(secs: f64, rms: f64) -> Outcome {
+        Outcome {
+            setting: Setting {
+                dirs: 1,
+                spp: 1,
+                res: 1,
+                basis: Basis::Ptm6,
+                weight: Weight::Uniform,
+            },
+            bake_s: secs,
+            fit_s: 0.0,
+            errors: Errors {
+                rms,
+                ..Default::default()
+            },
+        }
+    }
+
+    #[test]
+    fn pareto_keeps_only_undominated_points() {
+        let o = [
+            outcome(1.0, 0.5),
+            outcome(2.0, 0.6),
+            outcome(3.0, 0.2),
+            outcome(0.5, 0.9),
+        ];
+        assert_eq!(pareto(&o), vec![3, 0, 2]);
+    }
+
+    #[test]
+    fn test_lights_are_unit_and_above_five_degrees() {
+        let t = test_lights(40).unwrap();
+        let train = dome::fibonacci(40, 5.0).unwrap();
+        for (d, e) in t.dirs.iter().zip(&train.dirs) {
+            assert!(((d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() - 1.0).abs() < 1e-12);
+            assert!(d[2] >= 5f64.to_radians().sin());
+            assert!(
+                (d[0] - e[0]).abs() + (d[1] - e[1]).abs() > 1e-3,
+                "a test light is a training light"
+            );
+        }
+    }
+}
