@@ -20,7 +20,7 @@ pub use visibility::{bake_planes, BakeConfig, BakeReport, Baker, Planes, Sink};
 /// Errors of the bake crate; messages name the input and what to do.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    #[error("{path}: {source}")]
+    #[error("cannot read {path}")]
     Io {
         path: String,
         source: std::io::Error,
