@@ -97,9 +97,10 @@ impl Mesh {
             self.positions.len(),
             self.triangles.len()
         )?;
-        // `{}` on f32 prints the shortest string that reads back to the same f32.
+        // `{:?}` on f32 prints the shortest string that reads back to the same f32, with an
+        // exponent for tiny values (rounding noise like 5.551115e-17 stays short).
         for p in &self.positions {
-            writeln!(w, "v {} {} {}", p[0], p[1], p[2])?;
+            writeln!(w, "v {:?} {:?} {:?}", p[0], p[1], p[2])?;
         }
         for t in &self.triangles {
             writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
