@@ -63,17 +63,17 @@ pub fn from_params(name: &str, p: &Params) -> Result<(Cloth, usize)> {
     let repeat = p.int("repeat", 2, 1, 32)? as usize;
     let wp = WovenParams::from_params(p)?;
     let s = wp.spacing;
-    let pile = p.positive("pile", if loops { 0.6 } else { 1.2 } * s, 20.0 * s)?;
-    let radius = p.positive("radius", 0.06 * s, 0.5 * s)?;
+    let pile = p.positive("pile", if loops { 0.6 } else { 0.8 } * s, 20.0 * s)?;
+    let radius = p.positive("radius", 0.05 * s, 0.5 * s)?;
     let density = p.positive(
         "density",
-        if loops { 1.5 } else { 4.0 } / (s * s),
+        if loops { 6.0 } else { 20.0 } / (s * s),
         1e4 / (s * s),
     )?;
     let tilt = if loops {
         0.0
     } else {
-        p.real("tilt", 12.0, 0.0, 60.0)?.to_radians()
+        p.real("tilt", 10.0, 0.0, 60.0)?.to_radians()
     };
     let half = if loops {
         p.positive("loop", 0.2 * s, 2.0 * s)?
@@ -102,8 +102,9 @@ pub fn from_params(name: &str, p: &Params) -> Result<(Cloth, usize)> {
         ));
     }
     let longest = if loops { 2.0 * half } else { pile * tilt.sin() };
-    // A grid of cells at least one interaction reach wide, by the first endpoint of each foot.
-    let reach = longest + min_gap;
+    // A grid of cells at least one interaction reach wide, by the first endpoint of each foot:
+    // two feet within `min_gap` of each other have first endpoints within both lengths + gap.
+    let reach = 2.0 * longest + min_gap;
     let cells = [
         (w / reach).floor().max(1.0) as usize,
         (h / reach).floor().max(1.0) as usize,
@@ -117,7 +118,7 @@ pub fn from_params(name: &str, p: &Params) -> Result<(Cloth, usize)> {
     let mut feet: Vec<([f64; 2], [f64; 2])> = Vec::with_capacity(target);
     let mut rng = Rng(seed ^ 0x005E_ED0F_F1B5);
     let mut attempts = 0;
-    while feet.len() < target && attempts < 100 * target.max(1) {
+    while feet.len() < target && attempts < 30 * target.max(1) {
         attempts += 1;
         let c = [rng.uniform() * w, rng.uniform() * h];
         let phi = rng.uniform() * std::f64::consts::TAU;

@@ -38,8 +38,10 @@ fn invalid_parameters_name_the_parameter_and_range() {
         "{e}"
     );
     let e = err("velvet?density=100");
+    assert!(e.contains("density = 100") && e.contains("only"), "{e}");
+    let e = err("velvet?density=200");
     assert!(
-        e.contains("density = 100") && e.contains("at most about"),
+        e.contains("density = 200") && e.contains("hexagonal packing"),
         "{e}"
     );
     let e = err("jersey?segments=abc");
