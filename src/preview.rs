@@ -1,8 +1,351 @@
-//! `ptm preview`.
+//! `ptm preview`: headless render of the swatch plane under spherical area lights, radiance
+//! multiplied by (1 − K) from an occlusion PTM and by a penumbra-map shadow of a planar caster.
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use ptm_fit::Ptm;
+use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
+use serde_json::{json, Value};
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum BlurArg {
+    /// Reference: a grid of samples over the penumbra disk (cost grows with the radius²).
+    Explicit,
+    /// Summed-area table of u32 opacity counts, built on the GPU (constant cost).
+    Sat,
+}
+
+impl From<BlurArg> for Blur {
+    fn from(b: BlurArg) -> Blur {
+        match b {
+            BlurArg::Explicit => Blur::Explicit,
+            BlurArg::Sat => Blur::Sat,
+        }
+    }
+}
 
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Occlusion PTM (`ptm fit` output). Without it the plane renders with no K.
+    #[arg(long)]
+    pub ptm: Option<PathBuf>,
+    /// Output sRGB PNG.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Also write the linear radiance as an RGB float EXR.
+    #[arg(long)]
+    pub exr: Option<PathBuf>,
+    /// Output size in pixels.
+    #[arg(long, value_parser = parse_pair::<u32>, default_value = "512,512")]
+    pub size: (u32, u32),
+    /// Light centre x,y,z in swatch units (z above the cloth); repeat for several lights.
+    /// Default: one light up and to the left of the view's centre.
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub light: Vec<[f32; 3]>,
+    /// Sphere radius per light (the last value repeats for further lights). Default: 5% of
+    /// the view's width.
+    #[arg(long)]
+    pub light_radius: Vec<f32>,
+    /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen
+    /// so the first light gives irradiance 1 at the view's centre.
+    #[arg(long)]
+    pub intensity: Vec<f32>,
+    /// Linear RGB colour per light (last repeats).
+    #[arg(long, value_parser = parse_triple)]
+    pub color: Vec<[f32; 3]>,
+    /// Tiles of the PTM across the view in each direction.
+    #[arg(long, default_value_t = 2)]
+    pub repeat: u32,
+    /// Constant linear albedo r,g,b.
+    #[arg(long, value_parser = parse_triple, default_value = "0.8,0.8,0.8")]
+    pub albedo: [f32; 3],
+    /// Albedo texture (sRGB PNG), tiled with the PTM.
+    #[arg(long)]
+    pub albedo_texture: Option<PathBuf>,
+    /// Planar RGBA caster image (alpha = opacity), parallel to the cloth.
+    #[arg(long)]
+    pub caster: Option<PathBuf>,
+    /// Caster height above the cloth (swatch units).
+    #[arg(long, default_value_t = 0.5)]
+    pub caster_height: f32,
+    /// Caster size w,h in swatch units. Default: half the view.
+    #[arg(long, value_parser = parse_pair::<f32>)]
+    pub caster_size: Option<(f32, f32)>,
+    /// Caster centre x,y in swatch units. Default: the view's centre.
+    #[arg(long, value_parser = parse_pair::<f32>, allow_hyphen_values = true)]
+    pub caster_center: Option<(f32, f32)>,
+    /// The caster's RGB transmits coloured light (stained glass).
+    #[arg(long)]
+    pub colored_shadow: bool,
+    /// How the caster opacity is averaged over the penumbra kernel.
+    #[arg(long, value_enum, default_value = "sat")]
+    pub blur: BlurArg,
+    /// Exposure of the PNG in stops (linear × 2^E before sRGB encoding).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub exposure: f32,
+    /// Render N light azimuths (lights turned about the view's centre) into a contact sheet.
+    #[arg(long, value_name = "N")]
+    pub turntable: Option<u32>,
+    /// Render with every blur method and the CPU Monte Carlo ground truth; print the error and
+    /// GPU time of each method (needs --caster).
+    #[arg(long)]
+    pub compare_blur: bool,
+    /// Monte Carlo samples per pixel and light for --compare-blur.
+    #[arg(long, default_value_t = 256)]
+    pub mc_samples: u32,
+}
 
-pub fn run(_args: &Args) -> anyhow::Result<serde_json::Value> {
-    anyhow::bail!("`ptm preview` is not implemented yet")
+fn parse_pair<T: std::str::FromStr>(s: &str) -> Result<(T, T), String> {
+    let parts: Vec<&str> = s.split(',').collect();
+    match parts[..] {
+        [a, b] => Ok((
+            a.trim()
+                .parse()
+                .map_err(|_| format!("`{a}` is not a number"))?,
+            b.trim()
+                .parse()
+                .map_err(|_| format!("`{b}` is not a number"))?,
+        )),
+        _ => Err(format!("expected two comma-separated numbers, got `{s}`")),
+    }
+}
+
+fn parse_triple(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse()
+                .map_err(|_| format!("`{p}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    v.try_into()
+        .map_err(|_| format!("expected three comma-separated numbers, got `{s}`"))
+}
+
+/// The value for light `i` from a repeatable option (the last one repeats).
+fn nth<T: Copy>(v: &[T], i: usize, default: T) -> T {
+    v.get(i).or(v.last()).copied().unwrap_or(default)
+}
+
+fn build_scene(args: &Args) -> anyhow::Result<Scene> {
+    let size = [args.size.0, args.size.1];
+    if args.repeat == 0 {
+        bail!("--repeat must be at least 1");
+    }
+    let mut scene = match &args.ptm {
+        Some(path) => {
+            let ptm =
+                Ptm::load(path).with_context(|| format!("loading the PTM {}", path.display()))?;
+            Scene::over_ptm(ptm, args.repeat, size)
+        }
+        None => {
+            let mut s = Scene::over_ptm(
+                Ptm {
+                    basis: ptm_fit::Basis::Ptm6,
+                    width: 1,
+                    height: 1,
+                    tile: [1.0, 1.0],
+                    planes: vec![vec![0.0]; 6],
+                },
+                args.repeat,
+                size,
+            );
+            s.ptm = None;
+            s
+        }
+    };
+    // A non-square output shows a non-square patch with square pixels.
+    let aspect = size[0] as f32 / size[1] as f32;
+    if aspect > 1.0 {
+        scene.view[2] = scene.view[0] + (scene.view[3] - scene.view[1]) * aspect;
+    } else {
+        scene.view[3] = scene.view[1] + (scene.view[2] - scene.view[0]) / aspect;
+    }
+    scene.albedo = args.albedo;
+    if let Some(path) = &args.albedo_texture {
+        let (w, h, texels) = output::read_rgba8(path)?;
+        let lin = texels
+            .iter()
+            .map(|p| [0, 1, 2].map(|c| output::srgb_decode(p[c] as f32 / 255.0)))
+            .collect();
+        scene.albedo_texture = Some((w, h, lin));
+    }
+
+    let extent = (scene.view[2] - scene.view[0]).max(scene.view[3] - scene.view[1]);
+    let centre = [
+        0.5 * (scene.view[0] + scene.view[2]),
+        0.5 * (scene.view[1] + scene.view[3]),
+    ];
+    let positions = if args.light.is_empty() {
+        vec![[
+            centre[0] - 0.6 * extent,
+            centre[1] + 0.3 * extent,
+            1.0 * extent,
+        ]]
+    } else {
+        args.light.clone()
+    };
+    scene.lights = positions
+        .iter()
+        .enumerate()
+        .map(|(i, &position)| {
+            let d = [
+                position[0] - centre[0],
+                position[1] - centre[1],
+                position[2],
+            ];
+            let d2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let cos = (d[2] / d2.sqrt()).max(0.05);
+            Light {
+                position,
+                radius: nth(&args.light_radius, i, 0.05 * extent),
+                intensity: nth(&args.intensity, i, d2 / cos),
+                color: nth(&args.color, i, [1.0, 1.0, 1.0]),
+            }
+        })
+        .collect();
+
+    if let Some(path) = &args.caster {
+        let (w, h, rgba) = output::read_rgba8(path)?;
+        let (cw, ch) = args.caster_size.unwrap_or((
+            0.5 * (scene.view[2] - scene.view[0]),
+            0.5 * (scene.view[3] - scene.view[1]),
+        ));
+        let (cx, cy) = args.caster_center.unwrap_or((centre[0], centre[1]));
+        scene.caster = Some(Caster {
+            width: w,
+            height: h,
+            rgba,
+            rect: [cx - 0.5 * cw, cy - 0.5 * ch, cx + 0.5 * cw, cy + 0.5 * ch],
+            elevation: args.caster_height,
+        });
+    }
+    scene.colored_shadow = args.colored_shadow;
+    scene.blur = args.blur.into();
+    Ok(scene)
+}
+
+fn timings_json(t: &ptm_runtime::Timings) -> Value {
+    Value::Object(
+        t.passes
+            .iter()
+            .map(|(name, s)| (name.to_string(), json!(s)))
+            .collect(),
+    )
+}
+
+pub fn run(args: &Args) -> anyhow::Result<Value> {
+    let start = Instant::now();
+    let scene = build_scene(args)?;
+    let prepared = scene.prepare()?;
+    let t = Instant::now();
+    let gpu = Gpu::new()?;
+    let device_s = t.elapsed().as_secs_f64();
+    eprintln!(
+        "ptm preview: {} on {}",
+        prepared.variant.name(),
+        gpu.describe()
+    );
+
+    let mut report = json!({
+        "adapter": gpu.describe(),
+        "variant": prepared.variant.name(),
+        "size": [args.size.0, args.size.1],
+        "view": scene.view,
+        "lights": scene.lights.len(),
+        "blur": scene.caster.as_ref().map(|_| scene.blur.name()),
+        "device_s": device_s,
+    });
+    if prepared.caster_downsample > 1 {
+        eprintln!(
+            "ptm preview: the caster is larger than {0}²; box-downsampled by {1} (u32 box sums are \
+             exact only up to {0}² texels)",
+            ptm_runtime::scene::MAX_CASTER_SIDE,
+            prepared.caster_downsample
+        );
+    }
+    report["caster_downsample"] = json!(prepared.caster_downsample);
+    for (i, l) in scene.lights.iter().enumerate() {
+        if l.position[2] <= 0.0 {
+            eprintln!(
+                "ptm preview: light {i} is not above the cloth (z = {}); it adds nothing",
+                l.position[2]
+            );
+        } else if let Some(c) = &scene.caster {
+            if l.position[2] <= c.elevation {
+                eprintln!(
+                    "ptm preview: light {i} is on or below the caster plane; the caster does not \
+                     shadow it"
+                );
+            }
+        }
+    }
+    if let Some(k) = cpu::k_excursion(&prepared) {
+        if k.clamped_fraction > 0.0 {
+            eprintln!(
+                "ptm preview: K left [0, 1] before clamping in {:.2}% of evaluations (min {:.3}, \
+                 max {:.3})",
+                100.0 * k.clamped_fraction,
+                k.min,
+                k.max
+            );
+        }
+        report["k_unclamped"] = json!({
+            "min": k.min, "max": k.max, "clamped_fraction": k.clamped_fraction,
+            "evaluations": k.evaluations,
+        });
+    }
+
+    let image: Image = if let Some(n) = args.turntable {
+        if n == 0 {
+            bail!("--turntable needs at least 1 frame");
+        }
+        let mut frames = Vec::new();
+        let mut per_frame = Vec::new();
+        for k in 0..n {
+            let turned = scene.with_lights_turned(std::f32::consts::TAU * k as f32 / n as f32);
+            let (img, t) = gpu::render(&gpu, &turned.prepare()?)?;
+            per_frame.push(timings_json(&t));
+            frames.push(img);
+        }
+        let columns = (n as f64).sqrt().ceil() as usize;
+        report["turntable"] = json!({ "frames": n, "columns": columns, "timings": per_frame });
+        Image::contact_sheet(&frames, columns).expect("frames share one size")
+    } else {
+        let (img, t) = gpu::render(&gpu, &prepared)?;
+        report["timings"] = timings_json(&t);
+        img
+    };
+
+    if args.compare_blur {
+        if scene.caster.is_none() {
+            bail!("--compare-blur needs a caster (--caster image.png)");
+        }
+        let rows = compare::compare_blur(&gpu, &scene, args.mc_samples)?;
+        eprintln!("{}", compare::table(&rows));
+        report["compare_blur"] = json!(rows
+            .iter()
+            .map(|r| json!({
+                "method": r.method, "max_abs_error": r.max_abs_error,
+                "mean_abs_error": r.mean_abs_error, "shade_s": r.shade_s, "setup_s": r.setup_s,
+            }))
+            .collect::<Vec<_>>());
+    }
+
+    image.write_png(&args.output, args.exposure)?;
+    eprintln!("ptm preview: wrote {}", args.output.display());
+    report["png"] = json!(path_str(&args.output));
+    if let Some(exr) = &args.exr {
+        image.write_exr(exr)?;
+        eprintln!("ptm preview: wrote {}", exr.display());
+        report["exr"] = json!(path_str(exr));
+    }
+    report["total_s"] = json!(start.elapsed().as_secs_f64());
+    Ok(report)
+}
+
+fn path_str(p: &Path) -> String {
+    p.display().to_string()
 }

@@ -4,12 +4,24 @@
 use rayon::prelude::*;
 
 use crate::output::Image;
-use crate::sat;
 use crate::scene::{Blur, Frame, LightGpu, Prepared};
+use crate::{penumbra, sat};
 
 /// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
 /// result does not depend on the thread count).
 pub fn render(p: &Prepared) -> Image {
+    render_with(p, 0)
+}
+
+/// The ground-truth image: as [`render`], but the caster opacity of each (pixel, light) is the
+/// Monte Carlo mean over the spherical light ([`penumbra::mc_opacity`], `samples` rays) instead
+/// of the blur method's estimate. K, albedo and the unshadowed light term are unchanged, so the
+/// difference to a method's image is its soft-shadow error alone.
+pub fn render_reference(p: &Prepared, samples: u32) -> Image {
+    render_with(p, samples.max(1))
+}
+
+fn render_with(p: &Prepared, mc_samples: u32) -> Image {
     let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
     let table = match p.variant.caster {
         Some(Blur::Sat) => sat::build_cpu(
@@ -20,7 +32,11 @@ pub fn render(p: &Prepared) -> Image {
         ),
         _ => Vec::new(),
     };
-    let twin = Twin { p, sat: &table };
+    let twin = Twin {
+        p,
+        sat: &table,
+        mc_samples,
+    };
     let mut pixels = vec![[0f32; 4]; w * h];
     pixels.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         for (i, px) in row.iter_mut().enumerate() {
@@ -85,6 +101,8 @@ fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4]))
 struct Twin<'a> {
     p: &'a Prepared,
     sat: &'a [u32],
+    /// > 0: Monte Carlo ground truth with this many rays instead of the blur method.
+    mc_samples: u32,
 }
 
 impl Twin<'_> {
@@ -133,7 +151,7 @@ impl Twin<'_> {
 
     fn blur_explicit(&self, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
         let cap = self.f().counts[3];
-        let n = ((2.0 * wt[0].max(wt[1])).ceil() as u32 + 1).clamp(4, cap);
+        let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, cap);
         let mut sum = [0f32; 3];
         let mut count = 0f32;
         for j in 0..n {
@@ -171,6 +189,10 @@ impl Twin<'_> {
         let f = self.f();
         let h = f.caster[0];
         let [lx, ly, lz, radius] = l.position_radius;
+        if self.mc_samples > 0 {
+            let key = (p[0].to_bits() as u64) << 32 ^ p[1].to_bits() as u64 ^ lx.to_bits() as u64;
+            return penumbra::mc_opacity(f, &self.p.opacity, p, l, self.mc_samples, key);
+        }
         if lz <= h {
             return [0.0; 3];
         }
@@ -231,4 +253,63 @@ pub fn opacity_at(opacity: &[u32], w: u32, h: u32, t: [f32; 2]) -> [f32; 3] {
     }
     let o = opacity[t[1] as usize * w as usize + t[0] as usize];
     [o & 255, (o >> 8) & 255, (o >> 16) & 255].map(|c| c as f32 / 255.0)
+}
+
+/// How far the unclamped K strays from [0, 1] over the rendered pixels and lights: a property
+/// of the fit (overshoot at grazing angles), reported beside the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KExcursion {
+    pub min: f32,
+    pub max: f32,
+    /// Fraction of (pixel, light above the horizon) evaluations clamped.
+    pub clamped_fraction: f64,
+    pub evaluations: u64,
+}
+
+/// K before clamping at every pixel for every light, exactly as the shader evaluates it;
+/// `None` without a PTM or without a light above the acceptor.
+pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
+    let basis = p.variant.basis?;
+    let twin = Twin {
+        p,
+        sat: &[],
+        mc_samples: 0,
+    };
+    let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
+    let lights = &p.lights[..p.frame.counts[0] as usize];
+    let rows: Vec<(f32, f32, u64, u64)> = (0..h)
+        .into_par_iter()
+        .map(|j| {
+            let (mut lo, mut hi, mut out, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0u64, 0u64);
+            for i in 0..w {
+                let pos = pixel_world(&p.frame, [i as f32 + 0.5, j as f32 + 0.5]);
+                let c = twin.ptm_coeffs(pos);
+                for l in lights {
+                    let lp = l.position_radius;
+                    let d = [lp[0] - pos[0], lp[1] - pos[1], lp[2]];
+                    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    if d[2] <= 0.0 || len <= 0.0 {
+                        continue;
+                    }
+                    let k = basis.eval(&c[..basis.len()], d[0] / len, d[1] / len);
+                    lo = lo.min(k);
+                    hi = hi.max(k);
+                    out += u64::from(!(0.0..=1.0).contains(&k));
+                    n += 1;
+                }
+            }
+            (lo, hi, out, n)
+        })
+        .collect();
+    let (lo, hi, out, n) = rows
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY, 0, 0), |a, r| {
+            (a.0.min(r.0), a.1.max(r.1), a.2 + r.2, a.3 + r.3)
+        });
+    (n > 0).then(|| KExcursion {
+        min: lo,
+        max: hi,
+        clamped_fraction: out as f64 / n as f64,
+        evaluations: n,
+    })
 }

@@ -12,6 +12,7 @@
 // the WGSL does with vectors; iterator zips would hide that correspondence.
 #![allow(clippy::needless_range_loop)]
 
+pub mod compare;
 pub mod cpu;
 pub mod gpu;
 pub mod output;

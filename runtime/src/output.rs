@@ -47,6 +47,31 @@ impl Image {
         Some(m)
     }
 
+    /// Tiles `images` (all the same size) left to right, top to bottom, `columns` per row;
+    /// unused cells stay black.
+    pub fn contact_sheet(images: &[Image], columns: usize) -> Option<Image> {
+        let first = images.first()?;
+        let (w, h) = (first.width, first.height);
+        if images.iter().any(|i| (i.width, i.height) != (w, h)) || columns == 0 {
+            return None;
+        }
+        let rows = images.len().div_ceil(columns);
+        let width = w * columns;
+        let mut pixels = vec![[0.0, 0.0, 0.0, 1.0]; width * h * rows];
+        for (n, img) in images.iter().enumerate() {
+            let (cx, cy) = (n % columns, n / columns);
+            for y in 0..h {
+                let dst = (cy * h + y) * width + cx * w;
+                pixels[dst..dst + w].copy_from_slice(&img.pixels[y * w..(y + 1) * w]);
+            }
+        }
+        Some(Image {
+            width,
+            height: h * rows,
+            pixels,
+        })
+    }
+
     /// 8-bit sRGB RGBA: linear × 2^exposure, clamped, encoded; alpha 255.
     pub fn to_srgb8(&self, exposure: f32) -> Vec<u8> {
         let scale = exposure.exp2();

@@ -32,7 +32,8 @@ pub struct Light {
 /// How the caster opacity is averaged over the penumbra kernel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Blur {
-    /// The reference: a regular grid of samples over the disk of radius w (cost grows as w²).
+    /// The reference: a regular grid of samples (spacing ≤ ½ texel, ≥ 16 per axis) over the
+    /// disk of radius w (cost grows as w²).
     Explicit,
     /// Box of half-side w from a summed-area table of u32 counts (constant cost, exact sums).
     Sat,
@@ -110,6 +111,23 @@ impl Scene {
             colored_shadow: false,
             blur: Blur::Sat,
         }
+    }
+
+    /// The scene with every light turned by `angle` radians about the vertical axis through the
+    /// centre of the view (a turntable frame).
+    pub fn with_lights_turned(&self, angle: f32) -> Scene {
+        let c = [
+            0.5 * (self.view[0] + self.view[2]),
+            0.5 * (self.view[1] + self.view[3]),
+        ];
+        let (s, co) = angle.sin_cos();
+        let mut out = self.clone();
+        for l in &mut out.lights {
+            let d = [l.position[0] - c[0], l.position[1] - c[1]];
+            l.position[0] = c[0] + co * d[0] - s * d[1];
+            l.position[1] = c[1] + s * d[0] + co * d[1];
+        }
+        out
     }
 
     /// Validates and lays the scene out as the shader's buffers.

@@ -138,9 +138,9 @@ fn opacity_at(t: vec2<f32>) -> vec3<f32> {
 
 //#if BLUR_EXPLICIT
 // Reference blur: mean opacity over an n×n grid of samples inside the ellipse of radii `wt`
-// (texels) around t; n grows with the radius (n ≥ 4, ≤ counts.w).
+// (texels) around t; n grows with the radius: spacing ≤ ½ texel, n ≥ 16, ≤ counts.w.
 fn blur_explicit(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
-    let n = clamp(u32(ceil(2.0 * max(wt.x, wt.y))) + 1u, 4u, frame.counts.w);
+    let n = clamp(u32(ceil(4.0 * max(wt.x, wt.y))), 16u, frame.counts.w);
     var sum = vec3<f32>(0.0);
     var count = 0.0;
     for (var j = 0u; j < n; j++) {

@@ -1,0 +1,74 @@
+//! `--compare-blur`: every blur method on the GPU against the CPU Monte Carlo ground truth, as
+//! one table of errors (linear radiance) and GPU times.
+
+use crate::scene::{Blur, Scene};
+use crate::{cpu, gpu, Gpu, Image, Result};
+
+/// One method's row of the comparison.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BlurRow {
+    pub method: &'static str,
+    /// Largest |method − ground truth| over pixels and channels (linear radiance).
+    pub max_abs_error: f32,
+    /// Mean |method − ground truth| over pixels and channels.
+    pub mean_abs_error: f32,
+    /// Seconds of the shading pass (wall clock around submit + wait).
+    pub shade_s: f64,
+    /// Seconds of per-caster setup passes (SAT build, MIP chain, separable passes).
+    pub setup_s: f64,
+}
+
+pub fn mean_abs_diff(a: &Image, b: &Image) -> f32 {
+    let mut sum = 0f64;
+    for (p, q) in a.pixels.iter().zip(&b.pixels) {
+        for c in 0..3 {
+            sum += (p[c] - q[c]).abs() as f64;
+        }
+    }
+    (sum / (3 * a.pixels.len().max(1)) as f64) as f32
+}
+
+/// Renders `scene` with each blur method and compares with the Monte Carlo reference.
+pub fn compare_blur(g: &Gpu, scene: &Scene, mc_samples: u32) -> Result<Vec<BlurRow>> {
+    let reference = cpu::render_reference(&scene.prepare()?, mc_samples);
+    let mut rows = Vec::new();
+    for blur in Blur::ALL {
+        let mut s = scene.clone();
+        s.blur = blur;
+        let p = s.prepare()?;
+        let r = gpu::Renderer::new(g, &p)?;
+        r.frame()?; // warm-up: first-use costs (shader JIT on lavapipe) are not the method's
+        let shade_s = r.frame()?;
+        let img = r.readback()?;
+        let setup_s = r
+            .setup
+            .passes
+            .iter()
+            .filter(|(n, _)| !matches!(*n, "compile" | "upload"))
+            .fold(0.0, |a, (_, s)| a + s);
+        rows.push(BlurRow {
+            method: blur.name(),
+            max_abs_error: img.max_abs_diff(&reference).unwrap_or(f32::NAN),
+            mean_abs_error: mean_abs_diff(&img, &reference),
+            shade_s,
+            setup_s,
+        });
+    }
+    Ok(rows)
+}
+
+/// A plain-text table of the rows.
+pub fn table(rows: &[BlurRow]) -> String {
+    let mut s = String::from("method      max |err|   mean |err|   shade ms   setup ms\n");
+    for r in rows {
+        s.push_str(&format!(
+            "{:<10} {:>10.2e} {:>12.2e} {:>10.2} {:>10.2}\n",
+            r.method,
+            r.max_abs_error,
+            r.mean_abs_error,
+            1e3 * r.shade_s,
+            1e3 * r.setup_s
+        ));
+    }
+    s
+}
