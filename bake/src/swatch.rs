@@ -369,7 +369,7 @@ mod tests {
         assert_eq!(s.warnings().len(), 1, "{:?}", s.warnings());
 
         let cases = [
-            ("missing.obj", None, "No such file"),
+            ("missing.obj", None, "cannot read"),
             ("empty.obj", Some(""), "empty file"),
             ("points.obj", Some("v 0 0 0\nv 1 0 0\n"), "no triangles"),
             (

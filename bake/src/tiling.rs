@@ -56,6 +56,17 @@ pub fn copies_meeting(
     out
 }
 
+/// Longest horizontal shadow run, in tiles, that the copies follow. A light a hair above the
+/// horizon would otherwise need millions of copies; beyond this run a ray counts as lit and
+/// the light is reported as capped ([`run_is_capped`]).
+pub const MAX_RUN_TILES: f64 = 256.0;
+
+/// Whether direction `l`'s shadow run exceeds [`MAX_RUN_TILES`].
+pub fn run_is_capped(tile: [f64; 2], bounds: &Bounds, l: [f64; 3]) -> bool {
+    let hz = bounds.max[2] - bounds.min[2];
+    hz * l[0].hypot(l[1]) > MAX_RUN_TILES * tile[0].min(tile[1]) * l[2]
+}
+
 /// Copies a distant light towards unit direction `l` (l_z > 0) needs.
 pub fn copies_for_direction(
     tile: [f64; 2],
@@ -64,7 +75,12 @@ pub fn copies_for_direction(
     margin: f64,
 ) -> Vec<[i32; 2]> {
     let hz = bounds.max[2] - bounds.min[2];
-    let s = [l[0] / l[2] * hz, l[1] / l[2] * hz];
+    let mut s = [l[0] / l[2] * hz, l[1] / l[2] * hz];
+    let run = s[0].hypot(s[1]);
+    let max_run = MAX_RUN_TILES * tile[0].min(tile[1]);
+    if run > max_run {
+        s = s.map(|c| c * max_run / run);
+    }
     let moved: Vec<[f64; 2]> = [
         [0.0, 0.0],
         [tile[0], 0.0],
@@ -88,11 +104,16 @@ pub fn copies_for_point(
     let (z0, z1) = (bounds.min[2], bounds.max[2]);
     // Largest fraction of the receiver→light segment travelled below z_max, over receivers
     // at z_min (the lowest, so the longest run).
-    let f = if pos[2] > z1 {
+    let mut f = if pos[2] > z1 {
         ((z1 - z0) / (pos[2] - z0)).min(1.0)
     } else {
         1.0
     };
+    let run = (pos[0] - tile[0] / 2.0).hypot(pos[1] - tile[1] / 2.0) * f;
+    let max_run = MAX_RUN_TILES * tile[0].min(tile[1]);
+    if run > max_run {
+        f *= max_run / run;
+    }
     let moved: Vec<[f64; 2]> = [
         [0.0, 0.0],
         [tile[0], 0.0],
@@ -226,6 +247,15 @@ mod tests {
             c.contains(&[2, 2]) && !c.contains(&[2, -1]) && !c.contains(&[-2, 0]),
             "{c:?}"
         );
+    }
+
+    #[test]
+    fn grazing_runs_are_capped() {
+        let l = [1.0, 0.0, 1e-9];
+        assert!(run_is_capped([1.0, 1.0], &unit_bounds(0.5), l));
+        let c = copies_for_direction([1.0, 1.0], &unit_bounds(0.5), l, 1e-9);
+        assert_eq!(rings(&c), MAX_RUN_TILES as u32 + 1);
+        assert!(c.len() < 4 * MAX_RUN_TILES as usize);
     }
 
     #[test]

@@ -54,6 +54,9 @@ pub struct BakeReport {
     pub uncovered_texels: usize,
     /// Lights at or below the horizon (K = 1 wherever covered).
     pub below_horizon: Vec<usize>,
+    /// Lights so close to the horizon that their shadow run was cut at
+    /// `tiling::MAX_RUN_TILES` tiles: K there may be biased towards lit.
+    pub capped: Vec<usize>,
 }
 
 /// One primary sample: shadow-ray origin (hit point moved off the surface) and unit normal
@@ -183,9 +186,7 @@ impl Baker {
         let [nx, ny] = self.cfg.res;
         let [bx, by] = self.blocks;
         let spp = self.cfg.spp as usize;
-        let m = (spp as f64).sqrt().ceil() as usize;
-        let rows = spp.div_ceil(m);
-        let (tile, seed, eps) = (self.tile, self.cfg.seed, self.eps);
+        let (res, tile, seed, eps) = (self.cfg.res, self.tile, self.cfg.seed, self.eps);
         // The camera sits on the clamp plane, above all geometry.
         let (z_top, t_far) = (self.z_cap as f32, f32::INFINITY);
         let mut samples = vec![Sample::default(); bx * by * spp * 16];
@@ -200,14 +201,8 @@ impl Baker {
                         if i >= nx || j >= ny {
                             continue;
                         }
-                        let texel = (j * nx + i) as u64;
                         for s in 0..spp {
-                            let (jx, jy) = jitter(texel, s as u64, seed);
-                            let fx = ((s % m) as f64 + jx) / m as f64;
-                            let fy = ((s / m) as f64 + jy) / rows as f64;
-                            // Row 0 is the far edge y = H.
-                            let x = (i as f64 + fx) * tile[0] / nx as f64;
-                            let y = tile[1] - (j as f64 + fy) * tile[1] / ny as f64;
+                            let [x, y] = sample_xy(res, tile, spp, seed, [i, j], s);
                             let org = [x as f32, y as f32, z_top];
                             let hit = scene.intersect1(org, [0.0, 0.0, -1.0], 0.0, t_far);
                             if let Some(h) = hit {
@@ -278,6 +273,9 @@ impl Baker {
                     tiling::copies_for_point(self.tile, &self.bounds, p, self.margin)
                 }
             };
+            if light.is_some() && tiling::run_is_capped(self.tile, &self.bounds, l) {
+                rep.capped.push(li);
+            }
             rep.rings.push(tiling::rings(&copies));
             rep.copies.push(copies.len());
             match light {
@@ -323,10 +321,17 @@ impl Baker {
         Ok(rep)
     }
 
-    /// The shadow scene of distant direction `l` (for the raw-Embree benchmark).
-    pub fn scene_for_direction(&mut self, l: [f64; 3]) -> Result<&Scene> {
+    /// Builds the shadow scene of distant direction `l` if it is not cached yet (for the
+    /// raw-Embree benchmark; [`Baker::trace`] does this itself).
+    pub fn prepare_direction(&mut self, l: [f64; 3]) -> Result<()> {
         let copies = tiling::copies_for_direction(self.tile, &self.bounds, l, self.margin);
-        self.scene_for(&copies)
+        self.scene_for(&copies).map(|_| ())
+    }
+
+    /// The shadow scene of distant direction `l`, once prepared.
+    pub fn direction_scene(&self, l: [f64; 3]) -> Option<&Scene> {
+        let copies = tiling::copies_for_direction(self.tile, &self.bounds, l, self.margin);
+        self.shadow_scenes.get(&copies)
     }
 
     /// Shadow-ray origins and normals of the primary hits, block-major as traced (for the
@@ -335,9 +340,24 @@ impl Baker {
         self.samples.iter().map(|s| (s.org, s.n, s.hit))
     }
 
-    /// The clamp plane of shadow rays (mesh units).
+    /// The clamp plane of shadow rays and the height of the camera (mesh units).
     pub fn z_cap(&self) -> f64 {
         self.z_cap
+    }
+
+    /// Offset of shadow-ray origins along the surface normal (mesh units).
+    pub fn ray_offset(&self) -> f64 {
+        self.eps
+    }
+
+    /// The scene primary rays are traced against (the copies overlapping the central tile).
+    pub fn primary_scene(&self) -> &Scene {
+        let copies = tiling::copies_meeting(self.tile, &self.bounds, &[], self.margin);
+        &self.shadow_scenes[&copies]
+    }
+
+    pub fn tile(&self) -> [f64; 2] {
+        self.tile
     }
 }
 
@@ -464,6 +484,29 @@ impl Run<'_> {
         }
         out
     }
+}
+
+/// Position (x, y) in mesh units of footprint sample `s` of texel `[i, j]` (column, row): cell
+/// (s mod m, s div m) of an m×⌈spp/m⌉ grid over the texel, m = ⌈√spp⌉, jittered by the hash.
+pub fn sample_xy(
+    res: [usize; 2],
+    tile: [f64; 2],
+    spp: usize,
+    seed: u64,
+    texel: [usize; 2],
+    s: usize,
+) -> [f64; 2] {
+    let m = (spp as f64).sqrt().ceil() as usize;
+    let rows = spp.div_ceil(m);
+    let [i, j] = texel;
+    let (jx, jy) = jitter((j * res[0] + i) as u64, s as u64, seed);
+    let fx = ((s % m) as f64 + jx) / m as f64;
+    let fy = ((s / m) as f64 + jy) / rows as f64;
+    // Row 0 is the far edge y = H.
+    [
+        (i as f64 + fx) * tile[0] / res[0] as f64,
+        tile[1] - (j as f64 + fy) * tile[1] / res[1] as f64,
+    ]
 }
 
 /// Two uniform numbers in [0, 1) from (texel, sample, seed): SplitMix64 finalisers over a
