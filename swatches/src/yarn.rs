@@ -190,6 +190,10 @@ impl Cloth {
     /// separates the two sections (separating-axis theorem). Axes tried: u = d/|d| and x̂, ŷ, ẑ.
     /// The result is a lower bound of the true gap at the samples (for round sections, u gives
     /// it exactly); between samples it is an estimate.
+    ///
+    /// Only sample pairs closer than three times the largest semi-axis are examined (found
+    /// through a periodic grid over the tile, so large drafts stay fast); farther pairs cannot
+    /// overlap. `gap` is infinite when no pair is that close.
     pub fn clearance(&self) -> Clearance {
         let mut best = Clearance {
             gap: f64::INFINITY,
@@ -197,57 +201,77 @@ impl Cloth {
             offset: [0, 0],
             at: [0.0; 3],
         };
-        let boxes: Vec<([f64; 3], [f64; 3], f64)> = self
-            .yarns
-            .iter()
-            .map(|y| {
-                let mut lo = [f64::INFINITY; 3];
-                let mut hi = [f64::NEG_INFINITY; 3];
-                for c in &y.centre {
-                    for k in 0..3 {
-                        lo[k] = lo[k].min(c[k]);
-                        hi[k] = hi[k].max(c[k]);
+        let [w, h] = self.tile;
+        let rmax = self.yarns.iter().map(Yarn::max_radius).fold(0.0, f64::max);
+        if self.yarns.is_empty() || rmax <= 0.0 {
+            return best;
+        }
+        let reach = 3.0 * rmax;
+        // Cells at least `reach` wide over the tile; samples are filed by position modulo it.
+        let cells = [
+            ((w / reach).floor() as usize).max(1),
+            ((h / reach).floor() as usize).max(1),
+        ];
+        let cell_of = |p: [f64; 3]| {
+            let fx = (p[0] / w).rem_euclid(1.0);
+            let fy = (p[1] / h).rem_euclid(1.0);
+            [
+                ((fx * cells[0] as f64) as usize).min(cells[0] - 1),
+                ((fy * cells[1] as f64) as usize).min(cells[1] - 1),
+            ]
+        };
+        let mut grid: Vec<Vec<(usize, usize)>> = vec![Vec::new(); cells[0] * cells[1]];
+        for (a, y) in self.yarns.iter().enumerate() {
+            for (i, &p) in y.centre.iter().enumerate() {
+                let [cx, cy] = cell_of(p);
+                grid[cy * cells[0] + cx].push((a, i));
+            }
+        }
+        let scale_len = w + h;
+        let mut near = Vec::with_capacity(9);
+        for (a, ya) in self.yarns.iter().enumerate() {
+            for (i, &pa) in ya.centre.iter().enumerate() {
+                let [cx, cy] = cell_of(pa);
+                near.clear();
+                for dx in [cells[0] - 1, 0, 1] {
+                    for dy in [cells[1] - 1, 0, 1] {
+                        let k = ((cy + dy) % cells[1]) * cells[0] + (cx + dx) % cells[0];
+                        if !near.contains(&k) {
+                            near.push(k);
+                        }
                     }
                 }
-                (lo, hi, y.max_radius())
-            })
-            .collect();
-        let [w, h] = self.tile;
-        for (a, ya) in self.yarns.iter().enumerate() {
-            for (b, yb) in self.yarns.iter().enumerate() {
-                for ox in -1..=1 {
-                    for oy in -1..=1 {
-                        if a == b && ox == 0 && oy == 0 {
+                for &k in &near {
+                    for &(b, j) in &grid[k] {
+                        // Each unordered pair of samples once (a sample meets its own copies).
+                        if (b, j) < (a, i) {
                             continue;
                         }
-                        // Each unordered pair once: (a, b, o) and (b, a, −o) are the same.
-                        if (b, -ox, -oy) < (a, ox, oy) {
-                            continue;
-                        }
-                        let off = [ox as f64 * w, oy as f64 * h, 0.0];
-                        // A yarn's copy one shift along is the same yarn, continued.
-                        if let (true, Ends::Periodic { shift }) = (a == b, ya.ends) {
-                            let same = |sg: f64| {
-                                (0..2).all(|k| (off[k] - sg * shift[k]).abs() < 1e-9 * (w + h))
-                            };
-                            if same(1.0) || same(-1.0) {
-                                continue;
-                            }
-                        }
-                        let (la, ha, ra) = boxes[a];
-                        let (lb, hb, rb) = boxes[b];
-                        let reach = ra + rb + best.gap.clamp(0.0, 1e300);
-                        if (0..3).any(|k| {
-                            lb[k] + off[k] > ha[k] + reach || hb[k] + off[k] < la[k] - reach
-                        }) {
-                            continue;
-                        }
-                        for (i, &pa) in ya.centre.iter().enumerate() {
-                            for (j, &pb) in yb.centre.iter().enumerate() {
-                                let pb = [pb[0] + off[0], pb[1] + off[1], pb[2]];
+                        let yb = &self.yarns[b];
+                        for ox in -1..=1 {
+                            for oy in -1..=1 {
+                                if a == b {
+                                    if ox == 0 && oy == 0 {
+                                        continue; // a yarn's own samples
+                                    }
+                                    // A yarn's copy one shift along is the same yarn, continued.
+                                    if let Ends::Periodic { shift } = ya.ends {
+                                        let off = [ox as f64 * w, oy as f64 * h];
+                                        let same = |sg: f64| {
+                                            (0..2).all(|q| {
+                                                (off[q] - sg * shift[q]).abs() < 1e-9 * scale_len
+                                            })
+                                        };
+                                        if same(1.0) || same(-1.0) {
+                                            continue;
+                                        }
+                                    }
+                                }
+                                let pb = yb.centre[j];
+                                let pb = [pb[0] + ox as f64 * w, pb[1] + oy as f64 * h, pb[2]];
                                 let d = sub(pb, pa);
                                 let len = norm(d);
-                                if len - ra - rb > best.gap {
+                                if len > reach || len - 2.0 * rmax > best.gap {
                                     continue;
                                 }
                                 let u = scale(d, 1.0 / len.max(1e-300));
@@ -255,15 +279,15 @@ impl Cloth {
                                 // Separating axes tried: the centre line and the frame axes
                                 // (ẑ certifies flat ellipses stacked at a crossing).
                                 let mut gap = len - support(sa, u) - support(sb, u);
-                                for (k, e) in AXES.iter().enumerate() {
-                                    gap = gap.max(d[k].abs() - support(sa, *e) - support(sb, *e));
+                                for (q, e) in AXES.iter().enumerate() {
+                                    gap = gap.max(d[q].abs() - support(sa, *e) - support(sb, *e));
                                 }
                                 if gap < best.gap {
                                     best = Clearance {
                                         gap,
                                         yarns: (a, b),
                                         offset: [ox, oy],
-                                        at: [0, 1, 2].map(|k| 0.5 * (pa[k] + pb[k])),
+                                        at: [0, 1, 2].map(|q| 0.5 * (pa[q] + pb[q])),
                                     };
                                 }
                             }
