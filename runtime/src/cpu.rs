@@ -145,15 +145,11 @@ impl Twin<'_> {
         ]
     }
 
-    fn opacity_at(&self, t: [f32; 2]) -> [f32; 3] {
-        opacity_at(&self.p.opacity, self.f().counts[1], self.f().counts[2], t)
-    }
-
     fn blur_explicit(&self, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
-        let cap = self.f().counts[3];
-        let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, cap);
-        let mut sum = [0f32; 3];
-        let mut count = 0f32;
+        let f = self.f();
+        let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, f.counts[3]);
+        let mut sum = [0u32; 3];
+        let mut count = 0u32;
         for j in 0..n {
             for i in 0..n {
                 let o = [
@@ -161,15 +157,20 @@ impl Twin<'_> {
                     (j as f32 + 0.5) / n as f32 * 2.0 - 1.0,
                 ];
                 if o[0] * o[0] + o[1] * o[1] <= 1.0 {
-                    let v = self.opacity_at([t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]]);
+                    let v = opacity_raw(
+                        &self.p.opacity,
+                        f.counts[1],
+                        f.counts[2],
+                        [t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]],
+                    );
                     for c in 0..3 {
                         sum[c] += v[c];
                     }
-                    count += 1.0;
+                    count += 1;
                 }
             }
         }
-        sum.map(|s| s / count)
+        sum.map(|s| s as f32 / (count as f32 * 255.0))
     }
 
     fn blur_sat(&self, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
@@ -245,14 +246,19 @@ impl Twin<'_> {
     }
 }
 
-/// Opacity (per channel, 0..1) of the caster texel containing texel coordinate t; transparent
+/// 8-bit opacity counts per channel of the caster texel containing texel coordinate t; 0
 /// outside the caster.
-pub fn opacity_at(opacity: &[u32], w: u32, h: u32, t: [f32; 2]) -> [f32; 3] {
+pub fn opacity_raw(opacity: &[u32], w: u32, h: u32, t: [f32; 2]) -> [u32; 3] {
     if t[0] < 0.0 || t[1] < 0.0 || t[0] >= w as f32 || t[1] >= h as f32 {
-        return [0.0; 3];
+        return [0; 3];
     }
     let o = opacity[t[1] as usize * w as usize + t[0] as usize];
-    [o & 255, (o >> 8) & 255, (o >> 16) & 255].map(|c| c as f32 / 255.0)
+    [o & 255, (o >> 8) & 255, (o >> 16) & 255]
+}
+
+/// Opacity (per channel, 0..1) of the caster texel containing t; transparent outside.
+pub fn opacity_at(opacity: &[u32], w: u32, h: u32, t: [f32; 2]) -> [f32; 3] {
+    opacity_raw(opacity, w, h, t).map(|c| c as f32 / 255.0)
 }
 
 /// How far the unclamped K strays from [0, 1] over the rendered pixels and lights: a property

@@ -13,8 +13,11 @@ use crate::{Error, Result};
 /// an integer factor first and the factor is reported.
 pub const MAX_CASTER_SIDE: usize = 4096;
 
-/// Upper bound on the explicit blur's samples per axis (it grows as the radius in texels).
-pub const MAX_EXPLICIT_SAMPLES: u32 = 512;
+/// Upper bound on the explicit blur's samples per axis (it grows as 4 × the radius in texels,
+/// so it is capped from a radius of 64 texels on). Also a lavapipe limit: Mesa 22.3.6 llvmpipe
+/// returned wrong sums for fragment loops of 512² = 262144 iterations (no shadow at all), while
+/// 256² matched the CPU twin exactly.
+pub const MAX_EXPLICIT_SAMPLES: u32 = 256;
 
 /// A spherical area light.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -123,36 +123,31 @@ fn caster_texel_coords(q: vec2<f32>) -> vec2<f32> {
 //#endif
 
 //#if BLUR_EXPLICIT
-// Opacity of the texel containing texel coordinate t (transparent outside the caster).
-fn opacity_at(t: vec2<f32>) -> vec3<f32> {
+// Opacity of the texel containing texel coordinate t as 8-bit counts per channel (0 outside).
+fn opacity_raw(t: vec2<f32>) -> vec3<u32> {
     let size = vec2<f32>(frame.counts.yz);
     if (t.x < 0.0 || t.y < 0.0 || t.x >= size.x || t.y >= size.y) {
-        return vec3<f32>(0.0);
+        return vec3<u32>(0u);
     }
-    let i = u32(t.x);
-    let j = u32(t.y);
-    let o = opacity_tex[j * frame.counts.y + i];
-    return vec3<f32>(f32(o & 255u), f32((o >> 8u) & 255u), f32((o >> 16u) & 255u)) / 255.0;
+    let o = opacity_tex[u32(t.y) * frame.counts.y + u32(t.x)];
+    return vec3<u32>(o & 255u, (o >> 8u) & 255u, (o >> 16u) & 255u);
 }
-//#endif
 
-//#if BLUR_EXPLICIT
 // Reference blur: mean opacity over an n×n grid of samples inside the ellipse of radii `wt`
-// (texels) around t; n grows with the radius: spacing ≤ ½ texel, n ≥ 16, ≤ counts.w.
+// (texels) around t; n grows with the radius: spacing ≤ ½ texel, n ≥ 16, ≤ counts.w. Sums are
+// integer counts (exact, ≤ 256²·255 < 2³²), divided once at the end.
 fn blur_explicit(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
     let n = clamp(u32(ceil(4.0 * max(wt.x, wt.y))), 16u, frame.counts.w);
-    var sum = vec3<f32>(0.0);
-    var count = 0.0;
-    for (var j = 0u; j < n; j++) {
-        for (var i = 0u; i < n; i++) {
-            let o = (vec2<f32>(f32(i), f32(j)) + 0.5) / f32(n) * 2.0 - 1.0;
-            if (dot(o, o) <= 1.0) {
-                sum += opacity_at(t + o * wt);
-                count += 1.0;
-            }
+    var sum = vec3<u32>(0u);
+    var count = 0u;
+    for (var k = 0u; k < n * n; k++) {
+        let o = (vec2<f32>(f32(k % n), f32(k / n)) + 0.5) / f32(n) * 2.0 - 1.0;
+        if (dot(o, o) <= 1.0) {
+            sum += opacity_raw(t + o * wt);
+            count += 1u;
         }
     }
-    return sum / count;
+    return vec3<f32>(sum) / (f32(count) * 255.0);
 }
 //#endif
 

@@ -60,6 +60,8 @@ fn gpu_matches_twin_with_albedo_texture_and_casters() {
             .collect(),
     ));
     s.caster = Some(random_caster(40, 30, [0.3, 0.2, 2.6, 2.4], 0.6, 3));
+    // w = 20·0.6/3 = 4 units ≈ 70 texels: the explicit blur at its 256² sample cap.
+    s.lights.push(light([1.5, 1.0, 3.0], 20.0, 4.0));
     for blur in Blur::ALL {
         for colored in [false, true] {
             s.blur = blur;
