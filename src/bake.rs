@@ -22,7 +22,7 @@ pub struct Args {
     #[arg(long, default_value = "builtin:plain-weave")]
     pub swatch: String,
     /// Tile size W,H in mesh units (default: a builtin's tile, or the OBJ's x/y bounding box).
-    #[arg(long, value_name = "W,H", value_delimiter = ',', num_args = 2)]
+    #[arg(long, value_name = "W,H", value_delimiter = ',')]
     pub tile: Option<Vec<f64>>,
     /// Texels over the central tile: N (square) or W,H.
     #[arg(long, value_name = "N|W,H", value_delimiter = ',', num_args = 1..=2, default_values_t = [64])]
@@ -85,7 +85,11 @@ fn finite(x: f64) -> Value {
 pub fn run(args: &Args) -> anyhow::Result<Value> {
     let t_all = Instant::now();
     // Everything that can refuse the input runs before any output is written.
-    let tile = args.tile.as_ref().map(|t| [t[0], t[1]]);
+    let tile = match args.tile.as_deref() {
+        None => None,
+        Some(&[w, h]) => Some([w, h]),
+        Some(t) => bail!("--tile takes W,H (two numbers), got {t:?}"),
+    };
     let t0 = Instant::now();
     let swatch = Swatch::load(&args.swatch, tile)?;
     let t_load = t0.elapsed().as_secs_f64();
@@ -183,6 +187,14 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         );
     }
 
+    if !report.capped.is_empty() {
+        eprintln!(
+            "ptm bake: warning: lights {:?} are so low that their shadows were followed only {} \
+             tiles; K there may be too small",
+            report.capped,
+            ptm_bake::tiling::MAX_RUN_TILES
+        );
+    }
     let t1 = Instant::now();
     let fit_json = match accumulator {
         Some(acc) => {
@@ -267,6 +279,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "copies": report.copies,
         "uncovered_texels": report.uncovered_texels,
         "below_horizon": report.below_horizon,
+        "capped": report.capped,
         "fit": fit_json,
         "seconds": {
             "load": t_load,

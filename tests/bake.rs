@@ -1,0 +1,196 @@
+//! Integration tests of `ptm bake`: outputs and their `.lp`, streaming `--fit` against a fit of
+//! the stored stack, identical bytes for any thread count, and refusals that write nothing.
+use std::path::Path;
+use std::process::Command;
+
+use ptm_fit::{LightSet, Ptm, SampleStack};
+
+fn ptm(args: &[&str], dir: &Path) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ptm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("running ptm");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A floor with a box on it, as an OBJ with quads (triangulated on load), 1×1 tile.
+const BOX_OBJ: &str = "\
+v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
+v 0.3 0.3 0.2\nv 0.7 0.3 0.2\nv 0.7 0.7 0.2\nv 0.3 0.7 0.2\n\
+v 0.3 0.3 0\nv 0.7 0.3 0\nv 0.7 0.7 0\nv 0.3 0.7 0\n\
+f 1 2 3 4\nf 5 6 7 8\nf 9 10 6 5\nf 10 11 7 6\nf 11 12 8 7\nf 12 9 5 8\n";
+
+#[test]
+fn bake_writes_stack_and_lp_and_json() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("box.obj"), BOX_OBJ).unwrap();
+    let (ok, stdout, stderr) = ptm(
+        &[
+            "--json",
+            "bake",
+            "--swatch",
+            "box.obj",
+            "--res",
+            "24,16",
+            "--dirs",
+            "12",
+            "--spp",
+            "4",
+            "-o",
+            "samples.exr",
+        ],
+        dir.path(),
+    );
+    assert!(ok, "{stderr}");
+    let j: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(j["triangles"], 12);
+    assert_eq!(j["lights"], 12);
+    assert_eq!(j["rays"]["primary"], 24 * 16 * 4);
+    assert_eq!(j["rings"].as_array().unwrap().len(), 12);
+    assert!(j["mrays_per_s"].as_f64().unwrap() > 0.0);
+    assert_eq!(j["uncovered_texels"], 0);
+    let stack = SampleStack::read(&dir.path().join("samples.exr")).unwrap();
+    assert_eq!(
+        (stack.width, stack.height, stack.tile),
+        (24, 16, [1.0, 1.0])
+    );
+    assert_eq!(stack.k.len(), 12);
+    assert!(stack.coverage.iter().all(|&c| c == 1.0));
+    let lp = LightSet::read_lp(&dir.path().join("samples.lp")).unwrap();
+    assert_eq!(lp, stack.lights);
+    assert!(lp.dirs.iter().all(|d| d[2] > 5f64.to_radians().sin()));
+    // The box top is never occluded; the floor beside it sometimes is.
+    let top = 8 * 24 + 12; // row 8 (y ≈ 0.47), column 12 (x ≈ 0.52)
+    assert!(stack.k.iter().all(|k| k[top] == 0.0));
+    assert!(stack.k.iter().any(|k| k.iter().any(|&v| v > 0.0)));
+}
+
+#[test]
+fn streaming_fit_matches_fitting_the_stack_and_threads_give_identical_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("box.obj"), BOX_OBJ).unwrap();
+    let common = [
+        "bake",
+        "--swatch",
+        "box.obj",
+        "--res",
+        "16",
+        "--dome",
+        "rings:15x6,40x8,75x4",
+        "--spp",
+        "4",
+    ];
+    let run = |extra: &[&str]| {
+        let args: Vec<&str> = common.iter().chain(extra).copied().collect();
+        let (ok, _, stderr) = ptm(&args, dir.path());
+        assert!(ok, "{stderr}");
+    };
+    run(&["--threads", "1", "-o", "one.exr"]);
+    run(&["--threads", "2", "-o", "two.exr"]);
+    // Identical samples, bit for bit (the EXR header's attribute order is not part of it).
+    let one = SampleStack::read(&dir.path().join("one.exr")).unwrap();
+    let two = SampleStack::read(&dir.path().join("two.exr")).unwrap();
+    let bits = |s: &SampleStack| -> Vec<u32> {
+        s.k.iter()
+            .flatten()
+            .chain(&s.coverage)
+            .map(|v| v.to_bits())
+            .collect()
+    };
+    assert!(bits(&one) == bits(&two), "1 and 2 threads differ");
+    assert_eq!(one.lights, two.lights);
+    run(&["--fit", "ptm6", "-o", "stream.ptm.exr"]);
+    assert!(dir.path().join("stream.lp").exists());
+    let (ok, _, stderr) = ptm(
+        &["fit", "one.exr", "--basis", "ptm6", "-o", "stored.ptm.exr"],
+        dir.path(),
+    );
+    assert!(ok, "{stderr}");
+    let a = Ptm::load(&dir.path().join("stream.ptm.exr")).unwrap();
+    let b = Ptm::load(&dir.path().join("stored.ptm.exr")).unwrap();
+    assert_eq!(a.planes.len(), 6);
+    for (pa, pb) in a.planes.iter().zip(&b.planes) {
+        for (x, y) in pa.iter().zip(pb) {
+            assert!((x - y).abs() < 1e-4, "{x} vs {y}");
+        }
+    }
+}
+
+#[test]
+fn bad_inputs_are_refused_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let inputs = [
+        ("empty.obj", "", "empty file"),
+        (
+            "nan.obj",
+            "v 0 0 nan\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            "non-finite",
+        ),
+        ("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 7\n", "index"),
+        ("none.obj", "v 0 0 0\nv 1 0 0\n", "no triangles"),
+        ("bad.lp", "2\na 0 0 1\n", "2 lights"),
+    ];
+    for (name, text, _) in &inputs {
+        std::fs::write(dir.path().join(name), text).unwrap();
+    }
+    std::fs::write(dir.path().join("ok.obj"), BOX_OBJ).unwrap();
+    let before: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (
+            vec!["--swatch", "missing.obj"],
+            "missing.obj",
+            "cannot read",
+        ),
+        (vec!["--swatch", "empty.obj"], "empty.obj", "empty file"),
+        (vec!["--swatch", "nan.obj"], "nan.obj", "non-finite"),
+        (vec!["--swatch", "range.obj"], "range.obj", "index"),
+        (vec!["--swatch", "none.obj"], "none.obj", "no triangles"),
+        (
+            vec!["--swatch", "ok.obj", "--tile", "0,1"],
+            "ok.obj",
+            "tile",
+        ),
+        (
+            vec!["--swatch", "builtin:no-such-weave"],
+            "no-such-weave",
+            "unknown",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--lights", "bad.lp"],
+            "bad.lp",
+            "2 lights",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--dome", "rings:10x"],
+            "--dome",
+            "count",
+        ),
+    ];
+    for (args, names, says) in cases {
+        let mut all = vec!["bake", "--res", "8", "--dirs", "4"];
+        if args.contains(&"--lights") || args.contains(&"--dome") {
+            all.truncate(3);
+        }
+        all.extend(&args);
+        all.extend(["-o", "out.exr"]);
+        let (ok, _, stderr) = ptm(&all, dir.path());
+        assert!(!ok, "{args:?} should fail");
+        assert!(
+            stderr.contains(names) && stderr.contains(says),
+            "{args:?}: {stderr}"
+        );
+    }
+    let after: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(before.len(), after.len(), "a refused bake wrote {after:?}");
+}
