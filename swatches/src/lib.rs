@@ -92,7 +92,7 @@ pub type Result<T> = std::result::Result<T, Error>;
 pub const NAMES: &[(&str, &str)] = &[
     ("plain-weave", "plain weave; spacing, width, height, crimp, segments, along"),
     ("twill", "n/m twill; n, m, dir=z|s, and the plain-weave parameters"),
-    ("satin", "warp-faced satin; n, step (coprime to n), and the plain-weave parameters"),
+    ("satin", "n-end satin; n, step (coprime to n), face=warp|weft, and the plain-weave parameters"),
     ("basket", "basket weave; n, and the plain-weave parameters"),
     ("draft", "a weave draft; path=FILE (WIF 1.1 or 0/1 grid), and the plain-weave parameters"),
     ("grid", "a 0/1 interlacement grid inline; rows=1010/0101 (1 = warp over), and the plain-weave parameters"),
@@ -152,7 +152,11 @@ pub fn generate(name: &str, p: &Params) -> Result<Swatch> {
                             format!("an integer in [2, {}] coprime to n = {n}", n - 2),
                         ));
                     }
-                    Pattern::satin(n, step)
+                    let satin = Pattern::satin(n, step);
+                    match p.choice("face", "warp", &["warp", "weft"])? {
+                        "warp" => satin,
+                        _ => satin.inverted(),
+                    }
                 }
                 "basket" => Pattern::basket(p.int("n", 2, 1, 32)? as usize),
                 "draft" => {

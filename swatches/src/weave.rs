@@ -52,6 +52,15 @@ impl Pattern {
         Pattern::from_fn(n, n, |i, j| (i * step) % n != j % n)
     }
 
+    /// The same interlacement seen from the back: every crossing swapped (a warp-faced satin
+    /// becomes weft-faced).
+    pub fn inverted(&self) -> Pattern {
+        Pattern {
+            over: self.over.iter().map(|o| !o).collect(),
+            ..self.clone()
+        }
+    }
+
     /// Basket weave: plain weave on groups of `n` warps and `n` wefts.
     pub fn basket(n: usize) -> Pattern {
         Pattern::from_fn(2 * n, 2 * n, |i, j| (i / n + j / n).is_multiple_of(2))

@@ -93,6 +93,13 @@ fn named_patterns_have_their_floats() {
         );
     }
     assert_eq!(Pattern::basket(1), Pattern::plain());
+    // Weft-faced satin: one warp over per weft.
+    let weft = build("satin?n=7&step=3&face=weft&segments=4&along=4").unwrap();
+    assert_eq!(weft.cloth.yarns.len(), 14);
+    let inv = Pattern::satin(7, 3).inverted();
+    for i in 0..7 {
+        assert_eq!((0..7).filter(|&j| inv.warp_over(i, j)).count(), 1);
+    }
 }
 
 const TWILL_WIF: &str = "\
