@@ -1,8 +1,243 @@
-//! `ptm fit`.
+//! `ptm fit`: least-squares PTM per texel from a stored sample stack or an RTI image stack.
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use ptm_fit::hp::write_hp_lrgb;
+use ptm_fit::images::read_image_stack;
+use ptm_fit::solve::{fit_stack, ErrorStats, FitOptions, FitReport, Weight};
+use ptm_fit::{Basis, SampleStack, SaveOptions};
+use serde_json::{json, Value};
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum BasisArg {
+    Ptm6,
+    Ptm11,
+}
+
+impl From<BasisArg> for Basis {
+    fn from(b: BasisArg) -> Basis {
+        match b {
+            BasisArg::Ptm6 => Basis::Ptm6,
+            BasisArg::Ptm11 => Basis::Ptm11,
+        }
+    }
+}
+
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum WeightArg {
+    /// Every light counts the same.
+    Uniform,
+    /// Weight sin(elevation): errors at grazing lights, which carry less light, count less.
+    Cosine,
+}
 
 #[derive(clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Sample stack written by `ptm bake` (samples.exr). Omit with --images.
+    pub input: Option<PathBuf>,
+    /// Output PTM (EXR, `ptm.<monomial>` channels).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Polynomial basis: ptm6 (u², u, uv, v, v², 1) or ptm11 (cubic + u²v²).
+    #[arg(long, value_enum, default_value = "ptm6")]
+    pub basis: BasisArg,
+    /// Weight of each light's squared error.
+    #[arg(long, value_enum, default_value = "uniform")]
+    pub weight: WeightArg,
+    /// Ridge regularisation λ, relative to the mean eigenvalue of AᵀWA (instead of truncation).
+    #[arg(long, value_name = "LAMBDA")]
+    pub regularize: Option<f64>,
+    /// Singular values below RCOND·σmax count as zero (their basis directions are undetermined).
+    #[arg(long, default_value_t = 1e-4)]
+    pub rcond: f64,
+    /// Fail instead of warning when the light set cannot determine the basis well.
+    #[arg(long)]
+    pub strict: bool,
+    /// Drop NaN or infinite samples (counted) instead of failing.
+    #[arg(long)]
+    pub skip_bad: bool,
+    /// Keep N evenly spread lights out of the fit and report the RMS error of K on them.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pub holdout: usize,
+    /// Also write per-texel residual maps as channels `err.rms` and `err.max`.
+    #[arg(long)]
+    pub error_map: bool,
+    /// Store half floats instead of float32 (the added error bound is reported).
+    #[arg(long)]
+    pub half: bool,
+    /// Fit an RTI image stack instead (glob, e.g. 'dir/*.png'; white = lit, K = 1 − value).
+    #[arg(long, value_name = "GLOB", requires = "lights")]
+    pub images: Option<String>,
+    /// `.lp` light file for --images (N, then `file x y z` per line).
+    #[arg(long, value_name = "FILE.lp")]
+    pub lights: Option<PathBuf>,
+    /// Tile size W,H in swatch units for --images.
+    #[arg(long, value_name = "W,H", value_delimiter = ',', num_args = 2, default_values_t = [1.0, 1.0])]
+    pub tile: Vec<f64>,
+    /// Also write a 6-term map in HP's PTM 1.2 LRGB format (visibility 1 − K, 8-bit).
+    #[arg(long, value_name = "OUT.ptm")]
+    pub export_hp: Option<PathBuf>,
+}
 
-pub fn run(_args: &Args) -> anyhow::Result<serde_json::Value> {
-    anyhow::bail!("`ptm fit` is not implemented yet")
+fn stats(s: &ErrorStats) -> Value {
+    json!({ "mean": s.mean, "p99": s.p99, "max": s.max })
+}
+
+fn finite(x: f64) -> Value {
+    if x.is_finite() {
+        json!(x)
+    } else {
+        Value::Null
+    }
+}
+
+pub fn run(args: &Args) -> anyhow::Result<Value> {
+    let t_all = Instant::now();
+    let basis: Basis = args.basis.into();
+    let t0 = Instant::now();
+    let (stack, source) = match (&args.input, &args.images) {
+        (Some(_), Some(_)) => bail!("give either a sample stack or --images, not both"),
+        (None, None) => bail!("nothing to fit: give a sample stack (samples.exr) or --images 'dir/*.png' --lights file.lp"),
+        (Some(p), None) => (
+            SampleStack::read(p).with_context(|| format!("reading {}", p.display()))?,
+            p.display().to_string(),
+        ),
+        (None, Some(pattern)) => {
+            let lp = args.lights.as_ref().expect("clap requires --lights");
+            let (stack, unused) = read_image_stack(pattern, lp, [args.tile[0], args.tile[1]])?;
+            if !unused.is_empty() {
+                eprintln!(
+                    "ptm fit: warning: {} images are not listed in {} and were ignored",
+                    unused.len(),
+                    lp.display()
+                );
+            }
+            (stack, pattern.clone())
+        }
+    };
+    let t_read = t0.elapsed().as_secs_f64();
+    eprintln!(
+        "ptm fit: {source}: {}×{} texels, {} lights{}",
+        stack.width,
+        stack.height,
+        stack.lights.len(),
+        if stack.uv.is_some() {
+            " (per-texel directions)"
+        } else {
+            ""
+        }
+    );
+    let opts = FitOptions {
+        basis,
+        weight: match args.weight {
+            WeightArg::Uniform => Weight::Uniform,
+            WeightArg::Cosine => Weight::Cosine,
+        },
+        regularize: args.regularize,
+        rcond: args.rcond,
+        strict: args.strict,
+        skip_bad: args.skip_bad,
+        holdout: args.holdout,
+    };
+    let (ptm, report) = fit_stack(&stack, &opts)?;
+    drop(stack);
+    for w in &report.warnings {
+        eprintln!("ptm fit: warning: {w}");
+    }
+    let t1 = Instant::now();
+    let save = SaveOptions {
+        half: args.half,
+        report: Some(&report),
+        error_map: args.error_map,
+    };
+    ptm.save(&args.output, &save)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    let t_write = t1.elapsed().as_secs_f64();
+    let half_bound = args.half.then(|| ptm.half_error_bound());
+    print_summary(&report, args, half_bound);
+    let hp = match &args.export_hp {
+        Some(p) => {
+            let e =
+                write_hp_lrgb(&ptm, p, None).with_context(|| format!("writing {}", p.display()))?;
+            eprintln!(
+                "ptm fit: wrote {} (HP PTM 1.2 LRGB, visibility 1 − K; 8-bit quantisation adds at most {:.2e} to K, {:.2e} on average)",
+                p.display(),
+                e.max_error,
+                e.mean_error
+            );
+            json!({ "path": p, "quantisation_error_max": e.max_error, "quantisation_error_mean": e.mean_error,
+                    "scales": e.scales, "biases": e.biases })
+        }
+        None => Value::Null,
+    };
+    let mut seconds = serde_json::Map::new();
+    seconds.insert("read".into(), json!(t_read));
+    for (k, v) in &report.seconds {
+        seconds.insert((*k).into(), json!(v));
+    }
+    seconds.insert("write".into(), json!(t_write));
+    seconds.insert("total".into(), json!(t_all.elapsed().as_secs_f64()));
+    Ok(json!({
+        "input": source,
+        "output": args.output,
+        "basis": basis.name(),
+        "width": ptm.width,
+        "height": ptm.height,
+        "texels": report.texels,
+        "masked_texels": report.masked,
+        "lights": report.lights,
+        "lights_fit": report.lights_fit,
+        "holdout_lights": report.holdout_lights,
+        "coefficients": report.coefficients,
+        "rank": report.rank,
+        "condition_number": finite(report.cond),
+        "cutoff": report.cutoff,
+        "rcond": report.rcond,
+        "singular_values": report.singular_values,
+        "solver": report.solver,
+        "weight": opts.weight.name(),
+        "warnings": report.warnings,
+        "rms_error": stats(&report.rms),
+        "max_error": report.max.as_ref().map(stats),
+        "holdout_rms_error": report.holdout.as_ref().map(stats),
+        "skipped_samples": report.skipped_samples,
+        "rank_deficient_texels": report.rank_deficient_texels,
+        "storage": if args.half { "half" } else { "float32" },
+        "half_error_bound": half_bound,
+        "hp_export": hp,
+        "seconds": seconds,
+    }))
+}
+
+fn print_summary(r: &FitReport, args: &Args, half_bound: Option<f64>) {
+    eprintln!(
+        "ptm fit: {} rank {}/{}, condition number {:.3}, {}",
+        r.basis.map_or("?", |b| b.name()),
+        r.rank,
+        r.coefficients,
+        r.cond,
+        r.solver
+    );
+    eprintln!(
+        "ptm fit: residual over {} fitting lights: RMS mean {:.4}, p99 {:.4}{}",
+        r.lights_fit,
+        r.rms.mean,
+        r.rms.p99,
+        r.max
+            .map(|m| format!("; max |error| p99 {:.4}", m.p99))
+            .unwrap_or_default()
+    );
+    if let Some(h) = r.holdout {
+        eprintln!(
+            "ptm fit: hold-out RMS error of K on {} unseen lights: mean {:.4}, p99 {:.4}",
+            r.holdout_lights.len(),
+            h.mean,
+            h.p99
+        );
+    }
+    if let Some(b) = half_bound {
+        eprintln!("ptm fit: half floats change K by at most {b:.2e} anywhere on the unit disk");
+    }
+    eprintln!("ptm fit: wrote {}", args.output.display());
 }

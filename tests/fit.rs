@@ -1,0 +1,275 @@
+//! Integration tests of `ptm fit`: the command on stored stacks, its JSON, its errors, and the
+//! HP PTM export read back by an independent reader written here from the format description.
+use std::path::Path;
+use std::process::Command;
+
+use ptm_fit::{Basis, LightSet, Ptm, SampleStack};
+
+fn ptm() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ptm"))
+}
+
+fn tmpdir() -> tempfile::TempDir {
+    tempfile::tempdir().unwrap()
+}
+
+/// Fibonacci hemisphere above 5° elevation.
+fn dome(n: usize) -> LightSet {
+    let zmin = 5f64.to_radians().sin();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    LightSet::from_dirs((0..n).map(|i| {
+        let z = zmin + (1.0 - zmin) * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let a = golden * i as f64;
+        [r * a.cos(), r * a.sin(), z]
+    }))
+}
+
+/// Smooth occlusion-like K: an exact ptm6 polynomial whose coefficients vary across the tile,
+/// plus (when `noise`) a deterministic non-polynomial term.
+fn stack(lights: &LightSet, w: usize, h: usize, noise: bool) -> (SampleStack, Vec<[f64; 6]>) {
+    let coeffs: Vec<[f64; 6]> = (0..w * h)
+        .map(|t| {
+            let (x, y) = ((t % w) as f64 / w as f64, (t / w) as f64 / h as f64);
+            [
+                0.3 * x,
+                -0.2 + 0.1 * y,
+                0.15 * (x - y),
+                0.1,
+                0.25 * y,
+                0.2 + 0.1 * x * y,
+            ]
+        })
+        .collect();
+    let k = lights
+        .dirs
+        .iter()
+        .map(|d| {
+            coeffs
+                .iter()
+                .enumerate()
+                .map(|(t, c)| {
+                    let mut v = Basis::Ptm6.eval(c, d[0], d[1]);
+                    if noise {
+                        v += 0.05 * ((t as f64 * 0.37 + d[0] * 9.0).sin() * (d[1] * 7.0).cos());
+                    }
+                    v as f32
+                })
+                .collect()
+        })
+        .collect();
+    let s = SampleStack {
+        width: w,
+        height: h,
+        tile: [1.0, 1.0],
+        lights: lights.clone(),
+        k,
+        coverage: vec![1.0; w * h],
+        uv: None,
+    };
+    (s, coeffs)
+}
+
+fn run_json(args: &[&str]) -> serde_json::Value {
+    let out = ptm().args(args).arg("--json").output().unwrap();
+    assert!(
+        out.status.success(),
+        "ptm {args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("one JSON object on stdout")
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+#[test]
+fn fit_command_recovers_polynomials_and_reports_json() {
+    let dir = tmpdir();
+    let lights = dome(48);
+    let (s, coeffs) = stack(&lights, 12, 9, false);
+    let samples = dir.path().join("samples.exr");
+    s.write(&samples).unwrap();
+    let out = dir.path().join("weave.ptm.exr");
+    let j = run_json(&[
+        "fit",
+        p(&samples),
+        "--basis",
+        "ptm6",
+        "-o",
+        p(&out),
+        "--holdout",
+        "4",
+        "--error-map",
+    ]);
+    assert_eq!(j["rank"], 6);
+    assert_eq!(j["lights"], 48);
+    assert_eq!(j["lights_fit"], 44);
+    assert!(j["condition_number"].as_f64().unwrap() < 20.0);
+    assert!(j["rms_error"]["p99"].as_f64().unwrap() < 1e-5);
+    assert!(j["holdout_rms_error"]["mean"].as_f64().unwrap() < 1e-5);
+    assert!(j["seconds"]["total"].as_f64().unwrap() > 0.0);
+    assert!(j["warnings"].as_array().unwrap().is_empty());
+    let (ptm, info) = Ptm::load_with_info(&out).unwrap();
+    assert_eq!(ptm.basis, Basis::Ptm6);
+    assert!(info.err_rms.is_some() && info.err_max.is_some());
+    for (t, c) in coeffs.iter().enumerate() {
+        for (plane, want) in ptm.planes.iter().zip(c) {
+            assert!((plane[t] as f64 - want).abs() < 1e-5);
+        }
+    }
+    // --half states its added error, and the file honours it.
+    let half = dir.path().join("half.ptm.exr");
+    let j = run_json(&["fit", p(&samples), "-o", p(&half), "--half"]);
+    let bound = j["half_error_bound"].as_f64().unwrap();
+    assert!(bound > 0.0 && bound < 2e-3, "{bound}");
+    let h = Ptm::load(&half).unwrap();
+    for t in 0..ptm.width * ptm.height {
+        let (x, y) = (t % ptm.width, t / ptm.width);
+        let d = (h.eval_unclamped(x, y, 0.5, -0.5) - ptm.eval_unclamped(x, y, 0.5, -0.5)).abs();
+        assert!(d as f64 <= bound + 1e-6);
+    }
+}
+
+#[test]
+fn fit_command_errors_name_the_problem() {
+    let dir = tmpdir();
+    let foreign = dir.path().join("notes.exr");
+    std::fs::write(&foreign, "not an exr").unwrap();
+    let out = ptm()
+        .args(["fit", p(&foreign), "-o", p(&dir.path().join("o.exr"))])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("notes.exr") && err.contains("OpenEXR"),
+        "{err}"
+    );
+
+    // A single elevation ring: warns by default, fails with --strict.
+    let ring = LightSet::from_dirs((0..16).map(|i| {
+        let a = i as f64 * std::f64::consts::TAU / 16.0;
+        [0.8 * a.cos(), 0.8 * a.sin(), 0.6]
+    }));
+    let (s, _) = stack(&ring, 4, 4, true);
+    let samples = dir.path().join("ring.exr");
+    s.write(&samples).unwrap();
+    let o = dir.path().join("ring.ptm.exr");
+    let j = run_json(&["fit", p(&samples), "-o", p(&o)]);
+    assert_eq!(j["rank"], 5);
+    let w = j["warnings"].to_string();
+    assert!(w.contains("ring") && w.contains("u2 + v2"), "{w}");
+    let out = ptm()
+        .args(["fit", p(&samples), "-o", p(&o), "--strict"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--strict"));
+}
+
+/// An independent reader of HP PTM 1.2 LRGB files, written from the format description:
+/// whitespace-separated ASCII header (version, format, width, height, 6 scales, 6 biases), then
+/// 6 bytes per texel (rows bottom to top), then 3 bytes of RGB per texel.
+struct HpFile {
+    width: usize,
+    height: usize,
+    scales: [f64; 6],
+    biases: [f64; 6],
+    coeff: Vec<u8>,
+    rgb: Vec<u8>,
+}
+
+fn read_hp(path: &Path) -> HpFile {
+    let bytes = std::fs::read(path).unwrap();
+    let mut pos = 0;
+    let mut token = || {
+        while bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while !bytes[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        String::from_utf8(bytes[start..pos].to_vec()).unwrap()
+    };
+    assert_eq!(token(), "PTM_1.2");
+    assert_eq!(token(), "PTM_FORMAT_LRGB");
+    let width: usize = token().parse().unwrap();
+    let height: usize = token().parse().unwrap();
+    let scales = [(); 6].map(|_| token().parse::<f64>().unwrap());
+    let biases = [(); 6].map(|_| token().parse::<f64>().unwrap());
+    pos += 1; // the single whitespace byte ending the header
+    let n = width * height;
+    assert_eq!(bytes.len() - pos, 9 * n, "payload size");
+    HpFile {
+        width,
+        height,
+        scales,
+        biases,
+        coeff: bytes[pos..pos + 6 * n].to_vec(),
+        rgb: bytes[pos + 6 * n..].to_vec(),
+    }
+}
+
+impl HpFile {
+    /// Luminance (255 = unchanged RGB) at image column x, row y counted from the top.
+    fn lum(&self, x: usize, y: usize, u: f64, v: f64) -> f64 {
+        let row_in_file = self.height - 1 - y;
+        let i = (row_in_file * self.width + x) * 6;
+        let a: Vec<f64> = (0..6)
+            .map(|s| self.scales[s] * (self.coeff[i + s] as f64 - self.biases[s]))
+            .collect();
+        a[0] * u * u + a[1] * v * v + a[2] * u * v + a[3] * u + a[4] * v + a[5]
+    }
+}
+
+#[test]
+fn hp_export_reads_back_with_an_independent_reader() {
+    let dir = tmpdir();
+    let (s, _) = stack(&dome(40), 10, 7, true);
+    let samples = dir.path().join("samples.exr");
+    s.write(&samples).unwrap();
+    let out = dir.path().join("w.ptm.exr");
+    let hp = dir.path().join("w.ptm");
+    let j = run_json(&["fit", p(&samples), "-o", p(&out), "--export-hp", p(&hp)]);
+    let qmax = j["hp_export"]["quantisation_error_max"].as_f64().unwrap();
+    assert!(
+        qmax > 0.0 && qmax < 0.03,
+        "stated quantisation error {qmax}"
+    );
+    let fitted = Ptm::load(&out).unwrap();
+    let f = read_hp(&hp);
+    assert_eq!((f.width, f.height), (10, 7));
+    assert!(f.rgb.iter().all(|&b| b == 255));
+    let mut worst: f64 = 0.0;
+    for y in 0..7 {
+        for x in 0..10 {
+            for (u, v) in [(0.0, 0.0), (0.6, 0.3), (-0.5, -0.7), (0.0, 0.99)] {
+                let vis = 1.0 - fitted.eval_unclamped(x, y, u as f32, v as f32) as f64;
+                let d = (f.lum(x, y, u, v) / 255.0 - vis).abs();
+                worst = worst.max(d);
+            }
+        }
+    }
+    assert!(
+        worst <= qmax + 1e-6,
+        "read-back error {worst} > stated {qmax}"
+    );
+    // A ptm11 fit cannot be exported, and says why.
+    let out = ptm()
+        .args([
+            "fit",
+            p(&samples),
+            "-o",
+            p(&dir.path().join("c.exr")),
+            "--basis",
+            "ptm11",
+        ])
+        .args(["--export-hp", p(&dir.path().join("c.ptm"))])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--basis ptm6"));
+}
