@@ -44,7 +44,7 @@ pub fn run(args: &Args) -> anyhow::Result<serde_json::Value> {
         .with_context(|| format!("writing {}", args.output.display()))?;
     let (lo, hi) = mesh.bounds().unwrap_or_default();
     eprintln!(
-        "{}: {} triangles, {} vertices, tile {} x {}, z in [{}, {}], min yarn gap {:.4}; wrote {}",
+        "{}: {} triangles, {} vertices, tile {} x {}, z in [{}, {}], min yarn gap {}; wrote {}",
         swatch.name,
         mesh.triangles.len(),
         mesh.positions.len(),
@@ -52,7 +52,11 @@ pub fn run(args: &Args) -> anyhow::Result<serde_json::Value> {
         mesh.tile[1],
         lo[2],
         hi[2],
-        swatch.clearance.gap,
+        if swatch.clearance.gap.is_finite() {
+            format!("{:.4}", swatch.clearance.gap)
+        } else {
+            "(no two yarns near)".to_string()
+        },
         args.output.display()
     );
     Ok(json!({

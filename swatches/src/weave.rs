@@ -144,7 +144,7 @@ pub fn min_crimp(spacing: f64, width: f64, height: f64) -> Option<f64> {
             height,
             crimp: c,
             segments: 8,
-            along: 32,
+            along: 24,
         };
         woven(&Pattern::plain(), &p).clearance().gap >= -1e-9 * spacing
     };
@@ -164,7 +164,8 @@ pub fn min_crimp(spacing: f64, width: f64, height: f64) -> Option<f64> {
         lo += step;
     }
     let mut hi = hi?;
-    for _ in 0..30 {
+    // 20 halvings of a 0.05-spacing bracket: 5e-8 spacings.
+    for _ in 0..20 {
         let mid = 0.5 * (lo + hi);
         if ok(mid) {
             hi = mid;

@@ -191,7 +191,7 @@ impl Cloth {
     /// The result is a lower bound of the true gap at the samples (for round sections, u gives
     /// it exactly); between samples it is an estimate.
     ///
-    /// Only sample pairs closer than three times the largest semi-axis are examined (found
+    /// Only sample pairs closer than four times the largest semi-axis are examined (found
     /// through a periodic grid over the tile, so large drafts stay fast); farther pairs cannot
     /// overlap. `gap` is infinite when no pair is that close.
     pub fn clearance(&self) -> Clearance {
@@ -206,7 +206,7 @@ impl Cloth {
         if self.yarns.is_empty() || rmax <= 0.0 {
             return best;
         }
-        let reach = 3.0 * rmax;
+        let reach = 4.0 * rmax;
         // Cells at least `reach` wide over the tile; samples are filed by position modulo it.
         let cells = [
             ((w / reach).floor() as usize).max(1),
