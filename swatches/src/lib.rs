@@ -90,7 +90,7 @@ pub type Result<T> = std::result::Result<T, Error>;
 
 /// The builtin generators, for help texts and error messages.
 pub const NAMES: &[(&str, &str)] = &[
-    ("plain-weave", "plain weave; spacing, width, height, crimp, segments, along"),
+    ("plain-weave", "plain weave; spacing, width, height, crimp, flat, segments, along"),
     ("twill", "n/m twill; n, m, dir=z|s, and the plain-weave parameters"),
     ("satin", "n-end satin; n, step (coprime to n), face=warp|weft, and the plain-weave parameters"),
     ("basket", "basket weave; n, and the plain-weave parameters"),

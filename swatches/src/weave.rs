@@ -82,21 +82,27 @@ pub struct WovenParams {
     pub segments: usize,
     /// Rings per yarn spacing (along the yarn).
     pub along: usize,
+    /// Fraction of each spacing, centred on a crossing, over which the yarn stays level before
+    /// bending to the other side (0: a half cosine from crossing to crossing). Flat tops let
+    /// wide yarns (width near the spacing) wrap each other.
+    pub flat: f64,
 }
 
 impl WovenParams {
-    /// Reads `spacing, width, height, crimp, segments, along` with their defaults and ranges.
+    /// Reads `spacing, width, height, flat, crimp, segments, along` with their defaults and
+    /// ranges.
     pub fn from_params(p: &Params) -> Result<WovenParams> {
         let spacing = p.positive("spacing", 1.0, f64::INFINITY)?;
         let width = p.positive("width", 0.8 * spacing, spacing)?;
         let height = p.positive("height", 0.35 * spacing, spacing)?;
+        let flat = p.real("flat", 0.0, 0.0, 0.8)?;
         // Yarns bend around each other: the centres must be at least about one yarn height
         // apart at a crossing; see `min_crimp` for the exact bound used.
-        let Some(lo) = min_crimp(spacing, width, height) else {
+        let Some(lo) = min_crimp(spacing, width, height, flat) else {
             return Err(p.invalid(
                 "height",
                 height,
-                format!("a smaller height: no crimp separates yarns {height} high and {width} wide at spacing {spacing}"),
+                format!("a smaller height: no crimp separates yarns {height} high and {width} wide at spacing {spacing} (flat = {flat}; a larger flat may help)"),
             ));
         };
         let crimp = p.real("crimp", 1.05 * lo, lo, spacing)?;
@@ -109,26 +115,29 @@ impl WovenParams {
             crimp,
             segments,
             along,
+            flat,
         })
     }
 }
 
 /// Height of a yarn's centre at distance `t` (in spacings) past a crossing where it sits at
-/// `za`, heading to `zb` at the next crossing: a half cosine, flat at both crossings so floats
-/// and crossings join smoothly. Returns (z, dz/dt).
-fn crimp_profile(za: f64, zb: f64, t: f64) -> (f64, f64) {
+/// `za`, heading to `zb` at the next crossing: level for `flat`/2 on each side of a crossing and
+/// a half cosine in between, with zero slope at its ends so floats and crossings join
+/// smoothly. Returns (z, dz/dt).
+fn crimp_profile(za: f64, zb: f64, t: f64, flat: f64) -> (f64, f64) {
     let pi = std::f64::consts::PI;
-    let z = za + (zb - za) * 0.5 * (1.0 - (pi * t).cos());
-    let dz = (zb - za) * 0.5 * pi * (pi * t).sin();
+    let u = ((t - 0.5 * flat) / (1.0 - flat)).clamp(0.0, 1.0);
+    let z = za + (zb - za) * 0.5 * (1.0 - (pi * u).cos());
+    let dz = (zb - za) * 0.5 * pi * (pi * u).sin() / (1.0 - flat);
     (z, dz)
 }
 
 /// Centre height and slope (per unit length) along one yarn at coordinate `s` along it, given
 /// its heights `z_at(k)` at crossing k (crossings at (k + ½)·spacing).
-fn yarn_height(s: f64, spacing: f64, z_at: &dyn Fn(i64) -> f64) -> (f64, f64) {
+fn yarn_height(s: f64, spacing: f64, flat: f64, z_at: &dyn Fn(i64) -> f64) -> (f64, f64) {
     let tau = s / spacing - 0.5;
     let k = tau.floor();
-    let (z, dz) = crimp_profile(z_at(k as i64), z_at(k as i64 + 1), tau - k);
+    let (z, dz) = crimp_profile(z_at(k as i64), z_at(k as i64 + 1), tau - k, flat);
     (z, dz / spacing)
 }
 
@@ -136,7 +145,7 @@ fn yarn_height(s: f64, spacing: f64, z_at: &dyn Fn(i64) -> f64) -> (f64, f64) {
 /// to one spacing separates them. Found by a scan and bisection on the clearance of a plain
 /// weave, the tightest case: every crossing is a change of side. (Very large crimps fail again:
 /// steep yarns meet their neighbours' sections obliquely.)
-pub fn min_crimp(spacing: f64, width: f64, height: f64) -> Option<f64> {
+pub fn min_crimp(spacing: f64, width: f64, height: f64, flat: f64) -> Option<f64> {
     let ok = |c: f64| {
         let p = WovenParams {
             spacing,
@@ -145,6 +154,7 @@ pub fn min_crimp(spacing: f64, width: f64, height: f64) -> Option<f64> {
             crimp: c,
             segments: 8,
             along: 24,
+            flat,
         };
         woven(&Pattern::plain(), &p).clearance().gap >= -1e-9 * spacing
     };
@@ -208,7 +218,7 @@ pub fn woven(pattern: &Pattern, p: &WovenParams) -> Cloth {
         };
         for k in 0..=n_warp {
             let y = tile[1] * k as f64 / n_warp as f64;
-            let (z, dz) = yarn_height(y, s, &z_at);
+            let (z, dz) = yarn_height(y, s, p.flat, &z_at);
             yarn.centre.push([x, y, z]);
             yarn.axes
                 .push([[-w, 0.0, 0.0], [0.0, 0.0, h * (1.0 + dz * dz).sqrt()]]);
@@ -235,7 +245,7 @@ pub fn woven(pattern: &Pattern, p: &WovenParams) -> Cloth {
         };
         for k in 0..=n_weft {
             let x = tile[0] * k as f64 / n_weft as f64;
-            let (z, dz) = yarn_height(x, s, &z_at);
+            let (z, dz) = yarn_height(x, s, p.flat, &z_at);
             yarn.centre.push([x, y, z]);
             yarn.axes
                 .push([[0.0, w, 0.0], [0.0, 0.0, h * (1.0 + dz * dz).sqrt()]]);

@@ -25,6 +25,13 @@ fn invalid_parameters_name_the_parameter_and_range() {
     );
     let e = err("plain-weave?height=0.95");
     assert!(e.contains("height = 0.95"), "{e}");
+    let e = err("plain-weave?flat=0.9");
+    assert!(e.contains("flat = 0.9") && e.contains("[0, 0.8]"), "{e}");
+    let e = err("plain-weave?width=0.97&height=0.3");
+    assert!(
+        e.contains("height = 0.3") && e.contains("no crimp separates"),
+        "{e}"
+    );
     let e = err("satin?n=6&step=2");
     assert!(
         e.contains("step = 2") && e.contains("coprime to n = 6"),
