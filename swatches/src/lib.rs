@@ -96,10 +96,10 @@ pub const NAMES: &[(&str, &str)] = &[
     ("basket", "basket weave; n, and the plain-weave parameters"),
     ("draft", "a weave draft; path=FILE (WIF 1.1 or 0/1 grid), and the plain-weave parameters"),
     ("grid", "a 0/1 interlacement grid inline; rows=1010/0101 (1 = warp over), and the plain-weave parameters"),
-    ("jersey", "stockinette (plain) knit; wale, radius, a, h, d, courses, wales, segments, along"),
+    ("jersey", "stockinette (plain) knit; wale, a, h, d, row, radius, wales, courses, segments, along"),
     ("rib", "k×k rib knit; k, and the jersey parameters"),
-    ("velvet", "upright pile tufts on a plain ground weave; density, pile, radius, tilt, seed, repeat"),
-    ("terry", "pile loops on a plain ground weave; density, pile, radius, seed, repeat"),
+    ("velvet", "leaning pile tufts on a plain ground weave; density, pile, radius, tilt, seed, repeat, rings, and the plain-weave parameters for the ground"),
+    ("terry", "pile loops on a plain ground weave; density, pile, loop, radius, seed, repeat, rings, and the plain-weave parameters for the ground"),
     ("corduroy", "parallel round wales on a ground slab; spacing, radius, slab, segments, along"),
 ];
 
