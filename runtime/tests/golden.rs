@@ -1,0 +1,97 @@
+//! Golden images: a few small scenes rendered on the GPU and compared with blessed PNGs with a
+//! tolerance (never bytes). On a mismatch `<name>-actual.png` and `<name>-diff.png` are written
+//! to the test scratch directory and named in the failure; `UPDATE_GOLDEN=1` re-blesses.
+
+mod common;
+
+use std::path::PathBuf;
+
+use common::*;
+use ptm_fit::Basis;
+use ptm_runtime::output::{read_rgba8, write_png_rgba8};
+use ptm_runtime::{gpu, Blur, Scene};
+
+/// Largest allowed per-channel difference in 8-bit sRGB (software vs hardware rasterisers,
+/// driver versions).
+const TOLERANCE: u8 = 3;
+
+fn golden_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
+}
+
+fn check_golden(name: &str, scene: &Scene) {
+    let (img, _) = gpu::render(&gpu(), &scene.prepare().unwrap()).unwrap();
+    let actual = img.to_srgb8(0.0);
+    let path = golden_dir().join(format!("{name}.png"));
+    if std::env::var_os("UPDATE_GOLDEN").is_some() {
+        write_png_rgba8(&path, img.width, img.height, &actual).unwrap();
+        eprintln!("blessed {}", path.display());
+        return;
+    }
+    let (w, h, want) = read_rgba8(&path).unwrap_or_else(|e| {
+        panic!("{e}: missing golden image; run with UPDATE_GOLDEN=1 to create it")
+    });
+    assert_eq!(
+        (w, h),
+        (img.width, img.height),
+        "{name}: golden size differs"
+    );
+    let want: Vec<u8> = want.concat();
+    let worst = actual
+        .iter()
+        .zip(&want)
+        .map(|(a, b)| a.abs_diff(*b))
+        .max()
+        .unwrap();
+    if worst > TOLERANCE {
+        let out = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("golden");
+        std::fs::create_dir_all(&out).unwrap();
+        let actual_path = out.join(format!("{name}-actual.png"));
+        let diff_path = out.join(format!("{name}-diff.png"));
+        write_png_rgba8(&actual_path, w, h, &actual).unwrap();
+        let diff: Vec<u8> = actual
+            .iter()
+            .zip(&want)
+            .enumerate()
+            .map(|(i, (a, b))| {
+                if i % 4 == 3 {
+                    255
+                } else {
+                    a.abs_diff(*b).saturating_mul(16)
+                }
+            })
+            .collect();
+        write_png_rgba8(&diff_path, w, h, &diff).unwrap();
+        panic!(
+            "{name}: differs from {} by up to {worst}/255 (tolerance {TOLERANCE}); see {} and {}",
+            path.display(),
+            actual_path.display(),
+            diff_path.display()
+        );
+    }
+}
+
+fn scene(basis: Basis, blur: Blur, colored: bool) -> Scene {
+    let mut s = Scene::over_ptm(random_ptm(basis, 12, 10, 11), 2, [64, 64]);
+    s.lights = vec![
+        light([-0.5, 2.5, 1.5], 0.4, 5.0),
+        light([2.5, 0.5, 2.0], 0.2, 4.0),
+    ];
+    s.caster = Some(random_caster(24, 24, [0.4, 0.4, 1.6, 1.6], 0.5, 5));
+    s.blur = blur;
+    s.colored_shadow = colored;
+    s
+}
+
+#[test]
+fn golden_ptm6_sat() {
+    check_golden("ptm6_sat", &scene(Basis::Ptm6, Blur::Sat, false));
+}
+
+#[test]
+fn golden_ptm11_explicit_coloured() {
+    check_golden(
+        "ptm11_explicit_colored",
+        &scene(Basis::Ptm11, Blur::Explicit, true),
+    );
+}

@@ -1,0 +1,184 @@
+//! Integration tests of `ptm preview`: a PTM file written by ptm-fit rendered on the GPU
+//! (lavapipe in CI), the JSON report, turntable sheets, the blur comparison, and errors.
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use ptm_fit::{Basis, Ptm, SaveOptions};
+use serde_json::Value;
+
+fn ptm() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ptm"))
+}
+
+/// A 16×16 ptm6 whose K varies with the light's u (so the image depends on the PTM).
+fn write_ptm(dir: &Path) -> PathBuf {
+    let (w, h) = (16, 16);
+    let mut planes = vec![vec![0.0f32; w * h]; 6];
+    for t in 0..w * h {
+        let x = (t % w) as f32 / w as f32;
+        planes[1][t] = 0.6 * x; // u
+        planes[5][t] = 0.2 + 0.3 * ((t / w) as f32 / h as f32); // 1
+    }
+    let p = Ptm {
+        basis: Basis::Ptm6,
+        width: w,
+        height: h,
+        tile: [1.0, 1.0],
+        planes,
+    };
+    let path = dir.join("weave.ptm.exr");
+    p.save(&path, &SaveOptions::default()).unwrap();
+    path
+}
+
+/// A 32×32 RGBA caster: an opaque disc, red, on transparent.
+fn write_caster(dir: &Path) -> PathBuf {
+    let mut rgba = Vec::new();
+    for j in 0..32 {
+        for i in 0..32 {
+            let (x, y) = (i as f32 - 15.5, j as f32 - 15.5);
+            rgba.extend_from_slice(&[220, 40, 40, if x * x + y * y < 100.0 { 255 } else { 0 }]);
+        }
+    }
+    let path = dir.join("caster.png");
+    ptm_runtime::output::write_png_rgba8(&path, 32, 32, &rgba).unwrap();
+    path
+}
+
+fn run_json(args: &[&str]) -> Value {
+    let out = ptm()
+        .arg("--json")
+        .arg("preview")
+        .args(args)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "ptm preview {args:?} failed:\n{stderr}"
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON: {e}"))
+}
+
+fn png_size(path: &Path) -> (usize, usize) {
+    let (w, h, _) = ptm_runtime::output::read_rgba8(path).unwrap();
+    (w, h)
+}
+
+#[test]
+fn preview_renders_a_ptm_with_a_caster_and_reports_passes() {
+    let dir = tempfile::tempdir().unwrap();
+    let ptm_path = write_ptm(dir.path());
+    let caster = write_caster(dir.path());
+    let png = dir.path().join("preview.png");
+    let exr = dir.path().join("preview.exr");
+    let j = run_json(&[
+        "--ptm",
+        ptm_path.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--exr",
+        exr.to_str().unwrap(),
+        "--size",
+        "96,64",
+        "--light",
+        "0.5,1.5,1.5",
+        "--light-radius",
+        "0.2",
+        "--intensity",
+        "3",
+        "--light",
+        "-1,-1,2",
+        "--color",
+        "1,0.5,0.2",
+        "--caster",
+        caster.to_str().unwrap(),
+        "--caster-height",
+        "0.4",
+        "--caster-size",
+        "1,1",
+        "--blur",
+        "sat",
+    ]);
+    assert_eq!(png_size(&png), (96, 64));
+    assert!(exr.exists());
+    assert_eq!(j["variant"], "ptm6+sat");
+    assert_eq!(j["lights"], 2);
+    assert!(j["adapter"].as_str().unwrap().len() > 3);
+    for pass in ["compile", "upload", "sat_build", "shade", "readback"] {
+        assert!(
+            j["timings"][pass].as_f64().unwrap() >= 0.0,
+            "missing pass {pass}: {j}"
+        );
+    }
+    assert!(j["k_unclamped"]["evaluations"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn preview_without_ptm_and_turntable_sheet() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("sheet.png");
+    let j = run_json(&[
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "40,30",
+        "--turntable",
+        "5",
+    ]);
+    assert_eq!(j["variant"], "nok");
+    assert_eq!(j["turntable"]["frames"], 5);
+    // 5 frames, 3 columns: 3 × 2 cells of 40 × 30.
+    assert_eq!(png_size(&png), (120, 60));
+}
+
+#[test]
+fn compare_blur_reports_every_method_against_monte_carlo() {
+    let dir = tempfile::tempdir().unwrap();
+    let caster = write_caster(dir.path());
+    let png = dir.path().join("c.png");
+    let j = run_json(&[
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "48,48",
+        "--caster",
+        caster.to_str().unwrap(),
+        "--caster-height",
+        "0.5",
+        "--light-radius",
+        "0.3",
+        "--compare-blur",
+        "--mc-samples",
+        "64",
+    ]);
+    let rows = j["compare_blur"].as_array().unwrap();
+    let methods: Vec<&str> = rows.iter().map(|r| r["method"].as_str().unwrap()).collect();
+    for m in ptm_runtime::Blur::ALL {
+        assert!(methods.contains(&m.name()), "{methods:?}");
+    }
+    for r in rows {
+        let e = r["max_abs_error"].as_f64().unwrap();
+        assert!(e.is_finite() && e < 0.5, "{r}");
+    }
+}
+
+#[test]
+fn preview_errors_name_the_problem() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = ptm()
+        .args(["preview", "-o"])
+        .arg(dir.path().join("x.png"))
+        .arg("--compare-blur")
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--compare-blur needs a caster"));
+    let out = ptm()
+        .args(["preview", "--ptm", "/nonexistent.ptm.exr", "-o"])
+        .arg(dir.path().join("x.png"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("nonexistent.ptm.exr"));
+}
