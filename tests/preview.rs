@@ -14,11 +14,12 @@ fn ptm() -> Command {
 fn write_ptm(dir: &Path) -> PathBuf {
     let (w, h) = (16, 16);
     let mut planes = vec![vec![0.0f32; w * h]; 6];
-    for t in 0..w * h {
-        let x = (t % w) as f32 / w as f32;
-        planes[1][t] = 0.6 * x; // u
-        planes[5][t] = 0.2 + 0.3 * ((t / w) as f32 / h as f32); // 1
-    }
+    planes[1] = (0..w * h)
+        .map(|t| 0.6 * (t % w) as f32 / w as f32)
+        .collect(); // u
+    planes[5] = (0..w * h) // 1
+        .map(|t| 0.2 + 0.3 * (t / w) as f32 / h as f32)
+        .collect();
     let p = Ptm {
         basis: Basis::Ptm6,
         width: w,
