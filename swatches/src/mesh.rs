@@ -108,8 +108,9 @@ impl Mesh {
         Ok(())
     }
 
-    /// Reads the subset of OBJ that [`Mesh::write_obj`] writes (`v`, triangular `f` with
-    /// optional `/vt/vn` parts, the `# tile W H` comment); other lines are ignored.
+    /// Reads an OBJ file: `v` lines, `f` lines (polygons fan-triangulated, `/vt/vn` parts and
+    /// negative relative indices allowed) and the `# tile W H` comment [`Mesh::write_obj`]
+    /// writes (tile [0, 0] when absent); other lines are ignored.
     pub fn read_obj(path: &Path) -> Result<Mesh> {
         let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
             path: path.to_path_buf(),
@@ -129,11 +130,8 @@ impl Mesh {
             let mut it = line.split_whitespace();
             match it.next() {
                 Some("#") if line.starts_with("# tile ") => {
-                    let v: Vec<f32> = it.skip(1).filter_map(|s| s.parse().ok()).collect();
-                    if v.len() != 2 {
-                        return Err(format!("line {n}: `# tile` needs two numbers W H"));
-                    }
-                    mesh.tile = [v[0], v[1]];
+                    mesh.tile = obj_tile_line(line)
+                        .ok_or_else(|| format!("line {n}: `# tile` needs two numbers W H"))?;
                 }
                 Some("v") => {
                     let v: Vec<f32> = it
@@ -146,19 +144,27 @@ impl Mesh {
                     mesh.positions.push([v[0], v[1], v[2]]);
                 }
                 Some("f") => {
+                    let nv = mesh.positions.len() as i64;
                     let idx: Vec<u32> = it
                         .map(|s| {
                             let first = s.split('/').next().unwrap_or("");
-                            first.parse::<u32>().ok().filter(|&i| i >= 1)
+                            // 1-based, or negative: relative to the vertices read so far.
+                            match first.parse::<i64>().ok()? {
+                                k if k >= 1 => u32::try_from(k - 1).ok(),
+                                k if k < 0 && nv + k >= 0 => u32::try_from(nv + k).ok(),
+                                _ => None,
+                            }
                         })
                         .collect::<Option<_>>()
                         .ok_or_else(|| {
-                            format!("line {n}: face indices must be 1-based integers")
+                            format!("line {n}: face indices must be non-zero integers within the vertices so far")
                         })?;
-                    if idx.len() != 3 {
-                        return Err(format!("line {n}: only triangles are supported"));
+                    if idx.len() < 3 {
+                        return Err(format!("line {n}: a face needs at least 3 vertices"));
                     }
-                    mesh.triangles.push([idx[0] - 1, idx[1] - 1, idx[2] - 1]);
+                    for k in 1..idx.len() - 1 {
+                        mesh.triangles.push([idx[0], idx[k], idx[k + 1]]);
+                    }
                 }
                 _ => {}
             }
@@ -178,4 +184,22 @@ impl Mesh {
         }
         Ok(mesh)
     }
+}
+
+/// The tile size from the `# tile W H` header comment [`Mesh::write_obj`] writes, for readers
+/// that parse the rest of an OBJ themselves; `None` when there is no such line.
+pub fn obj_tile(text: &str) -> Option<[f32; 2]> {
+    text.lines()
+        .take_while(|l| l.starts_with('#') || l.trim().is_empty())
+        .find(|l| l.starts_with("# tile "))
+        .and_then(obj_tile_line)
+}
+
+fn obj_tile_line(line: &str) -> Option<[f32; 2]> {
+    let v: Vec<f32> = line
+        .split_whitespace()
+        .skip(2)
+        .map(|s| s.parse().ok())
+        .collect::<Option<_>>()?;
+    (v.len() == 2 && v.iter().all(|t| t.is_finite() && *t > 0.0)).then(|| [v[0], v[1]])
 }

@@ -450,6 +450,22 @@ fn obj_round_trip_is_exact() {
         err.contains("face 1 has index 3 but the mesh has 2 vertices"),
         "{err}"
     );
+    // Foreign OBJs: a quad with texture/normal indices and relative indices, no tile.
+    let q = Mesh::parse_obj(
+        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1/1/1 2/2/1 3/3/1 4/4/1\nf -4 -2 -1\n",
+    )
+    .unwrap();
+    assert_eq!(q.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 2, 3]]);
+    assert_eq!(q.tile, [0.0, 0.0]);
+    assert!(Mesh::parse_obj("v 0 0 0\nf 1 0 1\n").is_err());
+    // The header alone, for readers that parse the rest themselves.
+    let text =
+        std::fs::read_to_string(env!("CARGO_MANIFEST_DIR").to_string() + "/jersey.obj").unwrap();
+    let tile = ptm_swatches::mesh::obj_tile(&text).unwrap();
+    assert_eq!(tile, Mesh::parse_obj(&text).unwrap().tile);
+    assert!(
+        (tile[0] - 2.0).abs() < 1e-6 && (tile[1] - 2.0 * 4.5 / std::f32::consts::TAU).abs() < 1e-6
+    );
 }
 
 /// Möller–Trumbore: does the ray o + t·d (t > 0) hit triangle (a, b, c)?
