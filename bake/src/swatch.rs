@@ -215,7 +215,15 @@ pub fn load_obj(path: &Path) -> Result<Mesh> {
         }
         e => bad(format!("not a readable OBJ: {e}")),
     })?;
-    let mut mesh = Mesh::default();
+    // `ptm swatch` writes the tile as a `# tile W H` header; knits and pile overhang their
+    // tile, so their bounding box is not the tile.
+    let mut mesh = Mesh {
+        tile: std::str::from_utf8(&text)
+            .ok()
+            .and_then(ptm_swatches::mesh::obj_tile)
+            .unwrap_or_default(),
+        ..Mesh::default()
+    };
     for m in models {
         let base = mesh.positions.len();
         let nv = m.mesh.positions.len() / 3;

@@ -207,7 +207,10 @@ impl Baker {
                             let hit = scene.intersect1(org, [0.0, 0.0, -1.0], 0.0, t_far);
                             if let Some(h) = hit {
                                 let len =
-                                    (h.ng[0] as f64).hypot(h.ng[1] as f64).hypot(h.ng[2] as f64);
+                                    h.ng.iter()
+                                        .map(|&c| c as f64 * c as f64)
+                                        .sum::<f64>()
+                                        .sqrt();
                                 if len > 0.0 {
                                     let sign = if h.ng[2] < 0.0 { -1.0 } else { 1.0 } / len;
                                     let n = h.ng.map(|c| c as f64 * sign);
