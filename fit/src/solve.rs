@@ -904,9 +904,8 @@ fn bad_sample(texel: usize, width: usize, light: usize, value: f32) -> Error {
     }
 }
 
-/// Texels per block of the fused product + residual kernel: the block's K (lights × BLOCK f32)
-/// stays in L2 between the two passes.
-const BLOCK: usize = 128;
+/// Texels per parallel work unit of the fused product + residual kernel (a multiple of LANES).
+const BLOCK: usize = 256;
 
 /// Fits a stored stack: one f32 product C = P·K over texel blocks (parallel, deterministic),
 /// fused with the exact residual pass (weighted RMS and max over the fitting lights, RMS of
@@ -957,12 +956,26 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
     let t_factor = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let nb = t.div_ceil(BLOCK);
+    let used: Vec<usize> = fit.iter().chain(&prep.held).copied().collect();
+    let inp = KernelIn {
+        k: &stack.k,
+        nfit: fit.len(),
+        p: used
+            .iter()
+            .flat_map(|&l| p[l * m..(l + 1) * m].to_vec())
+            .collect(),
+        a: used
+            .iter()
+            .flat_map(|&l| af[l * m..(l + 1) * m].to_vec())
+            .collect(),
+        w: used.iter().map(|&l| wf[l]).collect(),
+        used,
+    };
     let blocks: Vec<Block> = (0..nb)
         .into_par_iter()
         .map(|bi| {
             let start = bi * BLOCK;
-            let len = BLOCK.min(t - start);
-            kernel(stack, start, len, m, &fit, &prep.held, &p, &af, &wf)
+            kernel(&inp, start, BLOCK.min(t - start), m)
         })
         .collect();
     let t_apply = t1.elapsed().as_secs_f64();
@@ -1075,64 +1088,217 @@ struct Block {
     hs: Vec<f32>,
 }
 
-#[allow(clippy::too_many_arguments)]
-fn kernel(
-    stack: &SampleStack,
-    start: usize,
-    len: usize,
-    m: usize,
-    fit: &[usize],
-    held: &[usize],
-    p: &[f32],
-    af: &[f32],
-    wf: &[f32],
-) -> Block {
-    let mut c = vec![0f32; m * BLOCK];
-    for &l in fit {
-        let k = &stack.k[l][start..start + len];
-        let pl = &p[l * m..(l + 1) * m];
-        for j in 0..m {
-            let pj = pl[j];
-            let cj = &mut c[j * BLOCK..j * BLOCK + len];
-            for (cb, &kb) in cj.iter_mut().zip(k) {
-                *cb += pj * kb;
-            }
+/// Inputs of the fused kernel shared by all blocks. Lights are taken in `used` order: the
+/// fitting lights first (`nfit` of them), then the held-out lights.
+struct KernelIn<'a> {
+    k: &'a [Vec<f32>],
+    used: Vec<usize>,
+    nfit: usize,
+    /// Per used light: its row of P (terms), its row of A in f32 (terms), its weight.
+    p: Vec<f32>,
+    a: Vec<f32>,
+    w: Vec<f32>,
+}
+
+/// Texels per register tile: one 256-bit vector of f32.
+const LANES: usize = 8;
+
+thread_local! {
+    /// Per-thread packing buffer, reused across blocks.
+    static PACK: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// One block: dispatches to an AVX2+FMA build of the same code when the CPU has it (the
+/// result is deterministic on a given machine; FMA changes the last bits versus SSE2).
+fn kernel(inp: &KernelIn, start: usize, len: usize, m: usize) -> Block {
+    PACK.with(|buf| {
+        let mut buf = buf.borrow_mut();
+        pack(inp, start, len, &mut buf);
+        match m {
+            6 => kernel_m::<6>(inp, &buf, len),
+            11 => kernel_m::<11>(inp, &buf, len),
+            _ => unreachable!("bases have 6 or 11 terms"),
+        }
+    })
+}
+
+/// Copies the block's K into tile-major order, `[tile][used light][lane]`, zero-padded: the
+/// rows stream from memory once, and the tile kernel then reads contiguous memory (as a GEMM
+/// packs its panels).
+fn pack(inp: &KernelIn, start: usize, len: usize, buf: &mut Vec<f32>) {
+    let nu = inp.used.len();
+    let tiles = len.div_ceil(LANES);
+    buf.clear();
+    buf.resize(tiles * nu * LANES, 0.0);
+    for (li, &l) in inp.used.iter().enumerate() {
+        let row = &inp.k[l][start..start + len];
+        let mut chunks = row.chunks_exact(LANES);
+        for (tile, chunk) in chunks.by_ref().enumerate() {
+            let o = (tile * nu + li) * LANES;
+            // Fixed-size copy: one 32-byte move, no memmove call.
+            let dst: &mut [f32; LANES] = (&mut buf[o..o + LANES]).try_into().unwrap();
+            *dst = chunk.try_into().unwrap();
+        }
+        let rest = chunks.remainder();
+        let o = ((len / LANES) * nu + li) * LANES;
+        for (q, &x) in rest.iter().enumerate() {
+            buf[o + q] = x;
         }
     }
-    let mut ss = vec![0f32; BLOCK];
-    let mut mx = vec![0f32; BLOCK];
-    let mut hs = vec![0f32; BLOCK];
-    let mut pred = [0f32; BLOCK];
-    let predict = |l: usize, pred: &mut [f32; BLOCK]| {
-        let al = &af[l * m..(l + 1) * m];
-        pred.fill(0.0);
-        for j in 0..m {
-            let aj = al[j];
-            for (pb, &cb) in pred[..len].iter_mut().zip(&c[j * BLOCK..j * BLOCK + len]) {
-                *pb += aj * cb;
-            }
-        }
+}
+
+fn kernel_m<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize) -> Block {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports the features the function is compiled for.
+        return unsafe { kernel_avx2::<M>(inp, packed, len) };
+    }
+    kernel_body::<M, false>(inp, packed, len)
+}
+
+/// The tile kernel in AVX2 + FMA intrinsics: M accumulators of 8 texels stay in registers.
+/// Same maths and order as [`kernel_body`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn kernel_avx2<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize) -> Block {
+    use std::arch::x86_64::*;
+    let mut out = Block {
+        c: vec![0f32; M * BLOCK],
+        ss: vec![0f32; BLOCK],
+        mx: vec![0f32; BLOCK],
+        hs: vec![0f32; BLOCK],
     };
-    for &l in fit {
-        predict(l, &mut pred);
-        let k = &stack.k[l][start..start + len];
-        let wl = wf[l];
-        for i in 0..len {
-            let r = k[i] - pred[i];
-            ss[i] += wl * r * r;
-            // NaN-propagating max so bad samples are detected after the pass.
-            mx[i] = if r.is_nan() { r } else { mx[i].max(r.abs()) };
+    let nu = inp.used.len();
+    let (p, a) = (inp.p.as_ptr(), inp.a.as_ptr());
+    let abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff));
+    let (zero, one) = (_mm256_setzero_ps(), _mm256_set1_ps(1.0));
+    for (tile, kt) in packed.chunks_exact(nu * LANES).enumerate() {
+        let b0 = tile * LANES;
+        let kp = kt.as_ptr();
+        let mut acc = [zero; M];
+        for li in 0..inp.nfit {
+            // SAFETY (all pointer reads): li < nu, j < M; kt has nu·LANES floats, p and a nu·M.
+            let kv = _mm256_loadu_ps(kp.add(li * LANES));
+            for j in 0..M {
+                acc[j] = _mm256_fmadd_ps(_mm256_broadcast_ss(&*p.add(li * M + j)), kv, acc[j]);
+            }
+        }
+        let (mut ss, mut mx, mut hs) = (zero, zero, zero);
+        for li in 0..nu {
+            let kv = _mm256_loadu_ps(kp.add(li * LANES));
+            let mut pred = zero;
+            for j in 0..M {
+                pred = _mm256_fmadd_ps(_mm256_broadcast_ss(&*a.add(li * M + j)), acc[j], pred);
+            }
+            if li < inp.nfit {
+                let r = _mm256_sub_ps(kv, pred);
+                ss = _mm256_fmadd_ps(_mm256_mul_ps(_mm256_set1_ps(inp.w[li]), r), r, ss);
+                // Non-finite samples show up in ss; max only has to order finite values.
+                mx = _mm256_max_ps(_mm256_and_ps(r, abs_mask), mx);
+            } else {
+                let pc = _mm256_min_ps(_mm256_max_ps(pred, zero), one);
+                let r = _mm256_sub_ps(pc, kv);
+                hs = _mm256_fmadd_ps(r, r, hs);
+            }
+        }
+        let n = LANES.min(len - b0);
+        let mut lanes = [0f32; LANES];
+        let mut put = |v: __m256, dst: &mut [f32]| {
+            _mm256_storeu_ps(lanes.as_mut_ptr(), v);
+            dst[..n].copy_from_slice(&lanes[..n]);
+        };
+        for j in 0..M {
+            put(acc[j], &mut out.c[j * BLOCK + b0..]);
+        }
+        put(ss, &mut out.ss[b0..]);
+        put(mx, &mut out.mx[b0..]);
+        put(hs, &mut out.hs[b0..]);
+    }
+    out
+}
+
+#[inline(always)]
+fn fma<const FMA: bool>(a: f32, b: f32, c: f32) -> f32 {
+    if FMA {
+        a.mul_add(b, c)
+    } else {
+        a * b + c
+    }
+}
+
+/// Unclamped K of used light `li` from the tile's accumulated coefficients.
+#[inline(always)]
+fn predict<const M: usize, const FMA: bool>(
+    a: &[f32],
+    li: usize,
+    acc: &[[f32; LANES]; M],
+) -> [f32; LANES] {
+    let al: &[f32; M] = a[li * M..(li + 1) * M].try_into().unwrap();
+    let mut pred = [0f32; LANES];
+    for j in 0..M {
+        for q in 0..LANES {
+            pred[q] = fma::<FMA>(al[j], acc[j][q], pred[q]);
         }
     }
-    for &l in held {
-        predict(l, &mut pred);
-        let k = &stack.k[l][start..start + len];
-        for i in 0..len {
-            let r = pred[i].clamp(0.0, 1.0) - k[i];
-            hs[i] += r * r;
+    pred
+}
+
+/// Per tile of LANES texels: c = Σ_l P[l]·k[l] with M × LANES accumulators in registers, then
+/// the residual pass over the same tile's K (now in L1).
+#[inline(always)]
+fn kernel_body<const M: usize, const FMA: bool>(
+    inp: &KernelIn,
+    packed: &[f32],
+    len: usize,
+) -> Block {
+    let mut out = Block {
+        c: vec![0f32; M * BLOCK],
+        ss: vec![0f32; BLOCK],
+        mx: vec![0f32; BLOCK],
+        hs: vec![0f32; BLOCK],
+    };
+    let nu = inp.used.len();
+    for (tile, kt) in packed.chunks_exact(nu * LANES).enumerate() {
+        let b0 = tile * LANES;
+        let mut acc = [[0f32; LANES]; M];
+        for li in 0..inp.nfit {
+            let kv: &[f32; LANES] = kt[li * LANES..(li + 1) * LANES].try_into().unwrap();
+            let pl: &[f32; M] = inp.p[li * M..(li + 1) * M].try_into().unwrap();
+            for j in 0..M {
+                for q in 0..LANES {
+                    acc[j][q] = fma::<FMA>(pl[j], kv[q], acc[j][q]);
+                }
+            }
         }
+        let (mut ss, mut mx, mut hs) = ([0f32; LANES], [0f32; LANES], [0f32; LANES]);
+        for li in 0..nu {
+            let kv: &[f32; LANES] = kt[li * LANES..(li + 1) * LANES].try_into().unwrap();
+            let pred = predict::<M, FMA>(&inp.a, li, &acc);
+            if li < inp.nfit {
+                let wl = inp.w[li];
+                for q in 0..LANES {
+                    let r = kv[q] - pred[q];
+                    ss[q] = fma::<FMA>(wl * r, r, ss[q]);
+                    // A plain compare-select (one vmaxps); non-finite samples show up in ss.
+                    let ar = r.abs();
+                    mx[q] = if ar > mx[q] { ar } else { mx[q] };
+                }
+            } else {
+                for q in 0..LANES {
+                    let r = pred[q].clamp(0.0, 1.0) - kv[q];
+                    hs[q] = fma::<FMA>(r, r, hs[q]);
+                }
+            }
+        }
+        let n = LANES.min(len - b0);
+        for j in 0..M {
+            out.c[j * BLOCK + b0..j * BLOCK + b0 + n].copy_from_slice(&acc[j][..n]);
+        }
+        out.ss[b0..b0 + n].copy_from_slice(&ss[..n]);
+        out.mx[b0..b0 + n].copy_from_slice(&mx[..n]);
+        out.hs[b0..b0 + n].copy_from_slice(&hs[..n]);
     }
-    Block { c, ss, mx, hs }
+    out
 }
 
 /// Refits one texel from its finite samples (f64 normal equations, same cutoff), returning
@@ -1200,4 +1366,55 @@ fn residual_max_per_texel(stack: &SampleStack, ptm: &Ptm, opts: &FitOptions) -> 
             mx
         })
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The portable tile kernel and the AVX2 one agree (the portable one is what non-x86 and
+    /// pre-AVX2 machines run, so it is tested here even where AVX2 exists).
+    #[test]
+    fn portable_and_simd_kernels_agree() {
+        let (n, len, m) = (37usize, 203usize, 6usize);
+        let k: Vec<Vec<f32>> = (0..n)
+            .map(|l| {
+                (0..len)
+                    .map(|t| ((t * 13 + l * 7) % 29) as f32 / 29.0)
+                    .collect()
+            })
+            .collect();
+        let nu = n;
+        let inp = KernelIn {
+            k: &k,
+            used: (0..n).collect(),
+            nfit: n - 3,
+            p: (0..nu * m)
+                .map(|i| ((i * 5) % 11) as f32 / 50.0 - 0.1)
+                .collect(),
+            a: (0..nu * m)
+                .map(|i| ((i * 3) % 7) as f32 / 7.0 - 0.4)
+                .collect(),
+            w: (0..nu).map(|i| 0.5 + (i % 3) as f32 * 0.25).collect(),
+        };
+        let mut buf = Vec::new();
+        pack(&inp, 0, len, &mut buf);
+        let want = kernel_body::<6, false>(&inp, &buf, len);
+        let got = kernel_m::<6>(&inp, &buf, len);
+        for (name, x, y) in [
+            ("c", &want.c, &got.c),
+            ("ss", &want.ss, &got.ss),
+            ("mx", &want.mx, &got.mx),
+            ("hs", &want.hs, &got.hs),
+        ] {
+            for (a, b) in x.iter().zip(y.iter()) {
+                assert!(
+                    (a - b).abs() <= 1e-5 * (1.0 + a.abs()),
+                    "{name}: {a} vs {b}"
+                );
+            }
+        }
+        assert!(want.c[..len].iter().any(|&c| c != 0.0));
+        assert!(want.hs[..len].iter().any(|&c| c != 0.0));
+    }
 }
