@@ -273,3 +273,86 @@ fn hp_export_reads_back_with_an_independent_reader() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("--basis ptm6"));
 }
+
+/// Independent f64 least squares for one texel: normal equations solved by Gaussian
+/// elimination with partial pivoting (well-conditioned domes only).
+fn lstsq_f64(rows: &[[f64; 6]], k: &[f64]) -> [f64; 6] {
+    let mut g = [[0.0f64; 7]; 6];
+    for (r, &kk) in rows.iter().zip(k) {
+        for i in 0..6 {
+            for j in 0..6 {
+                g[i][j] += r[i] * r[j];
+            }
+            g[i][6] += r[i] * kk;
+        }
+    }
+    for col in 0..6 {
+        let piv = (col..6)
+            .max_by(|&a, &b| g[a][col].abs().total_cmp(&g[b][col].abs()))
+            .unwrap();
+        g.swap(col, piv);
+        for r in 0..6 {
+            if r != col {
+                let f = g[r][col] / g[col][col];
+                for c in col..7 {
+                    g[r][c] -= f * g[col][c];
+                }
+            }
+        }
+    }
+    std::array::from_fn(|i| g[i][6] / g[i][i])
+}
+
+#[test]
+fn real_bake_fit_agrees_with_an_independent_f64_solve() {
+    let dir = tmpdir();
+    let samples = dir.path().join("samples.exr");
+    let out = ptm()
+        .args([
+            "bake",
+            "--swatch",
+            "builtin:plain-weave",
+            "--res",
+            "12",
+            "--dirs",
+            "24",
+        ])
+        .args(["--spp", "2", "-o", p(&samples)])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "bake failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let fitted = dir.path().join("w.ptm.exr");
+    let j = run_json(&["fit", p(&samples), "-o", p(&fitted)]);
+    assert_eq!(j["rank"], 6);
+    let stack = SampleStack::read(&samples).unwrap();
+    let ptm = Ptm::load(&fitted).unwrap();
+    let rows: Vec<[f64; 6]> = stack
+        .lights
+        .dirs
+        .iter()
+        .map(|d| {
+            let mut t = [0.0; 6];
+            Basis::Ptm6.terms(d[0], d[1], &mut t);
+            t
+        })
+        .collect();
+    let mut worst: f64 = 0.0;
+    let mut occluded = 0;
+    for t in 0..stack.texels() {
+        if stack.coverage[t] <= 0.0 {
+            continue;
+        }
+        let k: Vec<f64> = stack.k.iter().map(|plane| plane[t] as f64).collect();
+        occluded += k.iter().filter(|&&x| x > 0.0).count();
+        let want = lstsq_f64(&rows, &k);
+        for (plane, w) in ptm.planes.iter().zip(want) {
+            worst = worst.max((plane[t] as f64 - w).abs());
+        }
+    }
+    assert!(occluded > 0, "the bake should show some occlusion");
+    assert!(worst < 1e-5, "fit vs independent f64 solve: {worst}");
+}
