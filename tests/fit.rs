@@ -294,8 +294,9 @@ fn lstsq_f64(rows: &[[f64; 6]], k: &[f64]) -> [f64; 6] {
         for r in 0..6 {
             if r != col {
                 let f = g[r][col] / g[col][col];
-                for c in col..7 {
-                    g[r][c] -= f * g[col][c];
+                let pivot_row = g[col];
+                for (x, &y) in g[r][col..].iter_mut().zip(&pivot_row[col..]) {
+                    *x -= f * y;
                 }
             }
         }
