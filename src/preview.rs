@@ -14,6 +14,10 @@ pub enum BlurArg {
     Explicit,
     /// Summed-area table of u32 opacity counts, built on the GPU (constant cost).
     Sat,
+    /// Trilinear lookup in the caster's MIP chain (constant cost, coarser kernel).
+    Mip,
+    /// Per-light horizontal then vertical running-sum box passes over the caster.
+    Separable,
 }
 
 impl From<BlurArg> for Blur {
@@ -21,6 +25,8 @@ impl From<BlurArg> for Blur {
         match b {
             BlurArg::Explicit => Blur::Explicit,
             BlurArg::Sat => Blur::Sat,
+            BlurArg::Mip => Blur::Mip,
+            BlurArg::Separable => Blur::Separable,
         }
     }
 }

@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use crate::output::Image;
 use crate::scene::{Blur, Frame, LightGpu, Prepared};
-use crate::{penumbra, sat};
+use crate::{mip, penumbra, sat, separable};
 
 /// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
 /// result does not depend on the thread count).
@@ -32,9 +32,22 @@ fn render_with(p: &Prepared, mc_samples: u32) -> Image {
         ),
         _ => Vec::new(),
     };
+    let sep = match p.variant.caster {
+        Some(Blur::Separable) => {
+            let (w, h, ch) = (
+                p.frame.counts[1],
+                p.frame.counts[2],
+                p.variant.sat_channels(),
+            );
+            let hmap = separable::pass_h(&p.opacity, w, h, ch, &p.separable);
+            separable::pass_v(&hmap, h, ch, &p.separable)
+        }
+        _ => Vec::new(),
+    };
     let twin = Twin {
         p,
         sat: &table,
+        sep: &sep,
         mc_samples,
     };
     let mut pixels = vec![[0f32; 4]; w * h];
@@ -101,6 +114,8 @@ fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4]))
 struct Twin<'a> {
     p: &'a Prepared,
     sat: &'a [u32],
+    /// Separable blur: the per-light blurred maps.
+    sep: &'a [f32],
     /// > 0: Monte Carlo ground truth with this many rays instead of the blur method.
     mc_samples: u32,
 }
@@ -186,7 +201,7 @@ impl Twin<'_> {
     }
 
     /// Mean caster opacity seen from p towards light l (see `light_opacity` in WGSL).
-    fn light_opacity(&self, p: [f32; 2], l: &LightGpu) -> [f32; 3] {
+    fn light_opacity(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 3] {
         let f = self.f();
         let h = f.caster[0];
         let [lx, ly, lz, radius] = l.position_radius;
@@ -208,6 +223,14 @@ impl Twin<'_> {
         let t = self.caster_texel_coords(q);
         match self.p.variant.caster {
             Some(Blur::Sat) => self.blur_sat(t, wt),
+            Some(Blur::Mip) => mip::blur_mip(&self.p.mip, &self.p.mip_levels, t, wt),
+            Some(Blur::Separable) => separable::blur_separable(
+                self.sep,
+                &self.p.separable,
+                self.p.variant.sat_channels(),
+                li,
+                t,
+            ),
             _ => self.blur_explicit(t, wt),
         }
     }
@@ -217,7 +240,10 @@ impl Twin<'_> {
         let albedo = self.albedo_at(p);
         let c = self.p.variant.basis.map(|_| self.ptm_coeffs(p));
         let mut radiance = [0f32; 3];
-        for light in &self.p.lights[..self.f().counts[0] as usize] {
+        for (li, light) in self.p.lights[..self.f().counts[0] as usize]
+            .iter()
+            .enumerate()
+        {
             let lp = light.position_radius;
             let to_light = [lp[0] - p[0], lp[1] - p[1], lp[2]];
             let d2 =
@@ -233,9 +259,9 @@ impl Twin<'_> {
                 visible = visible.map(|v| v * (1.0 - k));
             }
             if self.p.variant.caster.is_some() {
-                let o = self.light_opacity(p, light);
+                let o = self.light_opacity(p, light, li);
                 for ch in 0..3 {
-                    visible[ch] *= 1.0 - o[ch];
+                    visible[ch] *= 1.0 - o[ch].clamp(0.0, 1.0);
                 }
             }
             for ch in 0..3 {
@@ -279,6 +305,7 @@ pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
     let twin = Twin {
         p,
         sat: &[],
+        sep: &[],
         mc_samples: 0,
     };
     let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];

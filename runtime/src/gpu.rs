@@ -193,6 +193,20 @@ impl<'g> Renderer<'g> {
             entries.push((5, table));
         }
 
+        if v.caster == Some(Blur::Mip) {
+            entries.push((6, gpu.storage("mip", bytemuck::cast_slice(&p.mip))));
+            entries.push((
+                7,
+                gpu.storage("mip levels", bytemuck::cast_slice(&p.mip_levels)),
+            ));
+        }
+        if v.caster == Some(Blur::Separable) {
+            let t = Instant::now();
+            let map = separable_passes(gpu, p, opacity.as_ref().expect("caster without opacity"))?;
+            setup.passes.push(("separable", t.elapsed().as_secs_f64()));
+            entries.push((8, map));
+        }
+
         let layout = pipeline.get_bind_group_layout(0);
         let bind_entries: Vec<wgpu::BindGroupEntry> = entries
             .iter()
@@ -419,6 +433,99 @@ pub fn build_sat(
     gpu.queue.submit([enc.finish()]);
     gpu.wait("sat_build")?;
     Ok(table)
+}
+
+/// Runs the separable blur passes (`separable.wgsl`) for every light; returns the padded maps.
+pub fn separable_passes(gpu: &Gpu, p: &Prepared, opacity: &wgpu::Buffer) -> Result<wgpu::Buffer> {
+    let plan = &p.separable;
+    let (w, h, channels) = (
+        p.frame.counts[1],
+        p.frame.counts[2],
+        p.variant.sat_channels(),
+    );
+    let lights = plan.radii.len() as u32;
+    let [_, _, pw, ph] = plan.dims();
+    let module = gpu
+        .device
+        .create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("separable.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(shader::SEPARABLE_WGSL.into()),
+        });
+    let params = gpu
+        .device
+        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("separable params"),
+            contents: bytemuck::cast_slice(&[
+                w,
+                h,
+                channels,
+                lights,
+                plan.margin[0],
+                plan.margin[1],
+                pw,
+                ph,
+            ]),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+    let radii = gpu.storage("separable radii", bytemuck::cast_slice(&plan.radii));
+    let scratch = |label: &str, n: u64| {
+        gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(label),
+            size: (n * 4).max(64),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        })
+    };
+    let hmap = scratch(
+        "separable h",
+        lights as u64 * h as u64 * pw as u64 * channels as u64,
+    );
+    let vmap = scratch(
+        "separable v",
+        lights as u64 * ph as u64 * pw as u64 * channels as u64,
+    );
+    let mut enc = gpu.device.create_command_encoder(&Default::default());
+    for (entry, threads) in [
+        ("sep_h", lights * h * channels),
+        ("sep_v", lights * pw * channels),
+    ] {
+        let pipeline = gpu
+            .device
+            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            });
+        // Auto layouts hold only what the entry point uses.
+        let mut entries = vec![(0, &params), (2, &radii), (3, &hmap)];
+        if entry == "sep_h" {
+            entries.push((1, opacity));
+        } else {
+            entries.push((4, &vmap));
+        }
+        let entries: Vec<wgpu::BindGroupEntry> = entries
+            .into_iter()
+            .map(|(binding, buffer)| wgpu::BindGroupEntry {
+                binding,
+                resource: buffer.as_entire_binding(),
+            })
+            .collect();
+        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some(entry),
+            layout: &pipeline.get_bind_group_layout(0),
+            entries: &entries,
+        });
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind_group, &[]);
+        pass.dispatch_workgroups(threads.div_ceil(64).max(1), 1, 1);
+    }
+    gpu.queue.submit([enc.finish()]);
+    gpu.wait("separable")?;
+    Ok(vmap)
 }
 
 /// Builds the SAT of `opacity` on the GPU and reads it back (for tests and benchmarks).

@@ -15,10 +15,12 @@
 pub mod compare;
 pub mod cpu;
 pub mod gpu;
+pub mod mip;
 pub mod output;
 pub mod penumbra;
 pub mod sat;
 pub mod scene;
+pub mod separable;
 pub mod shader;
 
 pub use gpu::{Gpu, Timings};

@@ -40,15 +40,23 @@ pub enum Blur {
     Explicit,
     /// Box of half-side w from a summed-area table of u32 counts (constant cost, exact sums).
     Sat,
+    /// Trilinear lookup in the caster's MIP chain at level log2(2w) (constant cost; the
+    /// kernel is a blend of two power-of-two boxes on a fixed grid, so it errs most at edges).
+    Mip,
+    /// Per light, a horizontal then a vertical box pass (half-side w) over the caster with
+    /// running sums, then a bilinear lookup (cost per light ∝ caster texels, not w).
+    Separable,
 }
 
 impl Blur {
-    pub const ALL: [Blur; 2] = [Blur::Explicit, Blur::Sat];
+    pub const ALL: [Blur; 4] = [Blur::Explicit, Blur::Sat, Blur::Mip, Blur::Separable];
 
     pub fn name(self) -> &'static str {
         match self {
             Blur::Explicit => "explicit",
             Blur::Sat => "sat",
+            Blur::Mip => "mip",
+            Blur::Separable => "separable",
         }
     }
 
@@ -200,7 +208,7 @@ impl Scene {
             frame.sizes[3] = *ah as u32;
         }
 
-        let lights = self
+        let lights: Vec<LightGpu> = self
             .lights
             .iter()
             .map(|l| LightGpu {
@@ -220,6 +228,9 @@ impl Scene {
             .collect();
 
         let mut opacity = Vec::new();
+        let mut mip = Vec::new();
+        let mut mip_levels = Vec::new();
+        let mut separable = crate::separable::Plan::default();
         let mut caster_downsample = 1;
         if let Some(c) = &self.caster {
             if c.width == 0 || c.height == 0 || c.rgba.len() != c.width * c.height {
@@ -244,6 +255,18 @@ impl Scene {
             frame.caster = [c.elevation, 0.0, 0.0, 0.0];
             frame.counts[1] = cw as u32;
             frame.counts[2] = ch as u32;
+            match self.blur {
+                Blur::Mip => {
+                    let (texels, levels) = crate::mip::build_chain(&opacity, cw, ch);
+                    mip = texels;
+                    mip_levels = levels;
+                }
+                Blur::Separable => {
+                    separable = crate::separable::plan(&frame, &lights);
+                    frame.blur = separable.dims();
+                }
+                _ => {}
+            }
         }
 
         let variant = Variant {
@@ -258,6 +281,9 @@ impl Scene {
             coeffs,
             albedo,
             opacity,
+            mip,
+            mip_levels,
+            separable,
             variant,
             caster_downsample,
         })
@@ -286,7 +312,7 @@ impl Variant {
             Some(ptm_fit::Basis::Ptm11),
         ] {
             for albedo_texture in [false, true] {
-                for caster in [None, Some(Blur::Explicit), Some(Blur::Sat)] {
+                for caster in std::iter::once(None).chain(Blur::ALL.map(Some)) {
                     for colored in [false, true] {
                         if caster.is_none() && colored {
                             continue;
@@ -347,6 +373,8 @@ pub struct Frame {
     pub sizes: [u32; 4],
     /// Light count; caster texels w, h (after downsampling); explicit-blur sample cap per axis.
     pub counts: [u32; 4],
+    /// Separable blur: margins mx, my (texels) around the caster and the padded map's w, h.
+    pub blur: [u32; 4],
 }
 
 impl Frame {
@@ -377,6 +405,12 @@ pub struct Prepared {
     /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three
     /// equal without `colored_shadow`.
     pub opacity: Vec<u32>,
+    /// MIP chain of the opacity (rgb in 0..1, a unused), all levels concatenated.
+    pub mip: Vec<[f32; 4]>,
+    /// Per MIP level: offset into `mip`, width, height, 0.
+    pub mip_levels: Vec<[u32; 4]>,
+    /// Separable blur: per-light radii and the padded map layout.
+    pub separable: crate::separable::Plan,
     pub variant: Variant,
     /// Integer factor the caster image was box-downsampled by (1 = as given).
     pub caster_downsample: usize,

@@ -13,6 +13,7 @@ struct Frame {
     caster: vec4<f32>,      // x: caster elevation d_ca above the acceptor
     sizes: vec4<u32>,       // PTM texels nx, ny; albedo texels nx, ny
     counts: vec4<u32>,      // lights; caster texels w, h; explicit samples cap per axis
+    blur: vec4<u32>,        // separable: margins mx, my; padded map w, h
 }
 
 struct Light {
@@ -33,6 +34,13 @@ struct Light {
 //#endif
 //#if BLUR_SAT
 @group(0) @binding(5) var<storage, read> sat: array<u32>;
+//#endif
+//#if BLUR_MIP
+@group(0) @binding(6) var<storage, read> mip: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read> mip_levels: array<vec4<u32>>; // offset, w, h, 0
+//#endif
+//#if BLUR_SEPARABLE
+@group(0) @binding(8) var<storage, read> sep_map: array<f32>; // [light][row][col][channel]
 //#endif
 
 // Full-screen triangle: vertices (−1, −1), (3, −1), (−1, 3).
@@ -222,12 +230,77 @@ fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
 }
 //#endif
 
+//#if BLUR_MIP
+fn mip_texel(l: vec4<u32>, x: i32, y: i32) -> vec3<f32> {
+    if (x < 0 || y < 0 || x >= i32(l.y) || y >= i32(l.z)) {
+        return vec3<f32>(0.0);
+    }
+    return mip[l.x + u32(y) * l.y + u32(x)].xyz;
+}
+
+// Bilinear sample of MIP `level` at level-0 texel coordinate t (transparent outside).
+fn mip_bilinear(level: u32, t: vec2<f32>) -> vec3<f32> {
+    let l = mip_levels[level];
+    let c = t / f32(1u << level) - 0.5;
+    let c0 = floor(c);
+    let a = c - c0;
+    let x = i32(c0.x);
+    let y = i32(c0.y);
+    return mix(
+        mix(mip_texel(l, x, y), mip_texel(l, x + 1, y), a.x),
+        mix(mip_texel(l, x, y + 1), mip_texel(l, x + 1, y + 1), a.x),
+        a.y,
+    );
+}
+
+// Trilinear: level log2(2·max(wt)) (box side in texels), blended between the two nearest.
+fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+    let top = arrayLength(&mip_levels) - 1u;
+    let lod = clamp(log2(2.0 * max(wt.x, wt.y)), 0.0, f32(top));
+    let l0 = u32(lod);
+    let l1 = min(l0 + 1u, top);
+    return mix(mip_bilinear(l0, t), mip_bilinear(l1, t), lod - f32(l0));
+}
+//#endif
+
+//#if BLUR_SEPARABLE
+const SEP_CHANNELS: u32 = {{SAT_CHANNELS}}u;
+
+fn sep_tap(li: u32, x: i32, y: i32, ch: u32) -> f32 {
+    let pw = i32(frame.blur.z);
+    let ph = i32(frame.blur.w);
+    if (x < 0 || y < 0 || x >= pw || y >= ph) {
+        return 0.0;
+    }
+    return sep_map[(u32((i32(li) * ph + y) * pw + x)) * SEP_CHANNELS + ch];
+}
+
+// Bilinear lookup of light li's pre-blurred map (separable.wgsl) at caster texel coordinate t.
+fn blur_separable(li: u32, t: vec2<f32>) -> vec3<f32> {
+    let c = t + vec2<f32>(frame.blur.xy) - 0.5;
+    let c0 = floor(c);
+    let a = c - c0;
+    let x = i32(c0.x);
+    let y = i32(c0.y);
+    var out = vec3<f32>(0.0);
+    for (var ch = 0u; ch < SEP_CHANNELS; ch++) {
+        let top = sep_tap(li, x, y, ch) * (1.0 - a.x) + sep_tap(li, x + 1, y, ch) * a.x;
+        let bottom = sep_tap(li, x, y + 1, ch) * (1.0 - a.x) + sep_tap(li, x + 1, y + 1, ch) * a.x;
+        out[ch] = top * (1.0 - a.y) + bottom * a.y;
+    }
+    if (SEP_CHANNELS == 1u) {
+        return vec3<f32>(out.x);
+    }
+    return out;
+}
+//#endif
+
 //#if CASTER
 // Mean caster opacity seen from acceptor point p towards light `l` (penumbra map, direct form):
 // the ray from the light centre through p meets the caster plane at q; the light's cone from p
 // cuts that plane in a circle of radius w = R·d_ca/(d_lc + d_ca) (similar triangles), at least
 // half a caster texel. A light on or below the caster plane casts no caster shadow.
-fn light_opacity(p: vec2<f32>, l: Light) -> vec3<f32> {
+fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
     let h = frame.caster.x;
     let lz = l.position_radius.z;
     if (lz <= h) {
@@ -241,7 +314,14 @@ fn light_opacity(p: vec2<f32>, l: Light) -> vec3<f32> {
     let t = caster_texel_coords(q);
 //#if BLUR_SAT
     return blur_sat(t, wt);
-//#else
+//#endif
+//#if BLUR_MIP
+    return blur_mip(t, wt);
+//#endif
+//#if BLUR_SEPARABLE
+    return blur_separable(li, t);
+//#endif
+//#if BLUR_EXPLICIT
     return blur_explicit(t, wt);
 //#endif
 }
@@ -268,7 +348,8 @@ fn shade(p: vec2<f32>) -> vec3<f32> {
         visible *= 1.0 - ptm_k(c, l.x, l.y);
 //#endif
 //#if CASTER
-        visible *= 1.0 - light_opacity(p, light);
+        // Clamped: f32 texel coordinates make box weights sum to 1 ± ulp(t)/(2w).
+        visible *= 1.0 - clamp(light_opacity(p, light, i), vec3<f32>(0.0), vec3<f32>(1.0));
 //#endif
         radiance += albedo * light.color.xyz * (l.z / d2) * visible;
     }

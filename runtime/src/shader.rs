@@ -27,6 +27,8 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
         d.push(match b {
             Blur::Explicit => "BLUR_EXPLICIT",
             Blur::Sat => "BLUR_SAT",
+            Blur::Mip => "BLUR_MIP",
+            Blur::Separable => "BLUR_SEPARABLE",
         });
     }
     if v.colored {
@@ -101,6 +103,9 @@ pub fn shade_source(v: &Variant) -> Result<String> {
         .replace("{{SAT_CHANNELS}}", &v.sat_channels().to_string()))
 }
 
+/// The separable blur passes.
+pub const SEPARABLE_WGSL: &str = include_str!("separable.wgsl");
+
 /// Parses and validates WGSL with naga (no GPU needed).
 pub fn validate(name: &str, src: &str) -> Result<naga::Module> {
     let module = naga::front::wgsl::parse_str(src).map_err(|e| Error::Shader {
@@ -126,7 +131,7 @@ mod tests {
     #[test]
     fn every_shade_variant_validates_with_naga() {
         let all = Variant::all();
-        assert_eq!(all.len(), 3 * 2 * 5);
+        assert_eq!(all.len(), 3 * 2 * 9);
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -139,6 +144,12 @@ mod tests {
                 panic!("{e}");
             }
         }
+    }
+
+    #[test]
+    fn compute_shaders_validate_with_naga() {
+        validate("sat.wgsl", crate::sat::SAT_WGSL).unwrap();
+        validate("separable.wgsl", SEPARABLE_WGSL).unwrap();
     }
 
     #[test]
@@ -159,6 +170,9 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         let module = validate("plain", &src).unwrap();
+        for name in ["mip", "sep_map"] {
+            assert!(!src.contains(name), "plain variant still mentions {name}");
+        }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");
     }
 

@@ -95,3 +95,12 @@ fn golden_ptm11_explicit_coloured() {
         &scene(Basis::Ptm11, Blur::Explicit, true),
     );
 }
+
+#[test]
+fn golden_ptm6_separable_and_mip() {
+    check_golden(
+        "ptm6_separable",
+        &scene(Basis::Ptm6, Blur::Separable, false),
+    );
+    check_golden("ptm6_mip_colored", &scene(Basis::Ptm6, Blur::Mip, true));
+}

@@ -51,7 +51,7 @@ fn gpu_matches_twin_without_caster() {
 
 #[test]
 fn gpu_matches_twin_with_albedo_texture_and_casters() {
-    let mut s = scene(Some(Basis::Ptm11), [72, 56]);
+    let mut s = scene(Some(Basis::Ptm11), [48, 40]);
     s.albedo_texture = Some((
         5,
         4,

@@ -1,0 +1,106 @@
+//! MIP chain of the caster opacity and its trilinear lookup (the CPU twin of `blur_mip`).
+//!
+//! Built once per caster on the CPU (a static caster needs no per-frame rebuild; wgpu has no
+//! automatic mip generation). Level k texel covers 2^k × 2^k level-0 texels; texels beyond the
+//! caster count as transparent, so every level keeps "outside = 0".
+
+/// Levels concatenated (rgb opacity in 0..1, a unused) and per level (offset, w, h, 0).
+pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[u32; 4]>) {
+    let mut texels: Vec<[f32; 4]> = opacity
+        .iter()
+        .map(|o| {
+            let c = [o & 255, (o >> 8) & 255, (o >> 16) & 255].map(|c| c as f32 / 255.0);
+            [c[0], c[1], c[2], 0.0]
+        })
+        .collect();
+    let mut levels = vec![[0, w as u32, h as u32, 0]];
+    let (mut lw, mut lh, mut off) = (w, h, 0usize);
+    while lw > 1 || lh > 1 {
+        let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
+        let next_off = texels.len();
+        for y in 0..nh {
+            for x in 0..nw {
+                let mut s = [0f32; 4];
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                    let (cx, cy) = (2 * x + dx, 2 * y + dy);
+                    if cx < lw && cy < lh {
+                        let t = texels[off + cy * lw + cx];
+                        for c in 0..3 {
+                            s[c] += t[c];
+                        }
+                    }
+                }
+                texels.push(s.map(|v| 0.25 * v));
+            }
+        }
+        levels.push([next_off as u32, nw as u32, nh as u32, 0]);
+        (lw, lh, off) = (nw, nh, next_off);
+    }
+    (texels, levels)
+}
+
+fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
+}
+
+fn mip_texel(mip: &[[f32; 4]], l: [u32; 4], x: i32, y: i32) -> [f32; 3] {
+    if x < 0 || y < 0 || x >= l[1] as i32 || y >= l[2] as i32 {
+        return [0.0; 3];
+    }
+    let t = mip[(l[0] + y as u32 * l[1] + x as u32) as usize];
+    [t[0], t[1], t[2]]
+}
+
+/// Bilinear sample of `level` at level-0 texel coordinate t.
+pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[[u32; 4]], level: u32, t: [f32; 2]) -> [f32; 3] {
+    let l = levels[level as usize];
+    let scale = (1u32 << level) as f32;
+    let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
+    let c0 = [c[0].floor(), c[1].floor()];
+    let a = [c[0] - c0[0], c[1] - c0[1]];
+    let (x, y) = (c0[0] as i32, c0[1] as i32);
+    mix3(
+        mix3(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
+        mix3(
+            mip_texel(mip, l, x, y + 1),
+            mip_texel(mip, l, x + 1, y + 1),
+            a[0],
+        ),
+        a[1],
+    )
+}
+
+/// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
+pub fn blur_mip(mip: &[[f32; 4]], levels: &[[u32; 4]], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    let top = levels.len() as u32 - 1;
+    let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
+    let l0 = lod as u32;
+    let l1 = (l0 + 1).min(top);
+    mix3(
+        mip_bilinear(mip, levels, l0, t),
+        mip_bilinear(mip, levels, l1, t),
+        lod - l0 as f32,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chain_halves_to_one_texel_and_keeps_the_mean_over_padded_area() {
+        let (w, h) = (5, 3);
+        let op: Vec<u32> = (0..15).map(|i| (i * 17) as u32 * 0x010101).collect();
+        let (tex, levels) = build_chain(&op, w, h);
+        let dims: Vec<(u32, u32)> = levels.iter().map(|l| (l[1], l[2])).collect();
+        assert_eq!(dims, vec![(5, 3), (3, 2), (2, 1), (1, 1)]);
+        // The top texel covers 8 × 8 level-0 texels; outside the 5 × 3 caster is 0.
+        let total: f32 = op.iter().map(|o| (o & 255) as f32 / 255.0).sum();
+        let top = tex[levels[3][0] as usize][0];
+        assert!(
+            (top - total / 64.0).abs() < 1e-6,
+            "{top} vs {}",
+            total / 64.0
+        );
+    }
+}
