@@ -751,12 +751,16 @@ impl Accumulator {
             .collect();
         let mut worst_cond: f64 = 0.0;
         let mut min_rank = m;
+        let mut worst_texel = 0;
         for (ti, (c, rms, rank, cond)) in results.into_iter().enumerate() {
             for j in 0..m {
                 planes[j][ti] = c[j] as f32;
             }
             rms_map[ti] = rms as f32;
             if !self.masked[ti] {
+                if rank < min_rank || (rank == min_rank && cond > worst_cond) {
+                    worst_texel = ti;
+                }
                 min_rank = min_rank.min(rank);
                 worst_cond = worst_cond.max(cond);
                 if rank < m && (per_texel || self.bad.contains_key(&ti)) {
@@ -767,14 +771,21 @@ impl Accumulator {
         if per_texel {
             report.rank = min_rank;
             report.cond = worst_cond;
+            // Name the weak directions of the worst texel, as for a shared design.
+            let np = m * (m + 1) / 2;
+            let gw = unpack(&self.gram[worst_texel * np..], m);
+            let fw = Factor::from_normal(gw, self.opts.rcond, self.opts.regularize);
+            let (col, row) = (worst_texel % self.width, worst_texel / self.width);
             if min_rank < m {
                 report.warnings.push(format!(
-                    "{} texels have rank below {m} with their per-texel light directions (lowest rank {min_rank}); they get the minimum-norm solution",
-                    report.rank_deficient_texels
+                    "{} texels have rank below {m} with their per-texel light directions (lowest rank {min_rank}); they get the minimum-norm solution; undetermined at texel (column {col}, row {row}): {}",
+                    report.rank_deficient_texels,
+                    fw.weak_directions(basis, fw.cutoff).join("; ")
                 ));
             } else if worst_cond > COND_WARN {
                 report.warnings.push(format!(
-                    "ill-conditioned texels: worst condition number {worst_cond:.1} > {COND_WARN}"
+                    "ill-conditioned texels: worst condition number {worst_cond:.1} > {COND_WARN} at texel (column {col}, row {row}); poorly determined: {}",
+                    fw.weak_directions(basis, fw.sigma[0] / COND_WARN).join("; ")
                 ));
             }
             check_strict(&self.opts, &report.warnings)?;
