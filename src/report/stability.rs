@@ -124,10 +124,12 @@ fn solve_normal_f32(a: &[Vec<f32>], k: &[f32]) -> Vec<f32> {
             .unwrap();
         n.swap(c, p);
         let d = n[c][c];
-        for r in c + 1..m {
-            let f = n[r][c] / d;
-            for j in c..=m {
-                n[r][j] -= f * n[c][j];
+        let (top, rest) = n.split_at_mut(c + 1);
+        let pivot = &top[c];
+        for row in rest {
+            let f = row[c] / d;
+            for (x, &p) in row.iter_mut().zip(pivot).skip(c) {
+                *x -= f * p;
             }
         }
     }
@@ -264,12 +266,13 @@ fn scaled(mesh: &Mesh, s: f32) -> Mesh {
 pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Table> {
     let mesh = ptm_swatches::builtin(spec)?;
     let lights = dome::fibonacci(16, 5.0)?;
-    let bake =
-        |m: Mesh, name: &str, res: usize| -> Result<(Swatch, Vec<Vec<f32>>, Vec<f32>, usize)> {
-            let sw = Swatch::from_mesh(m, None, name)?;
-            let (planes, cov, rep) = bake_planes(&sw, &lights, &bake_config(res, spp, 1))?;
-            Ok((sw, planes.k, cov, rep.uncovered_texels))
-        };
+    /// A bake of one mesh: the checked swatch, K planes, coverage, uncovered texels.
+    type Baked = (Swatch, Vec<Vec<f32>>, Vec<f32>, usize);
+    let bake = |m: Mesh, name: &str, res: usize| -> Result<Baked> {
+        let sw = Swatch::from_mesh(m, None, name)?;
+        let (planes, cov, rep) = bake_planes(&sw, &lights, &bake_config(res, spp, 1))?;
+        Ok((sw, planes.k, cov, rep.uncovered_texels))
+    };
     let (_, k_ref, _, _) = bake(mesh.clone(), spec, res)?;
     let diff = |k: &[Vec<f32>]| -> (f64, usize) {
         let mut m = 0f64;

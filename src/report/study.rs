@@ -86,7 +86,7 @@ impl Truth {
     /// occluded over covered samples). Returns (k planes, coverage).
     pub fn at(&self, res: usize) -> (Vec<Vec<f32>>, Vec<f32>) {
         assert!(
-            self.res % res == 0,
+            self.res.is_multiple_of(res),
             "truth resolution {} is not a multiple of {res}",
             self.res
         );
