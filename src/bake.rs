@@ -131,7 +131,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     };
     let below = lights.dirs.iter().filter(|d| d[2] <= 0.0).count();
     if below > 0 {
-        eprintln!("ptm bake: warning: {below} lights at or below the horizon bake to K = 1");
+        eprintln!("ptm bake: warning: {below} light(s) at or below the horizon bake to K = 1");
     }
     eprintln!(
         "ptm bake: {}: {} triangles, tile {}×{}, {}×{} texels × {} spp, {} lights",
@@ -189,7 +189,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
 
     if !report.capped.is_empty() {
         eprintln!(
-            "ptm bake: warning: lights {:?} are so low that their shadows were followed only {} \
+            "ptm bake: warning: light(s) {:?} are so low that their shadows were followed only {} \
              tiles; K there may be too small",
             report.capped,
             ptm_bake::tiling::MAX_RUN_TILES

@@ -18,7 +18,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let res: usize = arg(1, "256").parse()?;
     let n_lights: usize = arg(2, "64").parse()?;
     let spp: usize = arg(3, "4").parse()?;
-    let repeats: usize = arg(4, "3").parse()?;
+    let repeats: usize = arg(4, "6").parse()?;
 
     let swatch = Swatch::load(&spec, None)?;
     let lights = dome::fibonacci(n_lights, 5.0)?;
@@ -37,6 +37,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         rayon::current_num_threads()
     );
 
+    let mut cpu_ratios = Vec::new();
     let mut best_ours = f64::INFINITY;
     let mut best_raw = f64::INFINITY;
     let mut ours_rays = 0;
@@ -51,7 +52,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .iter()
             .map(|&c| c as f64 * spp as f64)
             .collect();
+        // Raw: the same scenes, sample positions and shadow rays, straight on Embree. Runs
+        // alternate which loop goes first, so neither profits from a warmer cache or a quieter
+        // machine by position.
+        let raw_run = |baker: &mut Baker| -> Result<(f64, f64, f64, u64, u64), ptm_bake::Error> {
+            for &l in &lights.dirs {
+                baker.prepare_direction(l)?;
+            }
+            let scenes: Vec<&Scene> = lights
+                .dirs
+                .iter()
+                .map(|&l| baker.direction_scene(l).expect("prepared"))
+                .collect();
+            Ok(raw_loop(baker, &scenes, &lights.dirs, res, spp))
+        };
+        let raw_first = rep % 2 == 1;
+        let early = if raw_first {
+            Some(raw_run(&mut baker)?)
+        } else {
+            None
+        };
         let mut sum = 0.0f64;
+        let cpu0 = cpu_seconds();
         let report = baker.trace(&lights, &mut |_, k, _| {
             // Occluded samples = K × covered samples per texel.
             sum += k
@@ -61,29 +83,28 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 .sum::<f64>();
             Ok(())
         })?;
+        let cpu_ours = cpu_seconds() - cpu0;
+        let (t_raw, t_raw_primary, cpu_raw, rays, occluded) = match early {
+            Some(r) => r,
+            None => raw_run(&mut baker)?,
+        };
         let skipped = report.shadow_rays_skipped;
         let t_ours = report.seconds_primary + report.seconds_shadow;
         ours_rays = report.primary_rays + report.shadow_rays;
         ours_occluded = sum;
         best_ours = best_ours.min(t_ours);
-
-        // Raw: the same scenes, sample positions and shadow rays, straight on Embree.
-        for &l in &lights.dirs {
-            baker.prepare_direction(l)?;
-        }
-        let scenes: Vec<&Scene> = lights
-            .dirs
-            .iter()
-            .map(|&l| baker.direction_scene(l).expect("prepared"))
-            .collect();
-        let (t_raw, t_raw_primary, rays, occluded) =
-            raw_loop(&baker, &scenes, &lights.dirs, res, spp);
         raw_rays = rays;
         // Samples facing away from the light count as occluded in ours but are not traced.
         raw_occluded = occluded + skipped;
         best_raw = best_raw.min(t_raw);
+        // Shadow rays per CPU second, ours over raw.
+        cpu_ratios.push(
+            (report.shadow_rays as f64 / cpu_ours)
+                / ((raw_rays - (res * res * spp) as u64) as f64 / cpu_raw),
+        );
         println!(
-            "run {rep}: ours {:.3} s (primary {:.3} s) {:.2} Mrays/s; raw {:.3} s (primary {:.3} s) {:.2} Mrays/s",
+            "run {rep}{}: ours {:.3} s (primary {:.3} s) {:.2} Mrays/s; raw {:.3} s (primary {:.3} s) {:.2} Mrays/s",
+            if raw_first { " (raw first)" } else { "" },
             t_ours,
             report.seconds_primary,
             ours_rays as f64 / t_ours / 1e6,
@@ -95,6 +116,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let ours = ours_rays as f64 / best_ours / 1e6;
     let raw = raw_rays as f64 / best_raw / 1e6;
     println!("rays: ours {ours_rays}, raw {raw_rays} (occluded samples: raw {raw_occluded}, ours {ours_occluded:.0})");
+    cpu_ratios.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    println!(
+        "shadow pass, CPU time: ours/raw throughput ratio median {:.3} (min {:.3}, max {:.3})",
+        cpu_ratios[cpu_ratios.len() / 2],
+        cpu_ratios[0],
+        cpu_ratios[cpu_ratios.len() - 1]
+    );
     println!(
         "best of {repeats}: ours {ours:.2} Mrays/s, raw Embree {raw:.2} Mrays/s, ratio {:.3}",
         ours / raw
@@ -102,16 +130,38 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     Ok(())
 }
 
+/// CPU seconds (user + system) this process has used, from /proc/self/stat (10 ms ticks on
+/// Linux); NaN elsewhere. On a loaded machine CPU time compares the two loops' work more
+/// fairly than wall time.
+fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return f64::NAN;
+    };
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
+    let f: Vec<f64> = rest
+        .split_whitespace()
+        .skip(11)
+        .take(2)
+        .filter_map(|v| v.parse().ok())
+        .collect();
+    if f.len() == 2 {
+        (f[0] + f[1]) / 100.0
+    } else {
+        f64::NAN
+    }
+}
+
 /// Minimal loop: primary `rtcIntersect1` per sample into a flat array, then per light one
 /// coherent `rtcOccluded16` packet per (4×4 block, sample); returns (seconds, seconds of the
-/// primary pass, rays, occluded).
+/// primary pass, CPU seconds of the shadow pass, rays, occluded).
 fn raw_loop(
     baker: &Baker,
     scenes: &[&Scene],
     dirs: &[[f64; 3]],
     res: usize,
     spp: usize,
-) -> (f64, f64, u64, u64) {
+) -> (f64, f64, f64, u64, u64) {
     let pool = rayon::ThreadPoolBuilder::new()
         .start_handler(|_| embree::set_ftz_daz())
         .build()
@@ -151,6 +201,7 @@ fn raw_loop(
             })
     });
     let t_primary = t0.elapsed().as_secs_f64();
+    let cpu0 = cpu_seconds();
     let mut rays = (res * res * spp) as u64;
     let shadow = AtomicU64::new(0);
     for (l, scene) in dirs.iter().zip(scenes) {
@@ -191,5 +242,6 @@ fn raw_loop(
     }
     rays += shadow.load(Ordering::Relaxed);
     let occluded = occluded.load(Ordering::Relaxed);
-    (t0.elapsed().as_secs_f64(), t_primary, rays, occluded)
+    let t = t0.elapsed().as_secs_f64();
+    (t, t_primary, cpu_seconds() - cpu0, rays, occluded)
 }
