@@ -1016,7 +1016,11 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
             for j in 0..m {
                 planes[j][ti] = b.c[j * BLOCK + i];
             }
-            rms_map[ti] = (b.ss[i] / wtot).max(0.0).sqrt();
+            rms_map[ti] = if wtot > 0.0 {
+                (b.ss[i] / wtot).max(0.0).sqrt()
+            } else {
+                0.0
+            };
             max_map[ti] = b.mx[i];
             if !prep.held.is_empty() {
                 hold_map[ti] = (b.hs[i] / prep.held.len() as f32).sqrt();
