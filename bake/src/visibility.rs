@@ -569,6 +569,33 @@ mod tests {
     use super::*;
 
     #[test]
+    fn every_tracing_thread_flushes_denormals() {
+        let mesh = ptm_swatches::Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.0],
+                [0.0, 1.0, 0.0],
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            tile: [1.0, 1.0],
+        };
+        let swatch = Swatch::from_mesh(mesh, None, "quad").unwrap();
+        let cfg = BakeConfig {
+            res: [4, 4],
+            spp: 1,
+            seed: 0,
+            light_distance: None,
+            packets: true,
+            threads: 2,
+        };
+        let baker = Baker::new(&swatch, &cfg).unwrap();
+        let flags = baker.pool.broadcast(|_| embree::ftz_daz_enabled());
+        assert_eq!(flags, vec![true, true]);
+        assert_eq!(baker.coverage(), &[1.0; 16]);
+    }
+
+    #[test]
     fn jitter_is_uniform_and_decorrelated() {
         let mut mean = [0.0; 2];
         let n = 10_000;
