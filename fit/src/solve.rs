@@ -615,17 +615,11 @@ impl Accumulator {
             .enumerate()
             .for_each(|(ci, (g, s))| {
                 let t0 = ci * CHUNK;
-                for (b, sb) in s.iter_mut().enumerate() {
-                    let kb = k[t0 + b];
-                    if masked[t0 + b] || !kb.is_finite() {
-                        continue;
-                    }
-                    let kb = kb as f64;
-                    let gb = &mut g[b * m..(b + 1) * m];
-                    for j in 0..m {
-                        gb[j] += aw[j] * kb;
-                    }
-                    *sb += w * kb * kb;
+                let (k, masked) = (&k[t0..t0 + s.len()], &masked[t0..t0 + s.len()]);
+                match m {
+                    6 => accumulate::<6>(g, s, k, masked, &aw, w),
+                    11 => accumulate::<11>(g, s, k, masked, &aw, w),
+                    _ => unreachable!("bases have 6 or 11 terms"),
                 }
             });
         Ok(())
@@ -887,6 +881,61 @@ impl Accumulator {
             },
             ..FitReport::default()
         }
+    }
+}
+
+/// g += aw·k and s += w·k² per texel (texel-major g, M per texel); masked or non-finite
+/// samples add nothing. Branch-free so the M-wide update vectorises.
+fn accumulate<const M: usize>(
+    g: &mut [f64],
+    s: &mut [f64],
+    k: &[f32],
+    masked: &[bool],
+    aw: &[f64],
+    w: f64,
+) {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+        // SAFETY: the CPU supports the features the function is compiled for.
+        return unsafe { accumulate_avx2::<M>(g, s, k, masked, aw, w) };
+    }
+    accumulate_body::<M>(g, s, k, masked, aw, w)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn accumulate_avx2<const M: usize>(
+    g: &mut [f64],
+    s: &mut [f64],
+    k: &[f32],
+    masked: &[bool],
+    aw: &[f64],
+    w: f64,
+) {
+    accumulate_body::<M>(g, s, k, masked, aw, w)
+}
+
+#[inline(always)]
+fn accumulate_body<const M: usize>(
+    g: &mut [f64],
+    s: &mut [f64],
+    k: &[f32],
+    masked: &[bool],
+    aw: &[f64],
+    w: f64,
+) {
+    let aw: &[f64; M] = aw.try_into().unwrap();
+    for (((gb, sb), &kb), &mb) in g.chunks_exact_mut(M).zip(s.iter_mut()).zip(k).zip(masked) {
+        let kb = if mb || !kb.is_finite() {
+            0.0
+        } else {
+            kb as f64
+        };
+        let gb: &mut [f64; M] = gb.try_into().unwrap();
+        for j in 0..M {
+            gb[j] += aw[j] * kb;
+        }
+        *sb += w * kb * kb;
     }
 }
 
