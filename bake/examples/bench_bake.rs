@@ -75,11 +75,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let mut sum = 0.0f64;
         let cpu0 = cpu_seconds();
         let report = baker.trace(&lights, &mut |_, k, _| {
-            // Occluded samples = K × covered samples per texel.
+            // Occluded samples = K × covered samples per texel (rounded once at the end).
             sum += k
                 .iter()
                 .zip(&covered)
-                .map(|(&v, &c)| (v as f64 * c).round())
+                .map(|(&v, &c)| v as f64 * c)
                 .sum::<f64>();
             Ok(())
         })?;
@@ -91,7 +91,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let skipped = report.shadow_rays_skipped;
         let t_ours = report.seconds_primary + report.seconds_shadow;
         ours_rays = report.primary_rays + report.shadow_rays;
-        ours_occluded = sum;
+        ours_occluded = sum.round();
         best_ours = best_ours.min(t_ours);
         raw_rays = rays;
         // Samples facing away from the light count as occluded in ours but are not traced.

@@ -302,25 +302,36 @@ impl Baker {
                 z_cap: self.z_cap,
                 packets: self.cfg.packets,
             };
-            let samples = &self.samples;
-            let blocks: Vec<BlockResult> = self.pool.install(|| {
-                samples
-                    .par_chunks(run.spp * 16)
-                    .map(|chunk| run.block(chunk))
-                    .collect()
-            });
+            // One task per row of blocks: its samples are contiguous and it owns 4 image rows,
+            // so results go straight into the planes (no serial scatter). Counts are integer
+            // sums, independent of the reduction order.
             let bx = self.blocks[0];
-            for (b, r) in blocks.iter().enumerate() {
-                rep.shadow_rays += r.traced;
-                rep.shadow_rays_skipped += r.skipped;
-                for lane in 0..16 {
-                    let (i, j) = ((b % bx) * 4 + lane % 4, (b / bx) * 4 + lane / 4);
-                    if i < nx && j < ny {
-                        k_plane[j * nx + i] = r.k[lane];
-                        uv_plane[j * nx + i] = r.uv[lane];
-                    }
-                }
-            }
+            let samples = &self.samples;
+            let (traced, skipped) = self.pool.install(|| {
+                samples
+                    .par_chunks(bx * run.spp * 16)
+                    .zip(k_plane.par_chunks_mut(4 * nx))
+                    .zip(uv_plane.par_chunks_mut(4 * nx))
+                    .map(|((row, k_rows), uv_rows)| {
+                        let (mut traced, mut skipped) = (0u64, 0u64);
+                        for (bi, chunk) in row.chunks(run.spp * 16).enumerate() {
+                            let r = run.block(chunk);
+                            traced += r.traced;
+                            skipped += r.skipped;
+                            for lane in 0..16 {
+                                let (i, j) = (bi * 4 + lane % 4, lane / 4);
+                                if i < nx && j * nx < k_rows.len() {
+                                    k_rows[j * nx + i] = r.k[lane];
+                                    uv_rows[j * nx + i] = r.uv[lane];
+                                }
+                            }
+                        }
+                        (traced, skipped)
+                    })
+                    .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+            });
+            rep.shadow_rays += traced;
+            rep.shadow_rays_skipped += skipped;
             let uv = matches!(run.light, Some(Light::Point(_))).then_some(&uv_plane[..]);
             sink(li, &k_plane, uv)?;
         }
