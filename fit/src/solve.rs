@@ -701,12 +701,62 @@ impl Accumulator {
         } else {
             self.gram_distant()
         };
-        let results: Vec<(Vec<f64>, f64, usize, f64)> = (0..t)
-            .into_par_iter()
-            .map(|ti| {
-                if self.masked[ti] {
-                    return (vec![0.0; m], 0.0, m, 1.0);
+        // Common case (distant lights, no dropped sample): c = S·g and the residual with flat
+        // f64 arrays, parallel over texel chunks. Other texels take the general path below.
+        let slow: Vec<usize> = if per_texel {
+            (0..t).filter(|&ti| !self.masked[ti]).collect()
+        } else {
+            self.bad
+                .keys()
+                .copied()
+                .filter(|&ti| !self.masked[ti])
+                .collect()
+        };
+        if !per_texel {
+            let f = &self.prep.factor;
+            let sf: Vec<f64> = (0..m * m).map(|q| f.s[(q / m, q % m)]).collect();
+            let gf: Vec<f64> = (0..m * m).map(|q| g_all[(q / m, q % m)]).collect();
+            let mut cflat = vec![0f32; t * m];
+            cflat
+                .par_chunks_mut(CHUNK * m)
+                .zip(rms_map.par_chunks_mut(CHUNK))
+                .enumerate()
+                .for_each(|(ci, (cc, rr))| {
+                    for (b, r) in rr.iter_mut().enumerate() {
+                        let ti = ci * CHUNK + b;
+                        if self.masked[ti] {
+                            continue;
+                        }
+                        let g = &self.g[ti * m..(ti + 1) * m];
+                        let mut c = [0f64; 16];
+                        for i in 0..m {
+                            c[i] = (0..m).map(|j| sf[i * m + j] * g[j]).sum();
+                        }
+                        let cg: f64 = (0..m).map(|i| c[i] * g[i]).sum();
+                        let cgc: f64 = (0..m)
+                            .map(|i| c[i] * (0..m).map(|j| gf[i * m + j] * c[j]).sum::<f64>())
+                            .sum();
+                        // Weighted residual: s − 2cᵀg + cᵀGc (exact for any c, in f64).
+                        let res = self.s[ti] - 2.0 * cg + cgc;
+                        *r = if wtot > 0.0 {
+                            (res.max(0.0) / wtot).sqrt() as f32
+                        } else {
+                            0.0
+                        };
+                        for i in 0..m {
+                            cc[b * m + i] = c[i] as f32;
+                        }
+                    }
+                });
+            for (j, plane) in planes.iter_mut().enumerate() {
+                for (ti, x) in plane.iter_mut().enumerate() {
+                    *x = cflat[ti * m + j];
                 }
+            }
+        }
+        let results: Vec<(usize, Vec<f64>, f64, usize, f64)> = slow
+            .par_iter()
+            .map(|&ti| {
                 let gv = nalgebra::DVector::from_column_slice(&self.g[ti * m..(ti + 1) * m]);
                 // Weighted residual: s − 2cᵀg + cᵀGc (exact for any c; f64 keeps it accurate).
                 let finish = |s_op: &DMatrix<f64>, gmat: &DMatrix<f64>, wsum: f64| {
@@ -723,8 +773,9 @@ impl Accumulator {
                     let gm = unpack(&self.gram[ti * m * (m + 1) / 2..], m);
                     let f = Factor::from_normal(gm.clone(), self.opts.rcond, self.opts.regularize);
                     let (c, rms) = finish(&f.s, &gm, self.wsum[ti]);
-                    (c, rms, f.rank, f.cond)
-                } else if let Some(bad) = self.bad.get(&ti) {
+                    (ti, c, rms, f.rank, f.cond)
+                } else {
+                    let bad = &self.bad[&ti];
                     let mut gm = g_all.clone();
                     let mut wsum = wtot;
                     for &l in bad {
@@ -735,31 +786,25 @@ impl Accumulator {
                     }
                     let f = Factor::from_normal(gm.clone(), self.opts.rcond, self.opts.regularize);
                     let (c, rms) = finish(&f.s, &gm, wsum);
-                    (c, rms, f.rank, f.cond)
-                } else {
-                    let f = &self.prep.factor;
-                    let (c, rms) = finish(&f.s, &g_all, wtot);
-                    (c, rms, f.rank, f.cond)
+                    (ti, c, rms, f.rank, f.cond)
                 }
             })
             .collect();
         let mut worst_cond: f64 = 0.0;
         let mut min_rank = m;
         let mut worst_texel = 0;
-        for (ti, (c, rms, rank, cond)) in results.into_iter().enumerate() {
+        for (ti, c, rms, rank, cond) in results {
             for j in 0..m {
                 planes[j][ti] = c[j] as f32;
             }
             rms_map[ti] = rms as f32;
-            if !self.masked[ti] {
-                if rank < min_rank || (rank == min_rank && cond > worst_cond) {
-                    worst_texel = ti;
-                }
-                min_rank = min_rank.min(rank);
-                worst_cond = worst_cond.max(cond);
-                if rank < m && (per_texel || self.bad.contains_key(&ti)) {
-                    report.rank_deficient_texels += 1;
-                }
+            if rank < min_rank || (rank == min_rank && cond > worst_cond) {
+                worst_texel = ti;
+            }
+            min_rank = min_rank.min(rank);
+            worst_cond = worst_cond.max(cond);
+            if rank < m {
+                report.rank_deficient_texels += 1;
             }
         }
         if per_texel {
