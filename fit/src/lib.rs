@@ -8,6 +8,20 @@
 //! +Y; images have column 0 at x = 0 and **row 0 at the far edge y = H**; K is the fraction of a
 //! texel's footprint that cannot see the light (0 = lit, 1 = occluded); (u, v) = (l·X, l·Y) for
 //! the unit vector l towards the light.
+//!
+//! Modules: [`basis`] (monomial tables), [`lights`] (light sets, `.lp`), [`stack`] (the stored
+//! sample stack `samples.exr`), [`solve`] (shared-design SVD fit, streaming [`Accumulator`],
+//! per-texel solves, diagnostics), [`ptm`] (the PTM EXR, [`Ptm::load`], [`Ptm::eval`]), [`hp`]
+//! (HP PTM 1.2 LRGB export), [`images`] (RTI PNG stacks). File layouts: docs/FORMAT.md.
+//!
+//! Loading a PTM in a render pipeline:
+//! ```no_run
+//! let ptm = ptm_fit::Ptm::load("weave.ptm.exr".as_ref())?;
+//! let (u, v) = (0.5f32, 0.25f32); // (l·X, l·Y) of the unit vector towards the light
+//! let k = ptm.eval(3, 7, u, v); // occluded fraction at column 3, row 7, clamped to [0, 1]
+//! # let _ = k;
+//! # Ok::<(), ptm_fit::Error>(())
+//! ```
 
 // Index loops over terms and lights mirror the maths (cᵢ, Aᵢⱼ) and keep several arrays in step.
 #![allow(clippy::needless_range_loop)]
