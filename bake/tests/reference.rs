@@ -35,6 +35,16 @@ fn hit(o: [f64; 3], d: [f64; 3], v: [[f64; 3]; 3], tfar: f64) -> Option<(f64, [f
 
 #[test]
 fn plain_weave_matches_a_brute_force_tracer() {
+    compare_with_brute_force(None);
+}
+
+/// Point lights on a hemisphere of radius 3 (1.5 tiles) over the tile centre.
+#[test]
+fn point_lights_match_a_brute_force_tracer() {
+    compare_with_brute_force(Some(3.0));
+}
+
+fn compare_with_brute_force(light_distance: Option<f64>) {
     let swatch = Swatch::load("builtin:plain-weave", None).unwrap();
     let lights = dome::fibonacci(6, 12.0).unwrap();
     let (res, spp) = (8usize, 1usize);
@@ -42,7 +52,7 @@ fn plain_weave_matches_a_brute_force_tracer() {
         res: [res, res],
         spp: spp as u32,
         seed: 3,
-        light_distance: None,
+        light_distance,
         packets: true,
         threads: 1,
     };
@@ -73,8 +83,19 @@ fn plain_weave_matches_a_brute_force_tracer() {
     };
     let near = shifted(1);
     let (mut compared, mut differ) = (0, 0);
+    let mut seen = [false; 2]; // some lit and some occluded texel values
     for (li, l) in lights.dirs.iter().enumerate() {
-        let k = ((z1 - z0) / (w.min(h) * l[2].asin().tan())).ceil().max(1.0) as i32;
+        // Longest horizontal run of a shadow ray below z_max, and the block it needs.
+        let light_pos = light_distance.map(|r| [w / 2.0 + r * l[0], h / 2.0 + r * l[1], r * l[2]]);
+        let run = match light_pos {
+            None => (z1 - z0) / l[2].asin().tan(),
+            Some(q) => {
+                assert!(q[2] > z1, "test lights must be above the swatch");
+                let reach = (q[0] - w / 2.0).hypot(q[1] - h / 2.0) + w.hypot(h) / 2.0;
+                (z1 - z0) * reach / (q[2] - z0)
+            }
+        };
+        let k = (run / w.min(h)).ceil().max(1.0) as i32;
         assert!(
             rep.rings[li] as i32 <= k + 1,
             "light {li}: {} rings",
@@ -96,13 +117,21 @@ fn plain_weave_matches_a_brute_force_tracer() {
                     covered += 1;
                     let len = dot(ng, ng).sqrt() * if ng[2] < 0.0 { -1.0 } else { 1.0 };
                     let n = ng.map(|c| c / len);
-                    if dot(n, *l) <= 0.0 {
+                    let p = [x + eps * n[0], y + eps * n[1], z_cap - t + eps * n[2]];
+                    // Distant: unit direction, tfar at the clamp plane. Point: direction to
+                    // the light (t = 1 at the light), tfar also at the clamp plane.
+                    let (d, tfar) = match light_pos {
+                        None => (*l, (z_cap - p[2]) / l[2]),
+                        Some(q) => {
+                            let d = sub(q, p);
+                            (d, ((z_cap - p[2]) / d[2]).min(1.0))
+                        }
+                    };
+                    if dot(n, d) <= 0.0 {
                         occluded += 1;
                         continue;
                     }
-                    let p = [x + eps * n[0], y + eps * n[1], z_cap - t + eps * n[2]];
-                    let tfar = (z_cap - p[2]) / l[2];
-                    occluded += block.iter().any(|t| hit(p, *l, *t, tfar).is_some()) as usize;
+                    occluded += block.iter().any(|t| hit(p, d, *t, tfar).is_some()) as usize;
                 }
                 let texel = j * res + i;
                 assert_eq!(
@@ -113,6 +142,7 @@ fn plain_weave_matches_a_brute_force_tracer() {
                 if covered > 0 {
                     compared += 1;
                     let k_ref = occluded as f32 / covered as f32;
+                    seen[(k_ref > 0.0) as usize] = true;
                     differ += (planes.k[li][texel] != k_ref) as usize;
                 }
             }
@@ -120,7 +150,10 @@ fn plain_weave_matches_a_brute_force_tracer() {
     }
     // f32 (Embree) against f64 (here): a sample grazing an edge may go either way.
     eprintln!("{differ} of {compared} texel values differ from the f64 reference");
-    assert!(compared > 300, "{compared}");
+    assert!(
+        compared > 300 && seen == [true, true],
+        "{compared} {seen:?}"
+    );
     assert!(
         differ * 50 <= compared,
         "{differ} of {compared} texels differ from the reference"
