@@ -81,9 +81,11 @@ pub struct Baker {
     eps: f64,
     z_cap: f64,
     margin: f64,
-    device: Device,
-    tile_scene: Scene,
+    // Fields drop in order: the instance scenes, then the tile scene they instance, then the
+    // device (Embree reference-counts all three anyway; this order needs none of it).
     shadow_scenes: HashMap<Vec<[i32; 2]>, Scene>,
+    tile_scene: Scene,
+    device: Device,
     pool: rayon::ThreadPool,
     blocks: [usize; 2],
     /// Block-major: `samples[(block·spp + s)·16 + lane]`, lane = 4·row + column in the block.
@@ -127,7 +129,7 @@ impl Baker {
             tile: swatch.tile,
             bounds: swatch.bounds,
             // Relative to the scene size: 1e-5 of it is ~100 f32 ulps of the coordinates
-            // and 1e-3 texel at 1024² (see notes: fixed epsilons fail at other scales).
+            // and 1/100 texel at 1024² (see notes: fixed epsilons fail at other scales).
             eps: 1e-5 * scale,
             z_cap: swatch.bounds.max[2] + 1e-3 * scale,
             margin: 1e-6 * scale,
