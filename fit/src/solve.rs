@@ -1011,7 +1011,8 @@ fn bad_sample(texel: usize, width: usize, light: usize, value: f32) -> Error {
     }
 }
 
-/// Texels per parallel work unit of the fused product + residual kernel (a multiple of LANES).
+/// Texels per parallel work unit of the fused product + residual kernel (a multiple of the
+/// tile widths, 8 and 16).
 const BLOCK: usize = 256;
 
 /// Fits a stored stack: one f32 product C = P·K over texel blocks (parallel, deterministic),
@@ -1224,7 +1225,19 @@ thread_local! {
 fn kernel(inp: &KernelIn, start: usize, len: usize, m: usize) -> Block {
     PACK.with(|buf| {
         let mut buf = buf.borrow_mut();
-        pack(inp, start, len, &mut buf);
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            pack::<LANES512>(inp, start, len, &mut buf);
+            // SAFETY: the CPU supports AVX-512F.
+            return unsafe {
+                match m {
+                    6 => kernel_avx512::<6>(inp, &buf, len),
+                    11 => kernel_avx512::<11>(inp, &buf, len),
+                    _ => unreachable!("bases have 6 or 11 terms"),
+                }
+            };
+        }
+        pack::<LANES>(inp, start, len, &mut buf);
         match m {
             6 => kernel_m::<6>(inp, &buf, len),
             11 => kernel_m::<11>(inp, &buf, len),
@@ -1236,22 +1249,22 @@ fn kernel(inp: &KernelIn, start: usize, len: usize, m: usize) -> Block {
 /// Copies the block's K into tile-major order, `[tile][used light][lane]`, zero-padded: the
 /// rows stream from memory once, and the tile kernel then reads contiguous memory (as a GEMM
 /// packs its panels).
-fn pack(inp: &KernelIn, start: usize, len: usize, buf: &mut Vec<f32>) {
+fn pack<const L: usize>(inp: &KernelIn, start: usize, len: usize, buf: &mut Vec<f32>) {
     let nu = inp.used.len();
-    let tiles = len.div_ceil(LANES);
+    let tiles = len.div_ceil(L);
     buf.clear();
-    buf.resize(tiles * nu * LANES, 0.0);
+    buf.resize(tiles * nu * L, 0.0);
     for (li, &l) in inp.used.iter().enumerate() {
         let row = &inp.k[l][start..start + len];
-        let mut chunks = row.chunks_exact(LANES);
+        let mut chunks = row.chunks_exact(L);
         for (tile, chunk) in chunks.by_ref().enumerate() {
-            let o = (tile * nu + li) * LANES;
+            let o = (tile * nu + li) * L;
             // Fixed-size copy: one 32-byte move, no memmove call.
-            let dst: &mut [f32; LANES] = (&mut buf[o..o + LANES]).try_into().unwrap();
+            let dst: &mut [f32; L] = (&mut buf[o..o + L]).try_into().unwrap();
             *dst = chunk.try_into().unwrap();
         }
         let rest = chunks.remainder();
-        let o = ((len / LANES) * nu + li) * LANES;
+        let o = ((len / L) * nu + li) * L;
         for (q, &x) in rest.iter().enumerate() {
             buf[o + q] = x;
         }
@@ -1316,6 +1329,69 @@ unsafe fn kernel_avx2<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize
         let mut lanes = [0f32; LANES];
         let mut put = |v: __m256, dst: &mut [f32]| {
             _mm256_storeu_ps(lanes.as_mut_ptr(), v);
+            dst[..n].copy_from_slice(&lanes[..n]);
+        };
+        for j in 0..M {
+            put(acc[j], &mut out.c[j * BLOCK + b0..]);
+        }
+        put(ss, &mut out.ss[b0..]);
+        put(mx, &mut out.mx[b0..]);
+        put(hs, &mut out.hs[b0..]);
+    }
+    out
+}
+
+/// Texels per AVX-512 tile.
+#[cfg(target_arch = "x86_64")]
+const LANES512: usize = 16;
+
+/// [`kernel_avx2`] with 16-texel tiles in AVX-512 registers (same maths and order).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn kernel_avx512<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize) -> Block {
+    use std::arch::x86_64::*;
+    const L: usize = LANES512;
+    let mut out = Block {
+        c: vec![0f32; M * BLOCK],
+        ss: vec![0f32; BLOCK],
+        mx: vec![0f32; BLOCK],
+        hs: vec![0f32; BLOCK],
+    };
+    let nu = inp.used.len();
+    let (p, a) = (inp.p.as_ptr(), inp.a.as_ptr());
+    let (zero, one) = (_mm512_setzero_ps(), _mm512_set1_ps(1.0));
+    for (tile, kt) in packed.chunks_exact(nu * L).enumerate() {
+        let b0 = tile * L;
+        let kp = kt.as_ptr();
+        let mut acc = [zero; M];
+        for li in 0..inp.nfit {
+            // SAFETY (all pointer reads): li < nu, j < M; kt has nu·L floats, p and a nu·M.
+            let kv = _mm512_loadu_ps(kp.add(li * L));
+            for j in 0..M {
+                acc[j] = _mm512_fmadd_ps(_mm512_set1_ps(*p.add(li * M + j)), kv, acc[j]);
+            }
+        }
+        let (mut ss, mut mx, mut hs) = (zero, zero, zero);
+        for li in 0..nu {
+            let kv = _mm512_loadu_ps(kp.add(li * L));
+            let mut pred = zero;
+            for j in 0..M {
+                pred = _mm512_fmadd_ps(_mm512_set1_ps(*a.add(li * M + j)), acc[j], pred);
+            }
+            if li < inp.nfit {
+                let r = _mm512_sub_ps(kv, pred);
+                ss = _mm512_fmadd_ps(_mm512_mul_ps(_mm512_set1_ps(inp.w[li]), r), r, ss);
+                mx = _mm512_max_ps(_mm512_abs_ps(r), mx);
+            } else {
+                let pc = _mm512_min_ps(_mm512_max_ps(pred, zero), one);
+                let r = _mm512_sub_ps(pc, kv);
+                hs = _mm512_fmadd_ps(r, r, hs);
+            }
+        }
+        let n = L.min(len - b0);
+        let mut lanes = [0f32; L];
+        let mut put = |v: __m512, dst: &mut [f32]| {
+            _mm512_storeu_ps(lanes.as_mut_ptr(), v);
             dst[..n].copy_from_slice(&lanes[..n]);
         };
         for j in 0..M {
@@ -1509,7 +1585,7 @@ mod tests {
             w: (0..nu).map(|i| 0.5 + (i % 3) as f32 * 0.25).collect(),
         };
         let mut buf = Vec::new();
-        pack(&inp, 0, len, &mut buf);
+        pack::<LANES>(&inp, 0, len, &mut buf);
         let want = kernel_body::<6, false>(&inp, &buf, len);
         let got = kernel_m::<6>(&inp, &buf, len);
         for (name, x, y) in [
@@ -1522,6 +1598,25 @@ mod tests {
                 assert!(
                     (a - b).abs() <= 1e-5 * (1.0 + a.abs()),
                     "{name}: {a} vs {b}"
+                );
+            }
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            let mut buf16 = Vec::new();
+            pack::<LANES512>(&inp, 0, len, &mut buf16);
+            // SAFETY: the CPU supports AVX-512F.
+            let got = unsafe { kernel_avx512::<6>(&inp, &buf16, len) };
+            for (a, b) in want.c.iter().zip(&got.c) {
+                assert!(
+                    (a - b).abs() <= 1e-5 * (1.0 + a.abs()),
+                    "avx512 c: {a} vs {b}"
+                );
+            }
+            for (a, b) in want.ss.iter().zip(&got.ss) {
+                assert!(
+                    (a - b).abs() <= 1e-5 * (1.0 + a.abs()),
+                    "avx512 ss: {a} vs {b}"
                 );
             }
         }
