@@ -1165,11 +1165,18 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
             report.rank_deficient_texels
         ));
     }
-    report.rms = ErrorStats::of(&rms_map, &mask);
-    report.max = Some(ErrorStats::of(&max_map, &mask));
-    if !prep.held.is_empty() {
-        report.holdout = Some(ErrorStats::of(&hold_map, &mask));
-    }
+    let ((rms, max), hold) = rayon::join(
+        || {
+            rayon::join(
+                || ErrorStats::of(&rms_map, &mask),
+                || ErrorStats::of(&max_map, &mask),
+            )
+        },
+        || (!prep.held.is_empty()).then(|| ErrorStats::of(&hold_map, &mask)),
+    );
+    report.rms = rms;
+    report.max = Some(max);
+    report.holdout = hold;
     report.rms_map = rms_map;
     report.max_map = max_map;
     report.seconds = vec![
