@@ -357,3 +357,105 @@ fn real_bake_fit_agrees_with_an_independent_f64_solve() {
     assert!(occluded > 0, "the bake should show some occlusion");
     assert!(worst < 1e-5, "fit vs independent f64 solve: {worst}");
 }
+
+/// A minimal 8-bit greyscale PNG writer (stored deflate blocks), so this test needs no image
+/// crate: PNG signature, IHDR, one IDAT with a zlib stream of uncompressed blocks, IEND.
+fn write_grey_png(path: &Path, w: usize, h: usize, pix: &[u8]) {
+    fn crc32(bytes: &[u8]) -> u32 {
+        let mut c = 0xFFFF_FFFFu32;
+        for &b in bytes {
+            c ^= b as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+        }
+        !c
+    }
+    fn chunk(out: &mut Vec<u8>, kind: &[u8], data: &[u8]) {
+        out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+        let mut body = kind.to_vec();
+        body.extend_from_slice(data);
+        out.extend_from_slice(&body);
+        out.extend_from_slice(&crc32(&body).to_be_bytes());
+    }
+    let mut raw = Vec::new();
+    for row in pix.chunks(w) {
+        raw.push(0); // filter: none
+        raw.extend_from_slice(row);
+    }
+    let mut z = vec![0x78, 0x01];
+    let blocks: Vec<&[u8]> = raw.chunks(65535).collect();
+    for (i, b) in blocks.iter().enumerate() {
+        z.push((i + 1 == blocks.len()) as u8);
+        z.extend_from_slice(&(b.len() as u16).to_le_bytes());
+        z.extend_from_slice(&(!(b.len() as u16)).to_le_bytes());
+        z.extend_from_slice(b);
+    }
+    let (mut a, mut b) = (1u32, 0u32);
+    for &x in &raw {
+        a = (a + x as u32) % 65521;
+        b = (b + a) % 65521;
+    }
+    z.extend_from_slice(&((b << 16) | a).to_be_bytes());
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    let mut ihdr = (w as u32).to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&(h as u32).to_be_bytes());
+    ihdr.extend_from_slice(&[8, 0, 0, 0, 0]);
+    chunk(&mut png, b"IHDR", &ihdr);
+    chunk(&mut png, b"IDAT", &z);
+    chunk(&mut png, b"IEND", &[]);
+    std::fs::write(path, png).unwrap();
+}
+
+#[test]
+fn fit_command_reads_an_rti_image_stack() {
+    let dir = tmpdir();
+    let lights = dome(20);
+    let (w, h) = (9, 5);
+    // White = lit: pixel = 255·(1 − K), K = 0.3 + 0.2·u·x/w (exactly ptm6, within [0, 1]).
+    let mut lp = format!("{}\n", lights.len());
+    for (i, d) in lights.dirs.iter().enumerate() {
+        let pix: Vec<u8> = (0..w * h)
+            .map(|t| {
+                let k = 0.3 + 0.2 * d[0] * (t % w) as f64 / w as f64;
+                (255.0 * (1.0 - k)).round() as u8
+            })
+            .collect();
+        let name = format!("img_{i:02}.png");
+        write_grey_png(&dir.path().join(&name), w, h, &pix);
+        lp += &format!("{name} {} {} {}\n", d[0], d[1], d[2]);
+    }
+    let lp_path = dir.path().join("dome.lp");
+    std::fs::write(&lp_path, lp).unwrap();
+    let out = dir.path().join("rti.ptm.exr");
+    let pattern = format!("{}/*.png", dir.path().display());
+    let j = run_json(&[
+        "fit",
+        "--images",
+        &pattern,
+        "--lights",
+        p(&lp_path),
+        "--tile",
+        "2,1",
+        "-o",
+        p(&out),
+    ]);
+    assert_eq!(
+        (j["width"].as_u64(), j["height"].as_u64()),
+        (Some(9), Some(5))
+    );
+    // 8-bit quantisation of the images bounds the residual.
+    assert!(
+        j["rms_error"]["max"].as_f64().unwrap() < 3e-3,
+        "{}",
+        j["rms_error"]
+    );
+    let fitted = Ptm::load(&out).unwrap();
+    assert_eq!(fitted.tile, [2.0, 1.0]);
+    let k = fitted.eval(8, 2, 0.9, 0.1) as f64;
+    assert!((k - (0.3 + 0.2 * 0.9 * 8.0 / 9.0)).abs() < 5e-3, "{k}");
+}
