@@ -105,7 +105,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         ),
         (None, Some(pattern)) => {
             let lp = args.lights.as_ref().expect("clap requires --lights");
-            if args.tile.len() != 2 || args.tile.iter().any(|&x| !(x > 0.0)) {
+            if args.tile.len() != 2 || args.tile.iter().any(|&x| x.is_nan() || x <= 0.0) {
                 bail!("--tile takes two positive sizes W,H, got {:?}", args.tile);
             }
             let (stack, unused) = read_image_stack(pattern, lp, [args.tile[0], args.tile[1]])?;
