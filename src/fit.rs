@@ -95,6 +95,9 @@ fn finite(x: f64) -> Value {
 pub fn run(args: &Args) -> anyhow::Result<Value> {
     let t_all = Instant::now();
     let basis: Basis = args.basis.into();
+    if args.export_hp.is_some() && basis != Basis::Ptm6 {
+        bail!("--export-hp: HP's .ptm format holds only the 6-term biquadratic; fit with --basis ptm6 to export it");
+    }
     let t0 = Instant::now();
     let (stack, source) = match (&args.input, &args.images) {
         (Some(_), Some(_)) => bail!("give either a sample stack or --images, not both"),
