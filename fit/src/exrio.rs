@@ -79,8 +79,76 @@ pub(crate) fn write(
         .map_err(|e| Error::Format {
             path: path.display().to_string(),
             reason: format!("writing EXR: {e}"),
-        });
+        })
+        .and_then(|_| sort_header_attributes(&tmp));
     crate::atomic::commit_tmp(&tmp, path, written)
+}
+
+/// Rewrites the header of the single-part EXR at `path` with its attributes sorted by name.
+///
+/// The `exr` crate keeps custom attributes in a `HashMap` and writes them in its (random,
+/// per-process) iteration order, so the same image would give different bytes on every run.
+/// Sorting the attribute records in place keeps the header's length, so the offset table after
+/// it stays valid, and makes files byte-identical for identical content.
+fn sort_header_attributes(path: &Path) -> Result<()> {
+    let io = |e: std::io::Error| Error::Io {
+        path: path.display().to_string(),
+        source: e,
+    };
+    let mut bytes = std::fs::read(path).map_err(io)?;
+    let bad = || Error::Format {
+        path: path.display().to_string(),
+        reason: "writing EXR: unexpected header layout".into(),
+    };
+    // Magic number and version field, then records `name\0 type\0 size:i32 value[size]`,
+    // ended by an empty name.
+    let mut pos = 8;
+    let mut records: Vec<(usize, usize)> = Vec::new();
+    loop {
+        let name_end = pos
+            + bytes
+                .get(pos..)
+                .and_then(|b| b.iter().position(|&c| c == 0))
+                .ok_or_else(bad)?;
+        if name_end == pos {
+            break;
+        }
+        let type_end = name_end
+            + 1
+            + bytes
+                .get(name_end + 1..)
+                .and_then(|b| b.iter().position(|&c| c == 0))
+                .ok_or_else(bad)?;
+        let size_at = type_end + 1;
+        let size = i32::from_le_bytes(
+            bytes
+                .get(size_at..size_at + 4)
+                .ok_or_else(bad)?
+                .try_into()
+                .unwrap(),
+        );
+        let end = size_at + 4 + usize::try_from(size).map_err(|_| bad())?;
+        if end > bytes.len() {
+            return Err(bad());
+        }
+        records.push((pos, end));
+        pos = end;
+    }
+    let name = |r: &(usize, usize)| {
+        let b = &bytes[r.0..r.1];
+        b[..b.iter().position(|&c| c == 0).unwrap()].to_vec()
+    };
+    let mut sorted = records.clone();
+    sorted.sort_by_key(|r| name(r));
+    if sorted == records {
+        return Ok(());
+    }
+    let header: Vec<u8> = sorted
+        .iter()
+        .flat_map(|&(a, b)| bytes[a..b].to_vec())
+        .collect();
+    bytes[8..8 + header.len()].copy_from_slice(&header);
+    std::fs::write(path, &bytes).map_err(io)
 }
 
 /// The contents of a single-part flat EXR: channels by name, header attributes by name.
