@@ -49,7 +49,9 @@ pub struct Args {
     #[arg(long, value_name = "LAMBDA")]
     pub regularize: Option<f64>,
     /// Singular values below RCOND·σmax count as zero (their basis directions are undetermined).
-    #[arg(long, default_value_t = 1e-4)]
+    /// The default keeps every direction of any dome with condition number < 1000 and drops
+    /// near-ring directions whose noise amplification made held-out error worse (docs/report).
+    #[arg(long, default_value_t = ptm_fit::solve::DEFAULT_RCOND)]
     pub rcond: f64,
     /// Fail instead of warning when the light set cannot determine the basis well.
     #[arg(long)]

@@ -39,6 +39,10 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
         let r = (1.0 - z * z).sqrt() / (d[0] * d[0] + d[1] * d[1]).sqrt();
         *d = [d[0] * r, d[1] * r, z];
     }
+    let mut near_ring3 = dome::rings("30x16")?;
+    for (i, d) in near_ring3.dirs.iter_mut().enumerate() {
+        d[2] += if i % 2 == 0 { 1e-3 } else { -1e-3 };
+    }
     let cases: Vec<(&str, LightSet)> = vec![
         (
             "Fibonacci 64 above 5° (reference)",
@@ -46,6 +50,10 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
         ),
         ("single ring 30°×16", dome::rings("30x16")?),
         ("near-ring 30°×16, z ± 1e-4", near_ring),
+        (
+            "near-ring 30°×16, z ± 1e-3",
+            LightSet::from_dirs(near_ring3.dirs),
+        ),
         ("two rings 30°×12 + 60°×8", dome::rings("30x12,60x8")?),
         ("5 lights (fewer than 6 terms)", dome::fibonacci(5, 5.0)?),
         ("10 lights (fewer than 11 terms)", dome::fibonacci(10, 5.0)?),
