@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use ptm_fit::Ptm;
+use ptm_runtime::scene::Perspective;
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
 use serde_json::{json, Value};
 
@@ -90,6 +91,15 @@ pub struct Args {
     /// Exposure of the PNG in stops (linear × 2^E before sRGB encoding).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
+    /// Perspective camera eye x,y,z (default: orthographic top view of the tiles).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub camera: Option<[f32; 3]>,
+    /// Point the perspective camera looks at (default: the view's centre on the cloth).
+    #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
+    pub look_at: Option<[f32; 3]>,
+    /// Vertical field of view of the perspective camera, degrees.
+    #[arg(long, default_value_t = 45.0)]
+    pub fov: f32,
     /// Render N light azimuths (lights turned about the view's centre) into a contact sheet.
     #[arg(long, value_name = "N")]
     pub turntable: Option<u32>,
@@ -230,6 +240,13 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     }
     scene.colored_shadow = args.colored_shadow;
     scene.blur = args.blur.into();
+    if let Some(eye) = args.camera {
+        scene.perspective = Some(Perspective {
+            eye,
+            target: args.look_at.unwrap_or([centre[0], centre[1], 0.0]),
+            fov_y_deg: args.fov,
+        });
+    }
     Ok(scene)
 }
 
@@ -273,6 +290,13 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         );
     }
     report["caster_downsample"] = json!(prepared.caster_downsample);
+    if prepared.nonfinite_coeffs > 0 {
+        eprintln!(
+            "ptm preview: {} PTM coefficients are NaN or infinite; rendered as 0 (K = 0 there)",
+            prepared.nonfinite_coeffs
+        );
+    }
+    report["nonfinite_coeffs"] = json!(prepared.nonfinite_coeffs);
     for (i, l) in scene.lights.iter().enumerate() {
         if l.position[2] <= 0.0 {
             eprintln!(

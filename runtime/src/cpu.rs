@@ -54,7 +54,7 @@ fn render_with(p: &Prepared, mc_samples: u32) -> Image {
     pixels.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         for (i, px) in row.iter_mut().enumerate() {
             let frag = [i as f32 + 0.5, j as f32 + 0.5];
-            let r = twin.shade(pixel_world(&p.frame, frag));
+            let r = pixel_world(&p.frame, frag).map_or([0.0; 3], |q| twin.shade(q));
             *px = [r[0], r[1], r[2], 1.0];
         }
     });
@@ -65,13 +65,24 @@ fn render_with(p: &Prepared, mc_samples: u32) -> Image {
     }
 }
 
-/// World (x, y) of a pixel centre; `frag` is the pixel index + 0.5; row 0 is y1.
-pub fn pixel_world(f: &Frame, frag: [f32; 2]) -> [f32; 2] {
+/// Cloth point seen through a pixel centre (`frag` = pixel index + 0.5), `None` when a
+/// perspective ray misses the plane z = 0.
+pub fn pixel_world(f: &Frame, frag: [f32; 2]) -> Option<[f32; 2]> {
     let t = [frag[0] / f.screen[0], frag[1] / f.screen[1]];
-    [
-        f.view[0] + (f.view[2] - f.view[0]) * t[0],
-        f.view[3] - (f.view[3] - f.view[1]) * t[1],
-    ]
+    if f.eye[3] == 0.0 {
+        return Some([
+            f.view[0] + (f.view[2] - f.view[0]) * t[0],
+            f.view[3] - (f.view[3] - f.view[1]) * t[1],
+        ]);
+    }
+    let dir: [f32; 3] = std::array::from_fn(|k| {
+        f.cam_forward[k] + (2.0 * t[0] - 1.0) * f.cam_right[k] + (1.0 - 2.0 * t[1]) * f.cam_up[k]
+    });
+    if dir[2] >= 0.0 || f.eye[2] <= 0.0 {
+        return None;
+    }
+    let s = -f.eye[2] / dir[2];
+    Some([f.eye[0] + s * dir[0], f.eye[1] + s * dir[1]])
 }
 
 /// Texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights, as `tile_bilinear` in WGSL.
@@ -315,7 +326,9 @@ pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
         .map(|j| {
             let (mut lo, mut hi, mut out, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0u64, 0u64);
             for i in 0..w {
-                let pos = pixel_world(&p.frame, [i as f32 + 0.5, j as f32 + 0.5]);
+                let Some(pos) = pixel_world(&p.frame, [i as f32 + 0.5, j as f32 + 0.5]) else {
+                    continue;
+                };
                 let c = twin.ptm_coeffs(pos);
                 for l in lights {
                     let lp = l.position_radius;

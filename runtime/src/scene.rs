@@ -80,6 +80,17 @@ pub struct Caster {
     pub elevation: f32,
 }
 
+/// A perspective camera (the default camera is orthographic top-down over `Scene::view`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Perspective {
+    /// Eye position (world, swatch units).
+    pub eye: [f32; 3],
+    /// Point looked at.
+    pub target: [f32; 3],
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f32,
+}
+
 /// Everything one frame shows.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -100,6 +111,9 @@ pub struct Scene {
     /// With a caster: its RGB transmits coloured light (stained glass) instead of grey.
     pub colored_shadow: bool,
     pub blur: Blur,
+    /// Perspective camera; `None` = orthographic top view of `view`. Pixels whose ray misses
+    /// the cloth plane are black.
+    pub perspective: Option<Perspective>,
 }
 
 impl Scene {
@@ -121,6 +135,7 @@ impl Scene {
             caster: None,
             colored_shadow: false,
             blur: Blur::Sat,
+            perspective: None,
         }
     }
 
@@ -161,9 +176,17 @@ impl Scene {
             ..Frame::zeroed()
         };
         frame.counts[0] = self.lights.len() as u32;
+        if let Some(cam) = &self.perspective {
+            let [right, up, forward] = camera_basis(cam, w as f32 / h as f32)?;
+            frame.eye = [cam.eye[0], cam.eye[1], cam.eye[2], 1.0];
+            frame.cam_right = [right[0], right[1], right[2], 0.0];
+            frame.cam_up = [up[0], up[1], up[2], 0.0];
+            frame.cam_forward = [forward[0], forward[1], forward[2], 0.0];
+        }
         frame.counts[3] = MAX_EXPLICIT_SAMPLES;
 
         let mut coeffs = Vec::new();
+        let mut nonfinite_coeffs = 0;
         let mut basis = None;
         if let Some(ptm) = &self.ptm {
             let n = ptm.basis.len();
@@ -187,6 +210,12 @@ impl Scene {
             coeffs.reserve(texels * n);
             for t in 0..texels {
                 coeffs.extend(ptm.planes.iter().map(|p| p[t]));
+            }
+            // A NaN coefficient would make K (and the pixel) NaN on some GPUs and 0 on others:
+            // zero it (K = 0, lit) and report how many there were.
+            for c in coeffs.iter_mut().filter(|c| !c.is_finite()) {
+                *c = 0.0;
+                nonfinite_coeffs += 1;
             }
             frame.screen[2] = ptm.tile[0] as f32;
             frame.screen[3] = ptm.tile[1] as f32;
@@ -286,6 +315,7 @@ impl Scene {
             separable,
             variant,
             caster_downsample,
+            nonfinite_coeffs,
         })
     }
 }
@@ -375,6 +405,48 @@ pub struct Frame {
     pub counts: [u32; 4],
     /// Separable blur: margins mx, my (texels) around the caster and the padded map's w, h.
     pub blur: [u32; 4],
+    /// Perspective camera eye (xyz; w = 1 for perspective, 0 for the orthographic top view).
+    pub eye: [f32; 4],
+    /// Camera right × tan(fov/2)·aspect, up × tan(fov/2), forward (unit); w unused.
+    pub cam_right: [f32; 4],
+    pub cam_up: [f32; 4],
+    pub cam_forward: [f32; 4],
+}
+
+/// Right, up (scaled to the image's half-extent at unit distance) and forward unit vectors.
+/// World up is +Z, or +Y when looking straight up or down (then +X is right, +Y up, as the
+/// orthographic top view).
+fn camera_basis(cam: &Perspective, aspect: f32) -> Result<[[f32; 3]; 3]> {
+    let sub = |a: [f32; 3], b: [f32; 3]| [a[0] - b[0], a[1] - b[1], a[2] - b[2]];
+    let cross = |a: [f32; 3], b: [f32; 3]| {
+        [
+            a[1] * b[2] - a[2] * b[1],
+            a[2] * b[0] - a[0] * b[2],
+            a[0] * b[1] - a[1] * b[0],
+        ]
+    };
+    let norm = |a: [f32; 3]| {
+        let n = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+        a.map(|x| x / n)
+    };
+    let d = sub(cam.target, cam.eye);
+    if d == [0.0; 3] || !(cam.fov_y_deg > 0.0 && cam.fov_y_deg < 179.0) {
+        return Err(Error::Scene(format!(
+            "perspective camera at {:?} looking at {:?} with fov {}°: the target must differ \
+             from the eye and the fov lie in (0, 179)",
+            cam.eye, cam.target, cam.fov_y_deg
+        )));
+    }
+    let f = norm(d);
+    let world_up = if f[0].abs() < 1e-6 && f[1].abs() < 1e-6 {
+        [0.0, 1.0, 0.0]
+    } else {
+        [0.0, 0.0, 1.0]
+    };
+    let r = norm(cross(f, world_up));
+    let u = cross(r, f);
+    let t = (0.5 * cam.fov_y_deg.to_radians()).tan();
+    Ok([r.map(|x| x * t * aspect), u.map(|x| x * t), f])
 }
 
 impl Frame {
@@ -414,6 +486,8 @@ pub struct Prepared {
     pub variant: Variant,
     /// Integer factor the caster image was box-downsampled by (1 = as given).
     pub caster_downsample: usize,
+    /// PTM coefficients that were NaN or infinite in the input (replaced by 0).
+    pub nonfinite_coeffs: usize,
 }
 
 /// Box-downsamples a caster whose larger side exceeds [`MAX_CASTER_SIDE`] by the smallest

@@ -14,6 +14,10 @@ struct Frame {
     sizes: vec4<u32>,       // PTM texels nx, ny; albedo texels nx, ny
     counts: vec4<u32>,      // lights; caster texels w, h; explicit samples cap per axis
     blur: vec4<u32>,        // separable: margins mx, my; padded map w, h
+    eye: vec4<f32>,         // perspective eye xyz; w = 1 perspective, 0 orthographic top view
+    cam_right: vec4<f32>,   // right · tan(fov/2) · aspect
+    cam_up: vec4<f32>,      // up · tan(fov/2)
+    cam_forward: vec4<f32>, // forward (unit)
 }
 
 struct Light {
@@ -51,13 +55,25 @@ fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     return vec4<f32>(x, y, 0.0, 1.0);
 }
 
-// World (x, y) of a pixel centre; `frag` is @builtin(position).xy (pixel + 0.5); row 0 is y1.
-fn pixel_world(frag: vec2<f32>) -> vec2<f32> {
+// Cloth point (x, y) seen through a pixel centre and whether the pixel sees the cloth (z: 1/0);
+// `frag` is @builtin(position).xy (pixel + 0.5). Orthographic: row 0 is y1 of the view.
+// Perspective: the ray eye + s·dir meets z = 0 at s = −eye.z/dir.z (needs dir.z < 0 < eye.z).
+fn pixel_world(frag: vec2<f32>) -> vec3<f32> {
     let t = frag / frame.screen.xy;
-    return vec2<f32>(
-        frame.view.x + (frame.view.z - frame.view.x) * t.x,
-        frame.view.w - (frame.view.w - frame.view.y) * t.y,
-    );
+    if (frame.eye.w == 0.0) {
+        return vec3<f32>(
+            frame.view.x + (frame.view.z - frame.view.x) * t.x,
+            frame.view.w - (frame.view.w - frame.view.y) * t.y,
+            1.0,
+        );
+    }
+    let dir = frame.cam_forward.xyz + (2.0 * t.x - 1.0) * frame.cam_right.xyz
+        + (1.0 - 2.0 * t.y) * frame.cam_up.xyz;
+    if (dir.z >= 0.0 || frame.eye.z <= 0.0) {
+        return vec3<f32>(0.0);
+    }
+    let s = -frame.eye.z / dir.z;
+    return vec3<f32>(frame.eye.xy + s * dir.xy, 1.0);
 }
 
 // Four texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights for a texture of `n` texels
@@ -358,5 +374,9 @@ fn shade(p: vec2<f32>) -> vec3<f32> {
 
 @fragment
 fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
-    return vec4<f32>(shade(pixel_world(frag.xy)), 1.0);
+    let p = pixel_world(frag.xy);
+    if (p.z == 0.0) {
+        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    }
+    return vec4<f32>(shade(p.xy), 1.0);
 }

@@ -91,6 +91,40 @@ fn gpu_sat_equals_cpu_sat_bit_for_bit() {
 }
 
 #[test]
+fn perspective_straight_down_equals_the_orthographic_view_and_matches_twin() {
+    // Looking straight down from height 3 with fov_y = 2·atan(0.75/3) sees exactly the square
+    // [0, 1.5]² (a plane under a pinhole camera parallel to it maps affinely), so the image is
+    // the orthographic one.
+    let mut s = scene(Some(Basis::Ptm6), [48, 48]);
+    s.view = [0.0, 0.0, 1.5, 1.5];
+    let ortho = gpu::render(&gpu(), &s.prepare().unwrap()).unwrap().0;
+    s.perspective = Some(ptm_runtime::scene::Perspective {
+        eye: [0.75, 0.75, 3.0],
+        target: [0.75, 0.75, 0.0],
+        fov_y_deg: 2.0 * (0.75f32 / 3.0).atan().to_degrees(),
+    });
+    let persp = gpu::render(&gpu(), &s.prepare().unwrap()).unwrap().0;
+    let d = persp.max_abs_diff(&ortho).unwrap();
+    assert!(
+        d < 1e-3,
+        "perspective top view differs from orthographic by {d}"
+    );
+    // An oblique view with the horizon in the picture: GPU = twin, sky black.
+    s.perspective = Some(ptm_runtime::scene::Perspective {
+        eye: [-1.0, 0.5, 0.6],
+        target: [1.0, 1.0, 0.0],
+        fov_y_deg: 70.0,
+    });
+    check(&s, "perspective oblique");
+    let img = cpu::render(&s.prepare().unwrap());
+    assert_eq!(
+        img.pixels[0][..3],
+        [0.0; 3],
+        "the top-left pixel looks at the sky"
+    );
+}
+
+#[test]
 fn no_lights_render_black() {
     let mut s = scene(Some(Basis::Ptm6), [16, 16]);
     s.lights.clear();

@@ -24,6 +24,7 @@ fn strip(light: ptm_runtime::Light) -> Scene {
         caster: None,
         colored_shadow: false,
         blur: Blur::Sat,
+        perspective: None,
     }
 }
 
@@ -301,4 +302,20 @@ fn coloured_shadow_transmits_the_pane_colour() {
         let ok = (a[0] - b[0]).abs() < 1e-6 && a[1].abs() < 1e-6 && a[2].abs() < 1e-6;
         assert!(ok, "{a:?} vs {b:?}");
     }
+}
+
+#[test]
+fn nan_coefficients_are_zeroed_and_counted() {
+    let mut s = strip(light([0.0, 0.0, 2.0], 0.1, 4.0));
+    let mut ptm = constant_ptm(0.5);
+    ptm.planes[5][1] = f32::NAN;
+    ptm.planes[2][3] = f32::INFINITY;
+    s.ptm = Some(ptm);
+    let p = s.prepare().unwrap();
+    assert_eq!(p.nonfinite_coeffs, 2);
+    let (img, _) = gpu::render(&gpu(), &p).unwrap();
+    assert!(img
+        .pixels
+        .iter()
+        .all(|px| px[..3].iter().all(|c| c.is_finite())));
 }
