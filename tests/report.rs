@@ -47,6 +47,7 @@ fn quick_report_writes_every_table_and_the_plot() {
         "## Stability",
         "### Light layouts",
         "### Geometry",
+        "## Runtime: soft shadows",
     ] {
         assert!(md.contains(section), "report.md lacks {section}");
     }
@@ -89,5 +90,32 @@ fn quick_report_writes_every_table_and_the_plot() {
     let geometry = csv(dir.path(), "stability_geometry");
     for r in geometry.iter().filter(|r| r[0].contains("scaled by")) {
         assert_eq!(r[2], "0", "{r:?}");
+    }
+
+    // Runtime: every extreme case renders finite pixels, matches its analytic opacity and the
+    // CPU twin; the 8192² caster went through the downsampling; SAT beats MIP against Monte
+    // Carlo (times are printed, not asserted: the benchmark owns them).
+    let extremes = csv(dir.path(), "runtime_extremes");
+    assert_eq!(extremes.len(), 9, "{extremes:?}");
+    let col = |h: &str| extremes[0].iter().position(|c| c == h).unwrap();
+    for r in &extremes[1..] {
+        assert_eq!(r[col("all finite")], "yes", "{r:?}");
+        let dev: f64 = r[col("max |opacity − analytic|")].parse().unwrap();
+        assert!(dev < 1e-3, "{r:?}");
+        let twin: f64 = r[col("GPU vs CPU twin")].parse().unwrap();
+        assert!(twin < 1e-3, "{r:?}");
+    }
+    assert!(extremes[8][col("what ptm does")].contains("downsampled ×2 to 4096×4096"));
+    let blur = csv(dir.path(), "runtime_blur");
+    let col = |h: &str| blur[0].iter().position(|c| c == h).unwrap();
+    let get = |r: &str, m: &str, h: &str| -> f64 {
+        let row = blur
+            .iter()
+            .find(|x| x[0] == r && x[col("method")] == m)
+            .unwrap_or_else(|| panic!("no {m} row at R {r}: {blur:?}"));
+        row[col(h)].parse().unwrap()
+    };
+    for r in ["0.100", "0.500"] {
+        assert!(get(r, "sat", "mean |err| (radiance)") < get(r, "mip", "mean |err| (radiance)"));
     }
 }

@@ -1,0 +1,341 @@
+//! The runtime side of the report: each `--blur` method's soft shadow against the Monte Carlo
+//! ground truth beside its frame time, and the extreme cases of the penumbra map (R → 0,
+//! d_ca → 0, d_lc → 0, a huge light, an 8192² caster through the summed-area table), each
+//! measured against its analytic answer and against the CPU twin.
+use anyhow::Result;
+use ptm_fit::{Basis, Ptm};
+use ptm_runtime::penumbra::{caster_radius, half_plane_fraction};
+use ptm_runtime::{compare, cpu, gpu, Blur, Caster, Gpu, Light, Scene};
+
+use super::table::{g3, Table};
+
+fn hash(i: u64) -> u64 {
+    let mut x = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    x ^ (x >> 31)
+}
+
+fn light(position: [f32; 3], radius: f32) -> Light {
+    Light {
+        position,
+        radius,
+        intensity: 4.0,
+        color: [1.0; 3],
+    }
+}
+
+/// A leafy caster: `n`² texels of overlapping discs of varying alpha on transparent.
+fn leaves(n: usize, rect: [f32; 4], elevation: f32) -> Caster {
+    let mut rgba = vec![[0u8; 4]; n * n];
+    for d in 0..40u64 {
+        let cx = (hash(d * 3) % n as u64) as i64;
+        let cy = (hash(d * 3 + 1) % n as u64) as i64;
+        let r = (n as i64 / 24) + (hash(d * 3 + 2) % (n as u64 / 10)) as i64;
+        let a = 140 + (hash(d) % 116) as u8;
+        for y in (cy - r).max(0)..(cy + r).min(n as i64) {
+            for x in (cx - r).max(0)..(cx + r).min(n as i64) {
+                if (x - cx).pow(2) + (y - cy).pow(2) < r * r {
+                    rgba[y as usize * n + x as usize] = [40, 160, 60, a];
+                }
+            }
+        }
+    }
+    Caster {
+        width: n,
+        height: n,
+        rgba,
+        rect,
+        elevation,
+    }
+}
+
+/// A smooth ptm11 whose K stays mostly inside [0, 1]: the cloth the shadow falls on.
+fn cloth(n: usize) -> Ptm {
+    let planes = (0..11)
+        .map(|k| {
+            (0..n * n)
+                .map(|t| {
+                    let (x, y) = ((t % n) as f32 / n as f32, (t / n) as f32 / n as f32);
+                    let wave =
+                        (std::f32::consts::TAU * x).sin() * (std::f32::consts::TAU * y).cos();
+                    if k == 10 {
+                        0.3 + 0.2 * wave
+                    } else {
+                        0.05 * wave * (k as f32 - 5.0) / 5.0
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    Ptm {
+        basis: Basis::Ptm11,
+        width: n,
+        height: n,
+        tile: [0.5, 0.5],
+        planes,
+    }
+}
+
+/// Every blur method against the Monte Carlo soft shadow, for a small and a large light.
+pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Table> {
+    let (side, mc) = if quick { (96, 96) } else { (384, 512) };
+    let mut t = Table::new(
+        "runtime_blur",
+        &[
+            "light radius R",
+            "penumbra radius on the caster (texels)",
+            "method",
+            "max |err| (radiance)",
+            "mean |err| (radiance)",
+            "shade ms",
+            "setup ms",
+        ],
+    );
+    let caster_texels = 512;
+    for radius in [0.1f32, 0.5] {
+        let mut s = Scene::over_ptm(cloth(32), 4, [side, side]);
+        s.view = [-1.0, -1.0, 1.0, 1.0];
+        s.lights = vec![light([0.3, 0.2, 2.0], radius)];
+        s.caster = Some(leaves(caster_texels, [-1.5, -1.5, 1.5, 1.5], 0.6));
+        let w = caster_radius(radius as f64, 2.0 - 0.6, 0.6) * caster_texels as f64 / 3.0;
+        for r in compare::compare_blur(g, &s, mc)? {
+            t.push(vec![
+                g3(radius as f64),
+                g3(w),
+                r.method.into(),
+                g3(r.max_abs_error as f64),
+                g3(r.mean_abs_error as f64),
+                g3(1e3 * r.shade_s),
+                g3(1e3 * r.setup_s),
+            ]);
+        }
+    }
+    Ok(t)
+}
+
+const STRIP: u32 = 256;
+
+/// A 2 × 0.04 strip of white cloth, no PTM, under one light.
+fn strip(l: Light, blur: Blur) -> Scene {
+    let mut s = Scene::over_ptm(cloth(2), 1, [STRIP, 4]);
+    s.ptm = None;
+    s.view = [-1.0, -0.02, 1.0, 0.02];
+    s.lights = vec![l];
+    s.blur = blur;
+    s
+}
+
+/// Opaque for x < 0, clear for x > 0: `n` × `rows` texels over [−4, 4] × [−4, 4] at height h.
+fn half_plane(n: usize, rows: usize, h: f32) -> Caster {
+    Caster {
+        width: n,
+        height: rows,
+        rgba: (0..n * rows)
+            .map(|t| [0, 0, 0, if t % n < n / 2 { 255 } else { 0 }])
+            .collect(),
+        rect: [-4.0, -4.0, 4.0, 4.0],
+        elevation: h,
+    }
+}
+
+/// 10 %–90 % width of a rising or falling profile sampled at `xs`, by linear interpolation.
+fn width_10_90(xs: &[f64], o: &[f64]) -> f64 {
+    let cross = |level: f64| {
+        (1..o.len()).find_map(|i| {
+            let (a, b) = (o[i - 1] - level, o[i] - level);
+            (a.signum() != b.signum() || b == 0.0)
+                .then(|| xs[i - 1] + (xs[i] - xs[i - 1]) * a / (a - b))
+        })
+    };
+    match (cross(0.1), cross(0.9)) {
+        (Some(a), Some(b)) => (b - a).abs(),
+        _ => f64::NAN,
+    }
+}
+
+struct Case {
+    name: &'static str,
+    does: &'static str,
+    light: Light,
+    blur: Blur,
+    caster: Caster,
+    /// Analytic opacity at acceptor x (None: use the infinite half-plane formula).
+    analytic: Option<f64>,
+}
+
+/// The extreme cases, each measured: analytic penumbra width on the acceptor against the
+/// measured 10–90 % width, the largest deviation from the analytic opacity profile, the GPU
+/// against its CPU twin, and whether every pixel is finite.
+pub fn extremes(g: &Gpu) -> Result<Table> {
+    let h = 0.5f32;
+    let big = 8192;
+    let cases = vec![
+        Case {
+            name: "reference: R = 0.5, d_lc = 1.5, d_ca = 0.5",
+            does: "w = R·d_ca/(d_lc + d_ca) on the caster",
+            light: light([0.0, 0.0, 2.0], 0.5),
+            blur: Blur::Sat,
+            caster: half_plane(512, 512, h),
+            analytic: None,
+        },
+        Case {
+            name: "R = 0 (point light)",
+            does: "w = 0: one caster lookup, a hard shadow",
+            light: light([0.0, 0.0, 2.0], 0.0),
+            blur: Blur::Sat,
+            caster: half_plane(512, 512, h),
+            analytic: None,
+        },
+        Case {
+            name: "R = 1e-6",
+            does: "w far below a texel: every kernel sample falls in one texel, a hard shadow",
+            light: light([0.0, 0.0, 2.0], 1e-6),
+            blur: Blur::Explicit,
+            caster: half_plane(512, 512, h),
+            analytic: None,
+        },
+        Case {
+            name: "d_ca → 0 (caster 1e-6 above the cloth)",
+            does: "w → 0: the shadow is the caster's own texels",
+            light: light([0.0, 0.0, 2.0], 0.5),
+            blur: Blur::Sat,
+            caster: half_plane(512, 512, 1e-6),
+            analytic: None,
+        },
+        Case {
+            name: "d_lc → 0 (light 1e-4 above the caster)",
+            does: "every cloth point looks at the caster near the light's foot: w → R",
+            light: light([0.02, 0.0, h + 1e-4], 0.05),
+            blur: Blur::Sat,
+            caster: half_plane(512, 512, h),
+            analytic: None,
+        },
+        Case {
+            name: "d_lc = 0 (light on the caster plane)",
+            does: "the caster cannot shadow the cloth: opacity 0",
+            light: light([0.02, 0.0, h], 0.05),
+            blur: Blur::Sat,
+            caster: half_plane(512, 512, h),
+            analytic: Some(0.0),
+        },
+        Case {
+            name: "huge light R = 1000",
+            does: "the box holds the whole 8 × 8 caster: opacity = opaque area / box area",
+            light: light([0.0, 0.0, 2.0], 1000.0),
+            blur: Blur::Sat,
+            caster: half_plane(512, 512, h),
+            analytic: Some(32.0 / (500.0f64 * 500.0)),
+        },
+        Case {
+            name: "8192² caster through the SAT",
+            does: "box-downsampled by 2 to ≤ 4096² (reported), u32 SAT sums exact",
+            light: light([0.0, 0.0, 2.0], 0.5),
+            blur: Blur::Sat,
+            caster: half_plane(big, big, h),
+            analytic: None,
+        },
+    ];
+    let mut t = Table::new(
+        "runtime_extremes",
+        &[
+            "case",
+            "what ptm does",
+            "blur",
+            "analytic penumbra width on the cloth",
+            "measured 10–90 % width",
+            "caster texel on the cloth",
+            "max |opacity − analytic|",
+            "GPU vs CPU twin",
+            "all finite",
+            "setup + shade ms",
+        ],
+    );
+    for c in cases {
+        let mut s = strip(c.light, c.blur);
+        let free = gpu::render(g, &s.prepare()?)?.0;
+        s.caster = Some(c.caster);
+        let p = s.prepare()?;
+        let (lit, timings) = gpu::render(g, &p)?;
+        let twin = cpu::render(&p);
+        let finite = lit.pixels.iter().flatten().all(|v| v.is_finite());
+        let [lx, _, lz] = c.light.position.map(f64::from);
+        let (r, d_ca) = (c.light.radius as f64, p.frame.caster[0] as f64);
+        let d_lc = lz - d_ca;
+        let w = caster_radius(r, d_lc, d_ca);
+        let xs: Vec<f64> = (0..STRIP)
+            .map(|i| -1.0 + 2.0 * (i as f64 + 0.5) / STRIP as f64)
+            .collect();
+        let measured: Vec<f64> = (0..STRIP as usize)
+            .map(|i| {
+                let k = STRIP as usize + i;
+                1.0 - (lit.pixels[k][0] / free.pixels[k][0]) as f64
+            })
+            .collect();
+        let analytic: Vec<f64> = xs
+            .iter()
+            .map(|&x| {
+                if let Some(a) = c.analytic {
+                    return a;
+                }
+                // The caster-plane point on the ray from the acceptor point to the light centre,
+                // and its signed distance into the occluder (x < 0).
+                let cx = lx + (x - lx) * d_lc / lz;
+                match c.blur {
+                    Blur::Explicit => half_plane_fraction(-cx, w),
+                    _ if w <= 0.0 => half_plane_fraction(-cx, 0.0),
+                    _ => ((-cx + w) / (2.0 * w)).clamp(0.0, 1.0),
+                }
+            })
+            .collect();
+        // Texels straddling the edge are averaged by the caster's resolution: skip the two
+        // pixels whose footprint (on the caster) holds the edge texel.
+        let texel = 8.0 / (p.frame.counts[1] as f64);
+        let max_dev = xs
+            .iter()
+            .zip(measured.iter().zip(&analytic))
+            .filter(|(&x, _)| c.analytic.is_some() || (lx + (x - lx) * d_lc / lz).abs() > texel)
+            .map(|(_, (m, a))| (m - a).abs())
+            .fold(0f64, f64::max);
+        // A profile without an edge in view (constant) has no width.
+        let show_width = |w: f64| {
+            if c.analytic.is_some() {
+                "-".to_string()
+            } else if w.is_nan() {
+                "no edge in view".to_string()
+            } else {
+                g3(w)
+            }
+        };
+        let mut does = c.does.to_string();
+        if p.caster_downsample > 1 {
+            does += &format!(
+                " (downsampled ×{} to {}×{})",
+                p.caster_downsample, p.frame.counts[1], p.frame.counts[2]
+            );
+        }
+        let ms = timings
+            .passes
+            .iter()
+            .filter(|(n, _)| !matches!(*n, "compile" | "readback"))
+            .fold(0.0, |a, (_, s)| a + s)
+            * 1e3;
+        t.push(vec![
+            c.name.into(),
+            does,
+            c.blur.name().into(),
+            show_width(width_10_90(&xs, &analytic)),
+            show_width(width_10_90(&xs, &measured)),
+            if d_lc > 0.0 {
+                g3(texel * lz / d_lc)
+            } else {
+                "-".into()
+            },
+            g3(max_dev),
+            g3(lit.max_abs_diff(&twin).unwrap_or(f32::NAN) as f64),
+            if finite { "yes" } else { "NO" }.into(),
+            g3(ms),
+        ]);
+    }
+    Ok(t)
+}
