@@ -59,6 +59,7 @@ fn caster(n: usize, rect: [f32; 4], elevation: f32) -> Caster {
         rgba,
         rect,
         elevation,
+        tilt_deg: 0.0,
     }
 }
 

@@ -214,23 +214,37 @@ impl Twin<'_> {
     /// Mean caster opacity seen from p towards light l (see `light_opacity` in WGSL).
     fn light_opacity(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 3] {
         let f = self.f();
-        let h = f.caster[0];
         let [lx, ly, lz, radius] = l.position_radius;
         if self.mc_samples > 0 {
             let key = (p[0].to_bits() as u64) << 32 ^ p[1].to_bits() as u64 ^ lx.to_bits() as u64;
             return penumbra::mc_opacity(f, &self.p.opacity, p, l, self.mc_samples, key);
         }
-        if lz <= h {
+        // As light_opacity in WGSL: where the segment p → light meets the (tilted) caster plane.
+        let r = f.caster_rect;
+        let [h, sin_t, cos_t, _] = f.caster;
+        let centre = [0.5 * (r[0] + r[2]), 0.5 * (r[1] + r[3]), h];
+        let n = [0.0, -sin_t, cos_t];
+        let e2 = [0.0, cos_t, sin_t];
+        let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let pp = [p[0], p[1], 0.0];
+        let ray = [lx - pp[0], ly - pp[1], lz];
+        let denom = dot(n, ray);
+        if denom == 0.0 {
             return [0.0; 3];
         }
-        let s = (lz - h) / lz;
-        let q = [lx + s * (p[0] - lx), ly + s * (p[1] - ly)];
-        let w = radius * h / lz;
+        let s = dot(n, [centre[0] - pp[0], centre[1] - pp[1], centre[2]]) / denom;
+        if !(0.0..1.0).contains(&s) {
+            return [0.0; 3];
+        }
+        let off: [f32; 3] = std::array::from_fn(|k| pp[k] + s * ray[k] - centre[k]);
+        let q = [centre[0] + off[0], centre[1] + dot(off, e2)];
+        let w = radius * s;
+        let stretch = (cos_t + dot(ray, e2) * sin_t / denom).abs();
         let texel = [
-            (f.caster_rect[2] - f.caster_rect[0]) / f.counts[1] as f32,
-            (f.caster_rect[3] - f.caster_rect[1]) / f.counts[2] as f32,
+            (r[2] - r[0]) / f.counts[1] as f32,
+            (r[3] - r[1]) / f.counts[2] as f32,
         ];
-        let wt = [(w / texel[0]).max(0.5), (w / texel[1]).max(0.5)];
+        let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
         let t = self.caster_texel_coords(q);
         match self.p.variant.caster {
             Some(Blur::Sat) => self.blur_sat(t, wt),

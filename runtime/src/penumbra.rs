@@ -88,6 +88,11 @@ pub fn mc_opacity(
     };
     let (w, ht) = (frame.counts[1], frame.counts[2]);
     let rect = frame.caster_rect.map(|x| x as f64);
+    let [_, sin_t, cos_t, _] = frame.caster.map(|x| x as f64);
+    let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]), h];
+    let (normal, along) = ([0.0, -sin_t, cos_t], [0.0, cos_t, sin_t]);
+    // The caster's centre as seen from p (p at the origin of the rays).
+    let below = [centre[0] - p[0] as f64, centre[1] - p[1] as f64, h];
     let strata = (samples as f64).sqrt().ceil() as u32;
     let mut sum_w = 0.0;
     let mut sum_o = [0.0f64; 3];
@@ -111,13 +116,12 @@ pub fn mc_opacity(
         let b = dot(dir, c);
         let disc = b * b - (d * d - r * r);
         let t_light = if disc > 0.0 { b - disc.sqrt() } else { b };
-        let t_caster = h / dir[2];
+        // Exact hit of the (tilted) caster plane, in the caster's own axes X and e2.
+        let t_caster = dot(normal, below) / dot(normal, dir);
         let mut o = [0.0; 3];
-        if h > 0.0 && t_caster < t_light {
-            let hit = [
-                p[0] as f64 + t_caster * dir[0],
-                p[1] as f64 + t_caster * dir[1],
-            ];
+        if t_caster > 0.0 && t_caster < t_light {
+            let off: [f64; 3] = std::array::from_fn(|k| t_caster * dir[k] - below[k]);
+            let hit = [centre[0] + off[0], centre[1] + dot(off, along)];
             let tc = [
                 ((hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64) as f32,
                 ((rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64) as f32,

@@ -65,7 +65,8 @@ impl Blur {
     }
 }
 
-/// A planar RGBA caster parallel to the acceptor.
+/// A planar RGBA caster above the acceptor, parallel to it or tilted about the line through its
+/// centre parallel to X.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Caster {
     /// Texels per row.
@@ -76,8 +77,12 @@ pub struct Caster {
     pub rgba: Vec<[u8; 4]>,
     /// World rectangle [x0, y0, x1, y1] the caster image covers.
     pub rect: [f32; 4],
-    /// Height of the caster plane above the acceptor (d_ca, swatch units, ≥ 0).
+    /// Height of the caster plane above the acceptor (d_ca, swatch units, ≥ 0); with a tilt, the
+    /// height of its centre line.
     pub elevation: f32,
+    /// Rotation in degrees about the caster's centre line parallel to X (|tilt| < 90): positive
+    /// lifts the far (+Y) edge. The image keeps its size; `rect` is the untilted footprint.
+    pub tilt_deg: f32,
 }
 
 /// A perspective camera (the default camera is orthographic top-down over `Scene::view`).
@@ -277,11 +282,32 @@ impl Scene {
                     c.rect, c.elevation
                 )));
             }
+            let tilt = c.tilt_deg.to_radians();
+            // The lowest point of the tilted caster: its near or far edge.
+            let lowest = c.elevation - 0.5 * (cy1 - cy0) * tilt.sin().abs();
+            if !(c.tilt_deg.abs() < 90.0) || lowest < 0.0 {
+                return Err(Error::Scene(format!(
+                    "caster tilt {}° (height {}, depth {}) must be below 90° and keep the whole \
+                     caster above the cloth (its lowest edge is at {lowest}): lower the tilt or \
+                     raise the caster",
+                    c.tilt_deg,
+                    c.elevation,
+                    cy1 - cy0
+                )));
+            }
+            if c.tilt_deg != 0.0 && self.blur == Blur::Separable {
+                return Err(Error::Scene(format!(
+                    "--blur separable needs a caster parallel to the cloth (its per-light box \
+                     passes assume one blur radius per light), but the caster is tilted {}°: use \
+                     sat, mip or explicit",
+                    c.tilt_deg
+                )));
+            }
             let (cw, ch, texels, factor) = fit_caster(c);
             caster_downsample = factor;
             opacity = opacity_texels(&texels, self.colored_shadow);
             frame.caster_rect = c.rect;
-            frame.caster = [c.elevation, 0.0, 0.0, 0.0];
+            frame.caster = [c.elevation, tilt.sin(), tilt.cos(), 0.0];
             frame.counts[1] = cw as u32;
             frame.counts[2] = ch as u32;
             match self.blur {
@@ -397,7 +423,8 @@ pub struct Frame {
     pub albedo: [f32; 4],
     /// World rectangle x0, y0, x1, y1 of the caster.
     pub caster_rect: [f32; 4],
-    /// Caster elevation d_ca above the acceptor; yzw unused.
+    /// Caster: x = height d_ca of its centre line above the acceptor, y, z = sin, cos of its tilt
+    /// about that line (parallel to X); w unused.
     pub caster: [f32; 4],
     /// PTM texels nx, ny; albedo texels nx, ny.
     pub sizes: [u32; 4],

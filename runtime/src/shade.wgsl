@@ -10,7 +10,7 @@ struct Frame {
     screen: vec4<f32>,      // output width, height (px); tile period W, H (swatch units)
     albedo: vec4<f32>,      // constant linear albedo rgb
     caster_rect: vec4<f32>, // world rect x0, y0, x1, y1 of the caster
-    caster: vec4<f32>,      // x: caster elevation d_ca above the acceptor
+    caster: vec4<f32>,      // x: height d_ca of the caster's centre line; y, z: sin, cos of its tilt
     sizes: vec4<u32>,       // PTM texels nx, ny; albedo texels nx, ny
     counts: vec4<u32>,      // lights; caster texels w, h; explicit samples cap per axis
     blur: vec4<u32>,        // separable: margins mx, my; padded map w, h
@@ -312,21 +312,35 @@ fn blur_separable(li: u32, t: vec2<f32>) -> vec3<f32> {
 //#endif
 
 //#if CASTER
-// Mean caster opacity seen from acceptor point p towards light `l` (penumbra map, direct form):
-// the ray from the light centre through p meets the caster plane at q; the light's cone from p
-// cuts that plane in a circle of radius w = R·d_ca/(d_lc + d_ca) (similar triangles), at least
-// half a caster texel. A light on or below the caster plane casts no caster shadow.
+// Mean caster opacity seen from acceptor point p towards light `l` (penumbra map, direct form).
+// The caster plane passes through its centre line (rect centre, height d_ca), tilted about X:
+// normal n = (0, −sin θ, cos θ), in-plane axes X and e2 = (0, cos θ, sin θ). The segment from p
+// to the light centre meets it at x = p + s·(light − p); the light's cone from p has radius
+// w = R·s there (similar triangles: R·d_ca/(d_lc + d_ca) for a parallel caster), and the disk of
+// radius w around x, projected along the ray onto the plane, has radii w along X and
+// w·|cos θ + (d·e2) sin θ/(n·d)| along e2; each at least half a caster texel. A light that is not
+// beyond the caster plane as seen from p (s outside [0, 1)) casts no caster shadow.
 fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
-    let h = frame.caster.x;
-    let lz = l.position_radius.z;
-    if (lz <= h) {
+    let r = frame.caster_rect;
+    let centre = vec3<f32>(0.5 * (r.xy + r.zw), frame.caster.x);
+    let n = vec3<f32>(0.0, -frame.caster.y, frame.caster.z);
+    let e2 = vec3<f32>(0.0, frame.caster.z, frame.caster.y);
+    let pp = vec3<f32>(p, 0.0);
+    let ray = l.position_radius.xyz - pp;
+    let denom = dot(n, ray);
+    if (denom == 0.0) {
         return vec3<f32>(0.0);
     }
-    let s = (lz - h) / lz;
-    let q = l.position_radius.xy + s * (p - l.position_radius.xy);
-    let w = l.position_radius.w * h / lz;
-    let texel = (frame.caster_rect.zw - frame.caster_rect.xy) / vec2<f32>(frame.counts.yz);
-    let wt = max(vec2<f32>(w) / texel, vec2<f32>(0.5));
+    let s = dot(n, centre - pp) / denom;
+    if (!(s >= 0.0 && s < 1.0)) {
+        return vec3<f32>(0.0);
+    }
+    let off = pp + s * ray - centre;
+    let q = centre.xy + vec2<f32>(off.x, dot(off, e2));
+    let w = l.position_radius.w * s;
+    let stretch = abs(frame.caster.z + dot(ray, e2) * frame.caster.y / denom);
+    let texel = (r.zw - r.xy) / vec2<f32>(frame.counts.yz);
+    let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
     let t = caster_texel_coords(q);
 //#if BLUR_SAT
     return blur_sat(t, wt);

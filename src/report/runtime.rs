@@ -47,6 +47,7 @@ fn leaves(n: usize, rect: [f32; 4], elevation: f32) -> Caster {
         rgba,
         rect,
         elevation,
+        tilt_deg: 0.0,
     }
 }
 
@@ -136,6 +137,7 @@ fn half_plane(n: usize, rows: usize, h: f32) -> Caster {
             .collect(),
         rect: [-4.0, -4.0, 4.0, 4.0],
         elevation: h,
+        tilt_deg: 0.0,
     }
 }
 

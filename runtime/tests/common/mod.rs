@@ -78,5 +78,6 @@ pub fn random_caster(w: usize, h: usize, rect: [f32; 4], elevation: f32, seed: u
         rgba,
         rect,
         elevation,
+        tilt_deg: 0.0,
     }
 }
