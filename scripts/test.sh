@@ -18,5 +18,8 @@ fi
 echo "== cargo clippy --all-targets" >&2
 cargo clippy --workspace --all-targets -- -D warnings
 
+echo "== cargo clippy --features window (the preview window compiles; it runs only with a display)" >&2
+cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warnings
+
 echo "== cargo test" >&2
 cargo test --workspace

@@ -37,9 +37,9 @@ pub struct Args {
     /// Occlusion PTM (`ptm fit` output). Without it the plane renders with no K.
     #[arg(long)]
     pub ptm: Option<PathBuf>,
-    /// Output sRGB PNG.
-    #[arg(short, long)]
-    pub output: PathBuf,
+    /// Output sRGB PNG (not with --window).
+    #[arg(short, long, required_unless_present = "window")]
+    pub output: Option<PathBuf>,
     /// Also write the linear radiance as an RGB float EXR.
     #[arg(long)]
     pub exr: Option<PathBuf>,
@@ -110,6 +110,14 @@ pub struct Args {
     /// Monte Carlo samples per pixel and light for --compare-blur.
     #[arg(long, default_value_t = 256)]
     pub mc_samples: u32,
+    /// Interactive window instead of a PNG: drag to move the first light, keys 1-4 or B pick
+    /// the blur method, P toggles the PTM, Esc quits (needs a build with `--features window`).
+    #[arg(long, conflicts_with_all = ["output", "exr", "turntable", "compare_blur"])]
+    pub window: bool,
+    /// Smoke test of --window: script N frames (every blur method, PTM off/on, a light move),
+    /// then close.
+    #[arg(long, value_name = "N", requires = "window", hide = true)]
+    pub window_frames: Option<u32>,
 }
 
 fn parse_pair<T: std::str::FromStr>(s: &str) -> Result<(T, T), String> {
@@ -236,6 +244,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
             rgba,
             rect: [cx - 0.5 * cw, cy - 0.5 * ch, cx + 0.5 * cw, cy + 0.5 * ch],
             elevation: args.caster_height,
+            tilt_deg: 0.0,
         });
     }
     scene.colored_shadow = args.colored_shadow;
@@ -259,8 +268,45 @@ fn timings_json(t: &ptm_runtime::Timings) -> Value {
     )
 }
 
+#[cfg(feature = "window")]
+fn run_window(args: &Args) -> anyhow::Result<Value> {
+    use ptm_runtime::window::{self, WindowOptions};
+    let scene = build_scene(args)?;
+    let report = window::run(
+        scene,
+        WindowOptions {
+            exposure: args.exposure,
+            exit_after_frames: args.window_frames,
+        },
+    )?;
+    Ok(json!({
+        "adapter": report.adapter,
+        "surface_format": report.surface_format,
+        "frames": report.frames,
+        "renders": report.renders,
+        "last_render_s": report.last_render_s,
+        "blur": report.blur,
+        "ptm_on": report.ptm_on,
+        "light": report.light,
+        "mean_rgb": report.mean_rgb,
+    }))
+}
+
+#[cfg(not(feature = "window"))]
+fn run_window(_: &Args) -> anyhow::Result<Value> {
+    bail!(
+        "this ptm was built without the preview window: rebuild with --features window \
+         (cargo build --features window), or leave out --window and give -o out.png"
+    )
+}
+
 pub fn run(args: &Args) -> anyhow::Result<Value> {
+    if args.window {
+        return run_window(args);
+    }
     let start = Instant::now();
+    // clap requires -o unless --window.
+    let output = args.output.as_deref().context("--output is required")?;
     let scene = build_scene(args)?;
     let prepared = scene.prepare()?;
     let t = Instant::now();
@@ -364,9 +410,9 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             .collect::<Vec<_>>());
     }
 
-    image.write_png(&args.output, args.exposure)?;
-    eprintln!("ptm preview: wrote {}", args.output.display());
-    report["png"] = json!(path_str(&args.output));
+    image.write_png(output, args.exposure)?;
+    eprintln!("ptm preview: wrote {}", output.display());
+    report["png"] = json!(path_str(output));
     if let Some(exr) = &args.exr {
         image.write_exr(exr)?;
         eprintln!("ptm preview: wrote {}", exr.display());

@@ -63,6 +63,41 @@ impl Gpu {
         })
     }
 
+    /// Opens a device on `adapter` with the same features and limits as [`Gpu::new`]. For a
+    /// window, pick the adapter with the window's surface as `compatible_surface` (see
+    /// [`Gpu::adapter_for_surface`]) so one device both renders and presents.
+    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Gpu> {
+        let info = adapter.get_info();
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("ptm-runtime"),
+            required_features: wgpu::Features::empty(),
+            required_limits: adapter.limits(),
+            ..Default::default()
+        }))
+        .map_err(|e| Error::Device {
+            adapter: info.name.clone(),
+            reason: e.to_string(),
+        })?;
+        Ok(Gpu {
+            device,
+            queue,
+            adapter: info,
+        })
+    }
+
+    /// The default adapter (same environment variables as [`Gpu::new`]) that can present to
+    /// `surface`.
+    pub fn adapter_for_surface(
+        instance: &wgpu::Instance,
+        surface: &wgpu::Surface<'_>,
+    ) -> Result<wgpu::Adapter> {
+        pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
+            instance,
+            Some(surface),
+        ))
+        .map_err(|e| Error::NoAdapter(format!("none can present to the window: {e}")))
+    }
+
     /// "name (backend, device type)".
     pub fn describe(&self) -> String {
         format!(
@@ -280,6 +315,12 @@ impl<'g> Renderer<'g> {
         self.gpu.queue.submit([enc.finish()]);
         self.gpu.wait("shade")?;
         Ok(t.elapsed().as_secs_f64())
+    }
+
+    /// The `Rgba32Float` target [`Renderer::frame`] draws into (usage `RENDER_ATTACHMENT |
+    /// COPY_SRC`): a window copies it into a texture it can sample.
+    pub fn target(&self) -> &wgpu::Texture {
+        &self.target
     }
 
     /// Copies the last frame back (rows padded to 256 bytes on the GPU side, stripped here).

@@ -22,6 +22,8 @@ pub mod sat;
 pub mod scene;
 pub mod separable;
 pub mod shader;
+#[cfg(feature = "window")]
+pub mod window;
 
 pub use gpu::{Gpu, Timings};
 pub use output::Image;

@@ -1,0 +1,793 @@
+//! `ptm preview --window` (cargo feature `window`): an interactive winit window over a [`Scene`].
+//!
+//! Dragging with the left mouse button moves the first light's x, y to the point under the
+//! cursor (its height z stays); keys `1`–`4` pick the blur method (explicit, sat, mip,
+//! separable), `B` cycles it, `P` turns the PTM on and off, `Esc` (or closing the window) quits.
+//! The title shows the blur method, the light position, PTM on/off and the last render time.
+//!
+//! Each change re-prepares the scene and renders it with the headless [`Renderer`] into its
+//! `Rgba32Float` target: exactly the image `ptm preview -o` writes. That target is copied into a
+//! texture a small blit pass reads (`textureLoad`, nearest, letterboxed to keep the aspect) and
+//! writes to the window's surface, scaled by 2^exposure and sRGB-encoded like the PNG. Resizing
+//! only re-blits. One device does both: it is opened on an adapter chosen with the window's
+//! surface as `compatible_surface`.
+//!
+//! [`WindowOptions::exit_after_frames`] makes the window a smoke test: after each presented
+//! frame a fixed script applies the next action (every blur method, PTM off/on, a light move),
+//! and the window closes after that many frames.
+
+use std::sync::Arc;
+use std::time::Instant;
+
+use winit::application::ApplicationHandler;
+use winit::dpi::{PhysicalPosition, PhysicalSize};
+use winit::event::{ElementState, MouseButton, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, EventLoop};
+use winit::keyboard::{Key, NamedKey};
+use winit::window::{Window, WindowId};
+
+use crate::gpu::{Gpu, Renderer};
+use crate::scene::{Blur, Scene};
+use crate::{Error, Result};
+
+/// How the window behaves beyond the scene itself.
+#[derive(Clone, Debug, Default)]
+pub struct WindowOptions {
+    /// Exposure in stops (linear × 2^E before sRGB encoding), as for the PNG.
+    pub exposure: f32,
+    /// Scripted smoke test: apply one scripted action after each presented frame and close
+    /// after this many frames. `None`: interactive until the user quits.
+    pub exit_after_frames: Option<u32>,
+}
+
+/// What happened in the window, for the command's JSON report.
+#[derive(Clone, Debug, Default)]
+pub struct WindowReport {
+    /// "name (backend, device type)" of the adapter.
+    pub adapter: String,
+    /// The surface's texture format, e.g. `Bgra8UnormSrgb`.
+    pub surface_format: String,
+    /// Frames presented.
+    pub frames: u32,
+    /// Scene renders (one per change of light, blur or PTM).
+    pub renders: u32,
+    /// Seconds of the last render (prepare + pipeline + shade).
+    pub last_render_s: f64,
+    /// State when the window closed.
+    pub blur: &'static str,
+    pub ptm_on: bool,
+    pub light: Option<[f32; 3]>,
+    /// Mean linear RGB of the last rendered frame (scripted mode only; read back for tests).
+    pub mean_rgb: Option<[f32; 3]>,
+}
+
+/// One user (or scripted) change.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Action {
+    SetBlur(Blur),
+    NextBlur,
+    TogglePtm,
+    /// Light x, y at this point of the view, as fractions (0, 0) = top left, (1, 1) = bottom
+    /// right of the picture.
+    LightAt([f32; 2]),
+}
+
+/// What the user can change, applied to the base scene for each render.
+#[derive(Clone, Debug)]
+struct Controls {
+    blur: Blur,
+    ptm_on: bool,
+}
+
+/// Opens the window on `scene` and runs until the user quits (or the script ends).
+///
+/// The scene's first light follows the mouse; its PTM (if any) can be toggled. Needs a display
+/// (X11 or Wayland); errors name what failed.
+pub fn run(scene: Scene, options: WindowOptions) -> Result<WindowReport> {
+    let mut builder = EventLoop::builder();
+    // Tests run on a worker thread; the CLI is on the main thread either way.
+    #[cfg(target_os = "linux")]
+    {
+        winit::platform::x11::EventLoopBuilderExtX11::with_any_thread(&mut builder, true);
+        winit::platform::wayland::EventLoopBuilderExtWayland::with_any_thread(&mut builder, true);
+    }
+    let event_loop = builder.build().map_err(|e| window_error("event loop", e))?;
+    let mut app = App {
+        controls: Controls {
+            blur: scene.blur,
+            ptm_on: scene.ptm.is_some(),
+        },
+        base: scene,
+        options,
+        state: None,
+        error: None,
+        report: WindowReport::default(),
+        dragging: false,
+        cursor: None,
+        script_step: 0,
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| window_error("event loop", e))?;
+    if let Some(e) = app.error {
+        return Err(e);
+    }
+    let scene = app.current_scene();
+    app.report.blur = scene.blur.name();
+    app.report.ptm_on = scene.ptm.is_some();
+    app.report.light = scene.lights.first().map(|l| l.position);
+    Ok(app.report)
+}
+
+fn window_error(stage: &'static str, e: impl std::fmt::Display) -> Error {
+    Error::Gpu {
+        stage,
+        reason: format!("{e} (the preview window needs an X11 or Wayland display)"),
+    }
+}
+
+struct App {
+    /// The scene as given; the controls are applied to a copy for each render.
+    base: Scene,
+    controls: Controls,
+    options: WindowOptions,
+    state: Option<State>,
+    error: Option<Error>,
+    report: WindowReport,
+    dragging: bool,
+    cursor: Option<PhysicalPosition<f64>>,
+    script_step: u32,
+}
+
+/// The window and everything on the GPU (created in `resumed`).
+struct State {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    gpu: Gpu,
+    blit: Blit,
+    /// The last rendered frame (`Rgba32Float`, sampled by the blit) and its bind group.
+    frame: Option<(wgpu::Texture, wgpu::BindGroup)>,
+    /// The scene changed since the last render.
+    dirty: bool,
+}
+
+impl App {
+    fn current_scene(&self) -> Scene {
+        let mut s = self.base.clone();
+        s.blur = self.controls.blur;
+        if !self.controls.ptm_on {
+            s.ptm = None;
+        }
+        s
+    }
+
+    fn apply(&mut self, action: Action) {
+        match action {
+            Action::SetBlur(b) => self.controls.blur = b,
+            Action::NextBlur => {
+                let i = Blur::ALL.iter().position(|&b| b == self.controls.blur);
+                self.controls.blur = Blur::ALL[i.map_or(0, |i| (i + 1) % Blur::ALL.len())];
+            }
+            Action::TogglePtm => {
+                self.controls.ptm_on = !self.controls.ptm_on && self.base.ptm.is_some();
+            }
+            Action::LightAt([fx, fy]) => {
+                let [x0, y0, x1, y1] = self.base.view;
+                if let Some(l) = self.base.lights.first_mut() {
+                    l.position[0] = x0 + fx * (x1 - x0);
+                    // Row 0 of the picture is the far edge y1.
+                    l.position[1] = y1 - fy * (y1 - y0);
+                }
+            }
+        }
+        if let Some(state) = &mut self.state {
+            state.dirty = true;
+            state.window.request_redraw();
+        }
+    }
+
+    /// The scripted action after frame `step` (smoke tests): every blur method, PTM off and
+    /// on again, the light moved to two places.
+    fn scripted(step: u32) -> Action {
+        match step % 7 {
+            0 => Action::SetBlur(Blur::Explicit),
+            1 => Action::NextBlur,
+            2 => Action::SetBlur(Blur::Mip),
+            3 => Action::SetBlur(Blur::Separable),
+            4 => Action::TogglePtm,
+            5 => Action::LightAt([0.25, 0.25]),
+            _ => Action::TogglePtm,
+        }
+    }
+
+    fn title(&self) -> String {
+        let s = &self.base;
+        let blur = if s.caster.is_some() {
+            self.controls.blur.name().to_string()
+        } else {
+            format!("{} (no caster)", self.controls.blur.name())
+        };
+        let light = match s.lights.first() {
+            Some(l) => format!(
+                "({:.2}, {:.2}, {:.2})",
+                l.position[0], l.position[1], l.position[2]
+            ),
+            None => "none".into(),
+        };
+        let ptm = match (s.ptm.is_some(), self.controls.ptm_on) {
+            (false, _) => "none",
+            (true, true) => "on",
+            (true, false) => "off",
+        };
+        format!(
+            "ptm preview — blur {blur} · light {light} · PTM {ptm} · {:.0} ms   \
+             [drag: light · 1-4/B: blur · P: PTM · Esc: quit]",
+            1e3 * self.report.last_render_s
+        )
+    }
+
+    fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<State> {
+        let [w, h] = self.base.size;
+        let attributes = Window::default_attributes()
+            .with_title(self.title())
+            .with_inner_size(PhysicalSize::new(w, h));
+        let window = Arc::new(
+            event_loop
+                .create_window(attributes)
+                .map_err(|e| window_error("window", e))?,
+        );
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle_from_env(
+                Box::new(event_loop.owned_display_handle()),
+            ));
+        let surface = instance
+            .create_surface(window.clone())
+            .map_err(|e| window_error("surface", e))?;
+        let adapter = Gpu::adapter_for_surface(&instance, &surface)?;
+        let gpu = Gpu::from_adapter(&adapter)?;
+        let caps = surface.get_capabilities(&adapter);
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(|f| f.is_srgb())
+            .or(caps.formats.first().copied())
+            .ok_or_else(|| window_error("surface", "the adapter offers no surface format"))?;
+        let size = window.inner_size();
+        let config = wgpu::SurfaceConfiguration {
+            usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+            format,
+            color_space: Default::default(),
+            width: size.width.max(1),
+            height: size.height.max(1),
+            desired_maximum_frame_latency: 2,
+            present_mode: wgpu::PresentMode::Fifo,
+            alpha_mode: caps
+                .alpha_modes
+                .first()
+                .copied()
+                .unwrap_or(wgpu::CompositeAlphaMode::Auto),
+            view_formats: vec![],
+        };
+        surface.configure(&gpu.device, &config);
+        let blit = Blit::new(&gpu, format);
+        self.report.adapter = gpu.describe();
+        self.report.surface_format = format!("{format:?}");
+        window.request_redraw();
+        Ok(State {
+            window,
+            surface,
+            config,
+            gpu,
+            blit,
+            frame: None,
+            dirty: true,
+        })
+    }
+
+    /// Renders the current scene offscreen and keeps the result for the blit.
+    fn render(&mut self) -> Result<()> {
+        let scene = self.current_scene();
+        let scripted = self.options.exit_after_frames.is_some();
+        let state = self
+            .state
+            .as_mut()
+            .expect("render before the window opened");
+        let t = Instant::now();
+        let prepared = scene.prepare()?;
+        let renderer = Renderer::new(&state.gpu, &prepared)?;
+        renderer.frame()?;
+        let target = renderer.target();
+        let size = target.size();
+        let stale = match &state.frame {
+            Some((tex, _)) => tex.size() != size,
+            None => true,
+        };
+        if stale {
+            state.frame = Some(state.blit.frame_texture(&state.gpu, size));
+        }
+        let (texture, _) = state.frame.as_ref().expect("frame texture just made");
+        let mut enc = state.gpu.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_texture(target.as_image_copy(), texture.as_image_copy(), size);
+        state.gpu.queue.submit([enc.finish()]);
+        if scripted {
+            let image = renderer.readback()?;
+            let n = image.pixels.len().max(1) as f32;
+            let mut mean = [0f32; 3];
+            for p in &image.pixels {
+                for c in 0..3 {
+                    mean[c] += p[c] / n;
+                }
+            }
+            self.report.mean_rgb = Some(mean);
+        }
+        self.report.last_render_s = t.elapsed().as_secs_f64();
+        self.report.renders += 1;
+        state.dirty = false;
+        Ok(())
+    }
+
+    fn redraw(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
+        let Some(state) = &self.state else {
+            return Ok(());
+        };
+        if state.dirty {
+            let title = match self.render() {
+                Ok(()) => self.title(),
+                // A combination the scene refuses (e.g. separable blur of a tilted caster): say
+                // so in the title, keep showing the last frame, and let the user choose again.
+                Err(Error::Scene(reason)) => {
+                    let state = self.state.as_mut().expect("state checked above");
+                    state.dirty = false;
+                    format!("{} — cannot render: {reason}", self.title())
+                }
+                Err(e) => return Err(e),
+            };
+            let state = self.state.as_ref().expect("state checked above");
+            state.window.set_title(&title);
+        }
+        let state = self.state.as_mut().expect("state checked above");
+        let texture = match state.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t) => t,
+            wgpu::CurrentSurfaceTexture::Suboptimal(t) => {
+                // Present this one; reconfigure before the next.
+                state.window.request_redraw();
+                t
+            }
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(())
+            }
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                state.surface.configure(&state.gpu.device, &state.config);
+                state.window.request_redraw();
+                return Ok(());
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                return Err(window_error(
+                    "surface",
+                    "validation error acquiring the next frame",
+                ))
+            }
+        };
+        let view = texture.texture.create_view(&Default::default());
+        if let Some((image, bind_group)) = &state.frame {
+            state.blit.draw(
+                &state.gpu,
+                &view,
+                bind_group,
+                image.size(),
+                [state.config.width, state.config.height],
+                self.options.exposure,
+            );
+        }
+        state.window.pre_present_notify();
+        state.gpu.queue.present(texture);
+        self.report.frames += 1;
+
+        if let Some(n) = self.options.exit_after_frames {
+            if self.report.frames >= n {
+                event_loop.exit();
+            } else {
+                let action = App::scripted(self.script_step);
+                self.script_step += 1;
+                self.apply(action);
+            }
+        }
+        Ok(())
+    }
+
+    /// The cursor as fractions of the picture (letterboxed in the window), if it is known.
+    fn cursor_in_picture(&self) -> Option<[f32; 2]> {
+        let state = self.state.as_ref()?;
+        let p = self.cursor?;
+        let [w, h] = self.base.size;
+        let fit = Fit::new([w, h], [state.config.width, state.config.height]);
+        Some([
+            (p.x as f32 - fit.offset[0]) / fit.size[0],
+            (p.y as f32 - fit.offset[1]) / fit.size[1],
+        ])
+    }
+
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: Error) {
+        self.error = Some(e);
+        event_loop.exit();
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.state.is_some() {
+            return;
+        }
+        match self.open(event_loop) {
+            Ok(state) => self.state = Some(state),
+            Err(e) => self.fail(event_loop, e),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(state) = &mut self.state {
+                    if size.width > 0 && size.height > 0 {
+                        state.config.width = size.width;
+                        state.config.height = size.height;
+                        state.surface.configure(&state.gpu.device, &state.config);
+                        state.window.request_redraw();
+                    }
+                }
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.redraw(event_loop) {
+                    self.fail(event_loop, e);
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } => {
+                if event.state != ElementState::Pressed || event.repeat {
+                    return;
+                }
+                let action = match event.logical_key.as_ref() {
+                    Key::Named(NamedKey::Escape) => {
+                        event_loop.exit();
+                        return;
+                    }
+                    Key::Character(c) => match c.to_ascii_lowercase().as_str() {
+                        "1" => Action::SetBlur(Blur::Explicit),
+                        "2" => Action::SetBlur(Blur::Sat),
+                        "3" => Action::SetBlur(Blur::Mip),
+                        "4" => Action::SetBlur(Blur::Separable),
+                        "b" => Action::NextBlur,
+                        "p" => Action::TogglePtm,
+                        _ => return,
+                    },
+                    _ => return,
+                };
+                self.apply(action);
+            }
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Left,
+                ..
+            } => {
+                self.dragging = state == ElementState::Pressed;
+                if self.dragging {
+                    if let Some(at) = self.cursor_in_picture() {
+                        self.apply(Action::LightAt(at));
+                    }
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                self.cursor = Some(position);
+                if self.dragging {
+                    if let Some(at) = self.cursor_in_picture() {
+                        self.apply(Action::LightAt(at));
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The picture letterboxed in the window: offset and size in window pixels.
+struct Fit {
+    offset: [f32; 2],
+    size: [f32; 2],
+}
+
+impl Fit {
+    fn new(image: [u32; 2], window: [u32; 2]) -> Fit {
+        let (iw, ih) = (image[0].max(1) as f32, image[1].max(1) as f32);
+        let (ww, wh) = (window[0] as f32, window[1] as f32);
+        let scale = (ww / iw).min(wh / ih);
+        let size = [iw * scale, ih * scale];
+        Fit {
+            offset: [0.5 * (ww - size[0]), 0.5 * (wh - size[1])],
+            size,
+        }
+    }
+}
+
+/// Fullscreen-triangle pass: the `Rgba32Float` frame (`textureLoad`, no filtering needed),
+/// letterboxed, × 2^exposure, clamped, sRGB-encoded (by the shader unless the surface format is
+/// sRGB already).
+const BLIT_WGSL: &str = r#"
+struct Params {
+    image: vec2<f32>,
+    offset: vec2<f32>,
+    fit: vec2<f32>,
+    scale: f32,
+    encode: f32,
+}
+
+@group(0) @binding(0) var frame: texture_2d<f32>;
+@group(0) @binding(1) var<uniform> params: Params;
+
+@vertex
+fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
+    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
+    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
+}
+
+fn srgb_encode(x: f32) -> f32 {
+    let c = clamp(x, 0.0, 1.0);
+    if c <= 0.0031308 {
+        return 12.92 * c;
+    }
+    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
+}
+
+@fragment
+fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
+    let q = (pos.xy - params.offset) / params.fit;
+    if any(q < vec2<f32>(0.0)) || any(q >= vec2<f32>(1.0)) {
+        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    }
+    let texel = vec2<i32>(min(q * params.image, params.image - 1.0));
+    var c = clamp(textureLoad(frame, texel, 0).rgb * params.scale, vec3<f32>(0.0), vec3<f32>(1.0));
+    if params.encode > 0.5 {
+        c = vec3<f32>(srgb_encode(c.r), srgb_encode(c.g), srgb_encode(c.b));
+    }
+    return vec4<f32>(c, 1.0);
+}
+"#;
+
+struct Blit {
+    pipeline: wgpu::RenderPipeline,
+    layout: wgpu::BindGroupLayout,
+    params: wgpu::Buffer,
+    /// The surface format is not sRGB: encode in the shader.
+    encode: bool,
+}
+
+impl Blit {
+    fn new(gpu: &Gpu, format: wgpu::TextureFormat) -> Blit {
+        let device = &gpu.device;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("blit.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(BLIT_WGSL.into()),
+        });
+        // Explicit layout: Rgba32Float is not filterable without FLOAT32_FILTERABLE, and an
+        // auto-derived layout would ask for a filterable texture.
+        let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("blit"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: false },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Buffer {
+                        ty: wgpu::BufferBindingType::Uniform,
+                        has_dynamic_offset: false,
+                        min_binding_size: None,
+                    },
+                    count: None,
+                },
+            ],
+        });
+        let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("blit"),
+            bind_group_layouts: &[Some(&layout)],
+            immediate_size: 0,
+        });
+        let pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("blit"),
+            layout: Some(&pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: Default::default(),
+            depth_stencil: None,
+            multisample: Default::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(format.into())],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("blit params"),
+            size: 32,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        Blit {
+            pipeline,
+            layout,
+            params,
+            encode: !format.is_srgb(),
+        }
+    }
+
+    /// A texture to copy the renderer's target into, and its bind group.
+    fn frame_texture(&self, gpu: &Gpu, size: wgpu::Extent3d) -> (wgpu::Texture, wgpu::BindGroup) {
+        let texture = gpu.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("window frame"),
+            size,
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba32Float,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&Default::default());
+        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("blit"),
+            layout: &self.layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: self.params.as_entire_binding(),
+                },
+            ],
+        });
+        (texture, bind_group)
+    }
+
+    fn draw(
+        &self,
+        gpu: &Gpu,
+        view: &wgpu::TextureView,
+        bind_group: &wgpu::BindGroup,
+        image: wgpu::Extent3d,
+        window: [u32; 2],
+        exposure: f32,
+    ) {
+        let fit = Fit::new([image.width, image.height], window);
+        let params: [f32; 8] = [
+            image.width as f32,
+            image.height as f32,
+            fit.offset[0],
+            fit.offset[1],
+            fit.size[0],
+            fit.size[1],
+            exposure.exp2(),
+            if self.encode { 1.0 } else { 0.0 },
+        ];
+        gpu.queue
+            .write_buffer(&self.params, 0, bytemuck::cast_slice(&params));
+        let mut enc = gpu.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("blit"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view,
+                    depth_slice: None,
+                    resolve_target: None,
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        store: wgpu::StoreOp::Store,
+                    },
+                })],
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, bind_group, &[]);
+            pass.draw(0..3, 0..1);
+        }
+        gpu.queue.submit([enc.finish()]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::{Caster, Light};
+    use ptm_fit::{Basis, Ptm};
+
+    #[test]
+    fn fit_letterboxes_and_keeps_aspect() {
+        let f = Fit::new([100, 50], [200, 200]);
+        assert_eq!(f.size, [200.0, 100.0]);
+        assert_eq!(f.offset, [0.0, 50.0]);
+    }
+
+    #[test]
+    fn blit_shader_validates() {
+        let module = naga::front::wgsl::parse_str(BLIT_WGSL).expect("blit.wgsl parses");
+        naga::valid::Validator::new(
+            naga::valid::ValidationFlags::all(),
+            naga::valid::Capabilities::all(),
+        )
+        .validate(&module)
+        .expect("blit.wgsl validates");
+    }
+
+    /// Opens the window for a few scripted frames (every blur method, PTM off/on, a light
+    /// move). Needs a display: skipped (passes) without `DISPLAY` or `WAYLAND_DISPLAY`, e.g.
+    /// run it under `xvfb-run -a cargo test -p ptm-runtime --features window`.
+    #[test]
+    fn window_smoke_test_needs_a_display() {
+        if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+            eprintln!("skipped: no DISPLAY or WAYLAND_DISPLAY");
+            return;
+        }
+        let ptm = Ptm {
+            basis: Basis::Ptm6,
+            width: 4,
+            height: 4,
+            tile: [1.0, 1.0],
+            // K = 0.3 everywhere: the PTM darkens by 30 %.
+            planes: (0..6)
+                .map(|i| vec![if i == 5 { 0.3 } else { 0.0 }; 16])
+                .collect(),
+        };
+        let mut scene = Scene::over_ptm(ptm, 2, [64, 48]);
+        scene.view = [0.0, 0.0, 2.0, 1.5];
+        scene.lights = vec![Light {
+            position: [1.0, 0.75, 2.0],
+            radius: 0.1,
+            intensity: 4.0,
+            color: [1.0, 1.0, 1.0],
+        }];
+        scene.caster = Some(Caster {
+            width: 8,
+            height: 8,
+            rgba: vec![[0, 0, 0, 255]; 64],
+            rect: [0.75, 0.5, 1.25, 1.0],
+            elevation: 0.5,
+            tilt_deg: 0.0,
+        });
+        let report = run(
+            scene,
+            WindowOptions {
+                exposure: 0.0,
+                exit_after_frames: Some(8),
+            },
+        )
+        .expect("window runs");
+        assert_eq!(report.frames, 8);
+        assert!(report.renders >= 2, "{report:?}");
+        // The script ends with the PTM back on and the light moved to (0.5, 1.125).
+        assert!(report.ptm_on);
+        let light = report.light.expect("one light");
+        assert!((light[0] - 0.5).abs() < 1e-5 && (light[1] - 1.125).abs() < 1e-5);
+        let mean = report.mean_rgb.expect("scripted mode reads back");
+        assert!(mean.iter().all(|&c| c > 0.01 && c.is_finite()), "{mean:?}");
+    }
+}
