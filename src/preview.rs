@@ -76,6 +76,10 @@ pub struct Args {
     /// Caster height above the cloth (swatch units).
     #[arg(long, default_value_t = 0.5)]
     pub caster_height: f32,
+    /// Tilt of the caster in degrees about its centre line parallel to X (positive lifts its far,
+    /// +Y edge); the whole caster must stay above the cloth. Not with --blur separable.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub caster_tilt: f32,
     /// Caster size w,h in swatch units. Default: half the view.
     #[arg(long, value_parser = parse_pair::<f32>)]
     pub caster_size: Option<(f32, f32)>,
@@ -244,7 +248,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
             rgba,
             rect: [cx - 0.5 * cw, cy - 0.5 * ch, cx + 0.5 * cw, cy + 0.5 * ch],
             elevation: args.caster_height,
-            tilt_deg: 0.0,
+            tilt_deg: args.caster_tilt,
         });
     }
     scene.colored_shadow = args.colored_shadow;

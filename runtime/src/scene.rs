@@ -285,7 +285,7 @@ impl Scene {
             let tilt = c.tilt_deg.to_radians();
             // The lowest point of the tilted caster: its near or far edge.
             let lowest = c.elevation - 0.5 * (cy1 - cy0) * tilt.sin().abs();
-            if !(c.tilt_deg.abs() < 90.0) || lowest < 0.0 {
+            if c.tilt_deg.is_nan() || c.tilt_deg.abs() >= 90.0 || lowest < 0.0 {
                 return Err(Error::Scene(format!(
                     "caster tilt {}° (height {}, depth {}) must be below 90° and keep the whole \
                      caster above the cloth (its lowest edge is at {lowest}): lower the tilt or \

@@ -424,7 +424,7 @@ fn bad_tilts_are_refused_with_the_reason() {
     ] {
         s.caster = Some(tilted_band(tilt));
         s.blur = blur;
-        let err = s.prepare().err().expect("refused").to_string();
+        let err = s.prepare().expect_err("refused").to_string();
         assert!(err.contains(says), "tilt {tilt}: {err}");
     }
 }
