@@ -11,14 +11,8 @@ use std::time::Instant;
 
 use ptm_fit::{Basis, Ptm};
 use ptm_runtime::gpu::Renderer;
-use ptm_runtime::{Blur, Caster, Gpu, Light, Scene};
-
-fn hash(i: u64) -> u64 {
-    let mut x = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
+use ptm_runtime::synthetic::{hash, leaves as caster};
+use ptm_runtime::{Blur, Gpu, Light, Scene};
 
 fn ptm11(n: usize) -> Ptm {
     let planes = (0..11)
@@ -34,32 +28,6 @@ fn ptm11(n: usize) -> Ptm {
         height: n,
         tile: [1.0, 1.0],
         planes,
-    }
-}
-
-/// A leafy caster: random discs of varying alpha on transparent, `n`² texels.
-fn caster(n: usize, rect: [f32; 4], elevation: f32) -> Caster {
-    let mut rgba = vec![[0u8; 4]; n * n];
-    for d in 0..60u64 {
-        let cx = (hash(d * 3) % n as u64) as i64;
-        let cy = (hash(d * 3 + 1) % n as u64) as i64;
-        let r = (n as i64 / 40) + (hash(d * 3 + 2) % (n as u64 / 12)) as i64;
-        let a = 128 + (hash(d) % 128) as u8;
-        for y in (cy - r).max(0)..(cy + r).min(n as i64) {
-            for x in (cx - r).max(0)..(cx + r).min(n as i64) {
-                if (x - cx).pow(2) + (y - cy).pow(2) < r * r {
-                    rgba[y as usize * n + x as usize] = [40, 160, 60, a];
-                }
-            }
-        }
-    }
-    Caster {
-        width: n,
-        height: n,
-        rgba,
-        rect,
-        elevation,
-        tilt_deg: 0.0,
     }
 }
 

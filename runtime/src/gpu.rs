@@ -44,23 +44,7 @@ impl Gpu {
             &instance, None,
         ))
         .map_err(|e| Error::NoAdapter(e.to_string()))?;
-        let info = adapter.get_info();
-        // The adapter's own limits: large casters need storage buffers beyond the defaults.
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("ptm-runtime"),
-            required_features: wgpu::Features::empty(),
-            required_limits: adapter.limits(),
-            ..Default::default()
-        }))
-        .map_err(|e| Error::Device {
-            adapter: info.name.clone(),
-            reason: e.to_string(),
-        })?;
-        Ok(Gpu {
-            device,
-            queue,
-            adapter: info,
-        })
+        Gpu::from_adapter(&adapter)
     }
 
     /// Opens a device on `adapter` with the same features and limits as [`Gpu::new`]. For a
@@ -68,6 +52,7 @@ impl Gpu {
     /// [`Gpu::adapter_for_surface`]) so one device both renders and presents.
     pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Gpu> {
         let info = adapter.get_info();
+        // The adapter's own limits: large casters need storage buffers beyond the defaults.
         let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
             label: Some("ptm-runtime"),
             required_features: wgpu::Features::empty(),

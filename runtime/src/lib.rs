@@ -22,6 +22,7 @@ pub mod sat;
 pub mod scene;
 pub mod separable;
 pub mod shader;
+pub mod synthetic;
 #[cfg(feature = "window")]
 pub mod window;
 

@@ -5,16 +5,10 @@
 use anyhow::Result;
 use ptm_fit::{Basis, Ptm};
 use ptm_runtime::penumbra::{caster_radius, half_plane_fraction};
+use ptm_runtime::synthetic::leaves;
 use ptm_runtime::{compare, cpu, gpu, Blur, Caster, Gpu, Light, Scene};
 
 use super::table::{g3, Table};
-
-fn hash(i: u64) -> u64 {
-    let mut x = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
 
 fn light(position: [f32; 3], radius: f32) -> Light {
     Light {
@@ -22,32 +16,6 @@ fn light(position: [f32; 3], radius: f32) -> Light {
         radius,
         intensity: 4.0,
         color: [1.0; 3],
-    }
-}
-
-/// A leafy caster: `n`² texels of overlapping discs of varying alpha on transparent.
-fn leaves(n: usize, rect: [f32; 4], elevation: f32) -> Caster {
-    let mut rgba = vec![[0u8; 4]; n * n];
-    for d in 0..40u64 {
-        let cx = (hash(d * 3) % n as u64) as i64;
-        let cy = (hash(d * 3 + 1) % n as u64) as i64;
-        let r = (n as i64 / 24) + (hash(d * 3 + 2) % (n as u64 / 10)) as i64;
-        let a = 140 + (hash(d) % 116) as u8;
-        for y in (cy - r).max(0)..(cy + r).min(n as i64) {
-            for x in (cx - r).max(0)..(cx + r).min(n as i64) {
-                if (x - cx).pow(2) + (y - cy).pow(2) < r * r {
-                    rgba[y as usize * n + x as usize] = [40, 160, 60, a];
-                }
-            }
-        }
-    }
-    Caster {
-        width: n,
-        height: n,
-        rgba,
-        rect,
-        elevation,
-        tilt_deg: 0.0,
     }
 }
 
