@@ -43,6 +43,15 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    // Mesa's implicit Vulkan layer VK_LAYER_MESA_device_select connects to Wayland to pick a
+    // default GPU; without a session (no XDG_RUNTIME_DIR, as on headless machines) libwayland
+    // prints an error for every instance. With no display there is nothing to select by, so
+    // skip the layer. Set here, before any thread exists.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none()
+        && std::env::var_os("NODEVICE_SELECT").is_none()
+    {
+        std::env::set_var("NODEVICE_SELECT", "1");
+    }
     let cli = Cli::parse();
     let result = match &cli.command {
         Command::Bake(a) => bake::run(a),
