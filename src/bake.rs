@@ -97,16 +97,21 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     for w in &warnings {
         eprintln!("ptm bake: warning: {w}");
     }
-    let lights: LightSet = match (&args.lights, &args.dome, args.dirs) {
-        (Some(p), _, _) => LightSet::read_lp(p)?,
-        (None, Some(spec), _) => dome::parse(spec, args.min_elevation)?,
-        (None, None, n) => dome::fibonacci(n.unwrap_or(32), args.min_elevation)?,
-    };
     let res = match args.res[..] {
         [n] => [n, n],
         [w, h] => [w, h],
         _ => bail!("--res takes N or W,H"),
     };
+    if let (None, None, Some(n)) = (&args.lights, &args.dome, args.dirs) {
+        // Before the dome exists: a typo like --dirs 100000000 must not exhaust memory first.
+        check_memory(args, res, n)?;
+    }
+    let lights: LightSet = match (&args.lights, &args.dome, args.dirs) {
+        (Some(p), _, _) => LightSet::read_lp(p)?,
+        (None, Some(spec), _) => dome::parse(spec, args.min_elevation)?,
+        (None, None, n) => dome::fibonacci(n.unwrap_or(32), args.min_elevation)?,
+    };
+    check_memory(args, res, lights.len())?;
     let cfg = BakeConfig {
         res,
         spp: args.spp,
@@ -295,4 +300,71 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             "total": t_all.elapsed().as_secs_f64(),
         },
     }))
+}
+
+/// Refuses a bake whose buffers cannot fit in the memory this machine has available, naming
+/// the parts and what to change, instead of being killed by the kernel half-way.
+fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<()> {
+    let Some(available) = available_memory() else {
+        return Ok(());
+    };
+    let texels = res[0] as u64 * res[1] as u64;
+    let baker = ptm_bake::baker_bytes(res, args.spp);
+    let dome = lights as u64 * 64;
+    let (sink, what) = match args.fit {
+        // Per texel: m sums of AᵀW·k, the packed Gram matrix for point lights, Σw·k², Σw.
+        Some(f) => {
+            let m: u64 = match f {
+                FitArg::Ptm6 => 6,
+                FitArg::Ptm11 => 11,
+            };
+            let gram = if args.light_distance.is_some() {
+                m * (m + 1) / 2
+            } else {
+                0
+            };
+            (texels * (m + gram + 2) * 8, "the streaming fit's sums")
+        }
+        // K per light, (u, v) per light for point lights, and the copy the EXR writer makes.
+        None => {
+            let per = if args.light_distance.is_some() { 12 } else { 4 };
+            (
+                2 * texels * lights as u64 * per,
+                "the sample stack (K of every light, written as samples.exr)",
+            )
+        }
+    };
+    let need = baker + dome + sink;
+    if need > available / 10 * 9 {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        bail!(
+            "this bake needs about {:.1} GiB ({}×{} texels × {} spp of primary samples: {:.1} GiB; \
+             {} lights: {:.1} GiB; {}: {:.1} GiB) but only {:.1} GiB of memory is available: lower \
+             --res, --spp or the number of lights{}",
+            gib(need),
+            res[0],
+            res[1],
+            args.spp,
+            gib(baker),
+            lights,
+            gib(dome),
+            what,
+            gib(sink),
+            gib(available),
+            if args.fit.is_none() {
+                ", or fit while baking (--fit ptm6 -o out.ptm.exr) so no stack is stored"
+            } else {
+                ""
+            }
+        );
+    }
+    Ok(())
+}
+
+/// `MemAvailable` from /proc/meminfo, in bytes (None where there is no such file).
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
 }

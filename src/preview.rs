@@ -305,6 +305,12 @@ fn run_window(_: &Args) -> anyhow::Result<Value> {
 }
 
 pub fn run(args: &Args) -> anyhow::Result<Value> {
+    if !args.exposure.is_finite() {
+        bail!(
+            "--exposure {} must be a finite number of stops",
+            args.exposure
+        );
+    }
     if args.window {
         return run_window(args);
     }

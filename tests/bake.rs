@@ -178,11 +178,25 @@ fn bad_inputs_are_refused_and_nothing_is_written() {
             "--dome",
             "count",
         ),
+        // Far beyond any machine's memory: refused before anything is allocated.
+        (
+            vec!["--swatch", "ok.obj", "--dirs", "100000000000"],
+            "100000000000 lights",
+            "memory is available",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--res", "10000000"],
+            "10000000×10000000 texels",
+            "--fit ptm6",
+        ),
     ];
     for (args, names, says) in cases {
         let mut all = vec!["bake", "--res", "8", "--dirs", "4"];
-        if args.contains(&"--lights") || args.contains(&"--dome") {
+        if args.contains(&"--lights") || args.contains(&"--dome") || args.contains(&"--dirs") {
             all.truncate(3);
+        }
+        if args.contains(&"--res") {
+            all.drain(1..3);
         }
         all.extend(&args);
         all.extend(["-o", "out.exr"]);

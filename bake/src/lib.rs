@@ -15,7 +15,9 @@ pub mod tiling;
 pub mod visibility;
 
 pub use swatch::Swatch;
-pub use visibility::{bake_planes, sample_xy, BakeConfig, BakeReport, Baker, Planes, Sink};
+pub use visibility::{
+    bake_planes, baker_bytes, sample_xy, BakeConfig, BakeReport, Baker, Planes, Sink,
+};
 
 /// Errors of the bake crate; messages name the input and what to do.
 #[derive(Debug, thiserror::Error)]

@@ -68,6 +68,15 @@ struct Sample {
     hit: bool,
 }
 
+/// Bytes a [`Baker`] holds for `res` texels at `spp` samples per texel: the primary samples
+/// (padded to whole 4×4 blocks), coverage, and one K plane with its (u, v) plane, excluding the
+/// swatch's own scenes. What the sink keeps comes on top.
+pub fn baker_bytes(res: [usize; 2], spp: u32) -> u64 {
+    let blocks = res[0].div_ceil(4) as u64 * res[1].div_ceil(4) as u64;
+    let texels = res[0] as u64 * res[1] as u64;
+    blocks * 16 * spp as u64 * std::mem::size_of::<Sample>() as u64 + texels * (4 + 4 + 8)
+}
+
 /// Receives each light's K plane (row-major, `res[0]·res[1]` texels, uncovered texels 0) and,
 /// for point lights, each texel's (u, v) of the mean direction to the light.
 pub type Sink<'s> = dyn FnMut(usize, &[f32], Option<&[[f32; 2]]>) -> Result<()> + 's;

@@ -19,6 +19,9 @@ pub const MAX_CASTER_SIDE: usize = 4096;
 /// 256² matched the CPU twin exactly.
 pub const MAX_EXPLICIT_SAMPLES: u32 = 256;
 
+/// Largest output side: wgpu's guaranteed `max_texture_dimension_2d` (8192).
+pub const MAX_IMAGE_SIDE: u32 = 8192;
+
 /// A spherical area light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
@@ -166,6 +169,28 @@ impl Scene {
         let [w, h] = self.size;
         if w == 0 || h == 0 {
             return Err(Error::Scene(format!("output size {w}×{h} is empty")));
+        }
+        if w.max(h) > MAX_IMAGE_SIDE {
+            return Err(Error::Scene(format!(
+                "output size {w}×{h} exceeds {MAX_IMAGE_SIDE} pixels a side (the largest render \
+                 target GPUs are required to offer): lower the size"
+            )));
+        }
+        for (i, l) in self.lights.iter().enumerate() {
+            let finite = l.position.iter().chain(&l.color).all(|x| x.is_finite());
+            if !(finite
+                && l.radius.is_finite()
+                && l.radius >= 0.0
+                && l.intensity.is_finite()
+                && l.intensity >= 0.0
+                && l.color.iter().all(|&c| c >= 0.0))
+            {
+                return Err(Error::Scene(format!(
+                    "light {i} (position {:?}, radius {}, intensity {}, colour {:?}) must have a \
+                     finite position and a finite radius, intensity and colour ≥ 0",
+                    l.position, l.radius, l.intensity, l.color
+                )));
+            }
         }
         let [x0, y0, x1, y1] = self.view;
         if !(x1 > x0 && y1 > y0) {

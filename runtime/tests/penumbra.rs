@@ -428,3 +428,21 @@ fn bad_tilts_are_refused_with_the_reason() {
         assert!(err.contains(says), "tilt {tilt}: {err}");
     }
 }
+
+#[test]
+fn non_finite_or_negative_lights_and_huge_images_are_refused() {
+    let bad = [
+        light([0.0, 0.0, f32::NAN], 0.1, 1.0),
+        light([0.0, 0.0, 2.0], -0.1, 1.0),
+        light([0.0, 0.0, 2.0], f32::INFINITY, 1.0),
+        light([0.0, 0.0, 2.0], 0.1, -1.0),
+    ];
+    for l in bad {
+        let err = strip(l).prepare().expect_err("refused").to_string();
+        assert!(err.contains("light 0") && err.contains("finite"), "{err}");
+    }
+    let mut s = strip(light([0.0, 0.0, 2.0], 0.1, 1.0));
+    s.size = [100_000, 4];
+    let err = s.prepare().expect_err("refused").to_string();
+    assert!(err.contains("exceeds 8192"), "{err}");
+}
