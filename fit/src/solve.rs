@@ -442,6 +442,18 @@ fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {
     if lights.is_empty() {
         return Err(Error::Invalid("no lights to fit".into()));
     }
+    if !(0.0..1.0).contains(&opts.rcond) {
+        return Err(Error::Invalid(format!(
+            "rcond {} must lie in [0, 1): singular values below rcond·σmax are dropped",
+            opts.rcond
+        )));
+    }
+    if let Some(l) = opts.regularize.filter(|l| !(l.is_finite() && *l >= 0.0)) {
+        return Err(Error::Invalid(format!(
+            "regularize λ = {l} must be finite and ≥ 0 (a negative ridge makes the normal \
+             equations indefinite)"
+        )));
+    }
     let (w, held) = light_weights(lights, opts)?;
     let a = design(opts.basis, lights);
     let factor = Factor::from_design(&a, &w, opts.rcond, opts.regularize);

@@ -523,3 +523,27 @@ fn accumulator_misuse_is_an_error() {
     let e = acc.finish([1.0, 1.0]).unwrap_err().to_string();
     assert!(e.contains("light 1") && e.contains("never added"), "{e}");
 }
+
+#[test]
+fn out_of_range_rcond_and_negative_ridge_are_refused_by_both_paths() {
+    let lights = fibonacci(32, 5.0);
+    let stack = random_stack(&lights, 4, 3, &mut Rng(7));
+    let cases: [(f64, Option<f64>, &str); 5] = [
+        (2.0, None, "rcond 2"),
+        (-0.1, None, "rcond -0.1"),
+        (f64::NAN, None, "rcond NaN"),
+        (1e-3, Some(-1.0), "λ = -1"),
+        (1e-3, Some(f64::INFINITY), "λ = inf"),
+    ];
+    for (rcond, regularize, says) in cases {
+        let mut opts = FitOptions::new(Basis::Ptm6);
+        opts.rcond = rcond;
+        opts.regularize = regularize;
+        for err in [
+            fit_stack(&stack, &opts).map(|_| ()).expect_err("stored"),
+            stream(&stack, &opts).map(|_| ()).expect_err("streamed"),
+        ] {
+            assert!(err.to_string().contains(says), "{says}: {err}");
+        }
+    }
+}
