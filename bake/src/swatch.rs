@@ -157,6 +157,27 @@ impl Swatch {
             .max(self.bounds.max[2] - self.bounds.min[2])
     }
 
+    /// The same swatch with every length multiplied by `k` (a power of two keeps it exact).
+    pub fn scaled(&self, k: f64) -> Swatch {
+        let kf = k as f32;
+        Swatch {
+            origin: self.origin.clone(),
+            positions: self.positions.iter().map(|p| p.map(|c| c * kf)).collect(),
+            triangles: self.triangles.clone(),
+            tile: self.tile.map(|t| t * k),
+            bounds: Bounds {
+                min: self.bounds.min.map(|c| c * k),
+                max: self.bounds.max.map(|c| c * k),
+            },
+            degenerate: self.degenerate,
+            shift: self.shift.map(|c| c * k),
+            seams: self.seams.map(|s| Seam {
+                axis: s.axis,
+                mismatch: s.mismatch.map(|m| m * k),
+            }),
+        }
+    }
+
     /// Human-readable warnings about the input (non-periodic seams, skipped triangles).
     pub fn warnings(&self) -> Vec<String> {
         let mut w = Vec::new();

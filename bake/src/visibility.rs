@@ -84,6 +84,8 @@ pub type Sink<'s> = dyn FnMut(usize, &[f32], Option<&[[f32; 2]]>) -> Result<()> 
 /// A scene built once and its primary hits; [`Baker::trace`] then runs any light set.
 pub struct Baker {
     cfg: BakeConfig,
+    /// Point-light distance in the baker's units (the swatch is scaled to a size in [0.5, 1)).
+    light_distance: Option<f64>,
     tile: [f64; 2],
     bounds: crate::swatch::Bounds,
     /// Offset of shadow-ray origins along the normal, and the top clamp plane (mesh units).
@@ -131,9 +133,21 @@ impl Baker {
         } else {
             String::new()
         })?;
+        // Embree works in f32 with denormals flushed: at 1e-12 of a unit its products underflow
+        // and primary rays miss; near 1e30 they overflow. K does not depend on scale, so bake a
+        // copy scaled by a power of two (exact in floating point) to a size in [0.5, 1).
+        let unit = (-(swatch.scale().log2().floor() + 1.0)).exp2();
+        let scaled;
+        let swatch = if unit != 1.0 && unit.is_finite() && unit > 0.0 {
+            scaled = swatch.scaled(unit);
+            &scaled
+        } else {
+            swatch
+        };
         let tile_scene = device.triangle_scene(&swatch.positions, &swatch.triangles)?;
         let scale = swatch.scale();
         let mut baker = Self {
+            light_distance: cfg.light_distance.map(|r| r * unit),
             cfg: cfg.clone(),
             tile: swatch.tile,
             bounds: swatch.bounds,
@@ -273,7 +287,7 @@ impl Baker {
         // and never while tracing.
         let mut plans = Vec::with_capacity(lights.len());
         for (li, &l) in lights.dirs.iter().enumerate() {
-            let light = match self.cfg.light_distance {
+            let light = match self.light_distance {
                 _ if l[2] <= 0.0 => None,
                 None => Some(Light::Distant(l.map(|c| c as f32))),
                 Some(r) => Some(Light::Point([0, 1, 2].map(|a| centre[a] + r * l[a]))),
@@ -385,6 +399,8 @@ impl Baker {
         &self.shadow_scenes[&copies]
     }
 
+    /// The tile in the baker's units: the swatch's scaled by a power of two to a size in
+    /// [0.5, 1) (what [`Baker::primary_scene`] holds).
     pub fn tile(&self) -> [f64; 2] {
         self.tile
     }
