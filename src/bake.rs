@@ -238,7 +238,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 uv: planes.uv,
             };
             stack
-                .write(&args.output)
+                .write_into(&args.output)
                 .with_context(|| format!("writing {}", args.output.display()))?;
             Value::Null
         }
@@ -325,11 +325,12 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
             };
             (texels * (m + gram + 2) * 8, "the streaming fit's sums")
         }
-        // K per light, (u, v) per light for point lights, and the copy the EXR writer makes.
+        // K per light (handed to the EXR writer, not copied); for point lights also (u, v) per
+        // light and its split into u and v channels.
         None => {
-            let per = if args.light_distance.is_some() { 12 } else { 4 };
+            let per = if args.light_distance.is_some() { 20 } else { 4 };
             (
-                2 * texels * lights as u64 * per,
+                texels * lights as u64 * per,
                 "the sample stack (K of every light, written as samples.exr)",
             )
         }

@@ -88,9 +88,21 @@ impl SampleStack {
     /// Writes the stack as EXR, atomically (temporary file, then rename).
     pub fn write(&self, path: &Path) -> Result<()> {
         self.validate()?;
-        let mut channels = Vec::with_capacity(self.k.len() * 3 + 1);
-        for (i, plane) in self.k.iter().enumerate() {
-            channels.push((k_channel(i), Samples::F32(plane.clone())));
+        self.write_planes(path, self.k.clone())
+    }
+
+    /// As [`SampleStack::write`], handing the K planes to the EXR writer instead of copying
+    /// them: the peak memory of a large stack stays one stack.
+    pub fn write_into(mut self, path: &Path) -> Result<()> {
+        self.validate()?;
+        let k = std::mem::take(&mut self.k);
+        self.write_planes(path, k)
+    }
+
+    fn write_planes(&self, path: &Path, k: Vec<Vec<f32>>) -> Result<()> {
+        let mut channels = Vec::with_capacity(k.len() * 3 + 1);
+        for (i, plane) in k.into_iter().enumerate() {
+            channels.push((k_channel(i), Samples::F32(plane)));
         }
         channels.push(("coverage".to_string(), Samples::F32(self.coverage.clone())));
         if let Some(uv) = &self.uv {
