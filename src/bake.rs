@@ -308,36 +308,41 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
     let Some(available) = available_memory() else {
         return Ok(());
     };
-    let texels = res[0] as u64 * res[1] as u64;
+    // In f64: absurd requests must be measured, not overflow.
+    let texels = res[0] as f64 * res[1] as f64;
     let baker = ptm_bake::baker_bytes(res, args.spp);
-    let dome = lights as u64 * 64;
+    let dome = lights as f64 * 64.0;
     let (sink, what) = match args.fit {
         // Per texel: m sums of AᵀW·k, the packed Gram matrix for point lights, Σw·k², Σw.
         Some(f) => {
-            let m: u64 = match f {
-                FitArg::Ptm6 => 6,
-                FitArg::Ptm11 => 11,
+            let m: f64 = match f {
+                FitArg::Ptm6 => 6.0,
+                FitArg::Ptm11 => 11.0,
             };
             let gram = if args.light_distance.is_some() {
-                m * (m + 1) / 2
+                m * (m + 1.0) / 2.0
             } else {
-                0
+                0.0
             };
-            (texels * (m + gram + 2) * 8, "the streaming fit's sums")
+            (texels * (m + gram + 2.0) * 8.0, "the streaming fit's sums")
         }
         // K per light (handed to the EXR writer, not copied); for point lights also (u, v) per
         // light and its split into u and v channels.
         None => {
-            let per = if args.light_distance.is_some() { 20 } else { 4 };
+            let per = if args.light_distance.is_some() {
+                20.0
+            } else {
+                4.0
+            };
             (
-                texels * lights as u64 * per,
+                texels * lights as f64 * per,
                 "the sample stack (K of every light, written as samples.exr)",
             )
         }
     };
     let need = baker + dome + sink;
-    if need > available / 10 * 9 {
-        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+    if need > 0.9 * available as f64 {
+        let gib = |b: f64| b / (1u64 << 30) as f64;
         bail!(
             "this bake needs about {:.1} GiB ({}×{} texels × {} spp of primary samples: {:.1} GiB; \
              {} lights: {:.1} GiB; {}: {:.1} GiB) but only {:.1} GiB of memory is available: lower \
@@ -351,7 +356,7 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
             gib(dome),
             what,
             gib(sink),
-            gib(available),
+            gib(available as f64),
             if args.fit.is_none() {
                 ", or fit while baking (--fit ptm6 -o out.ptm.exr) so no stack is stored"
             } else {

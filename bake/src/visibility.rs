@@ -71,10 +71,11 @@ struct Sample {
 /// Bytes a [`Baker`] holds for `res` texels at `spp` samples per texel: the primary samples
 /// (padded to whole 4×4 blocks), coverage, and one K plane with its (u, v) plane, excluding the
 /// swatch's own scenes. What the sink keeps comes on top.
-pub fn baker_bytes(res: [usize; 2], spp: u32) -> u64 {
-    let blocks = res[0].div_ceil(4) as u64 * res[1].div_ceil(4) as u64;
-    let texels = res[0] as u64 * res[1] as u64;
-    blocks * 16 * spp as u64 * std::mem::size_of::<Sample>() as u64 + texels * (4 + 4 + 8)
+/// In f64: absurd requests must be measured, not overflow.
+pub fn baker_bytes(res: [usize; 2], spp: u32) -> f64 {
+    let blocks = res[0].div_ceil(4) as f64 * res[1].div_ceil(4) as f64;
+    let texels = res[0] as f64 * res[1] as f64;
+    blocks * 16.0 * spp as f64 * std::mem::size_of::<Sample>() as f64 + texels * (4.0 + 4.0 + 8.0)
 }
 
 /// Receives each light's K plane (row-major, `res[0]·res[1]` texels, uncovered texels 0) and,
