@@ -47,7 +47,8 @@ pub struct Args {
     #[arg(long, value_parser = parse_pair::<u32>, default_value = "512,512")]
     pub size: (u32, u32),
     /// Light centre x,y,z in swatch units (z above the cloth); repeat for several lights.
-    /// Default: one light up and to the left of the view's centre.
+    /// Default: one light at 37° elevation, up and to the left, far enough (3.3 view widths) for
+    /// the lighting to stay even across the view, low enough for the weave to shadow itself.
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
     pub light: Vec<[f32; 3]>,
     /// Sphere radius per light (the last value repeats for further lights). Default: 5% of
@@ -55,7 +56,7 @@ pub struct Args {
     #[arg(long)]
     pub light_radius: Vec<f32>,
     /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen
-    /// so the first light gives irradiance 1 at the view's centre.
+    /// so the first light gives irradiance 0.8 at the view's centre (headroom below white).
     #[arg(long)]
     pub intensity: Vec<f32>,
     /// Linear RGB colour per light (last repeats).
@@ -208,9 +209,9 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     ];
     let positions = if args.light.is_empty() {
         vec![[
-            centre[0] - 0.6 * extent,
-            centre[1] + 0.3 * extent,
-            1.0 * extent,
+            centre[0] - 2.4 * extent,
+            centre[1] + 1.2 * extent,
+            2.0 * extent,
         ]]
     } else {
         args.light.clone()
@@ -229,7 +230,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
             Light {
                 position,
                 radius: nth(&args.light_radius, i, 0.05 * extent),
-                intensity: nth(&args.intensity, i, d2 / cos),
+                intensity: nth(&args.intensity, i, 0.8 * d2 / cos),
                 color: nth(&args.color, i, [1.0, 1.0, 1.0]),
             }
         })
