@@ -54,7 +54,12 @@ fn render_with(p: &Prepared, mc_samples: u32) -> Image {
     pixels.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         for (i, px) in row.iter_mut().enumerate() {
             let frag = [i as f32 + 0.5, j as f32 + 0.5];
-            let r = pixel_world(&p.frame, frag).map_or([0.0; 3], |q| twin.shade(q));
+            let lod = if p.variant.ptm_mip {
+                ptm_lod(&p.frame, frag)
+            } else {
+                0.0
+            };
+            let r = pixel_world(&p.frame, frag).map_or([0.0; 3], |q| twin.shade(q, lod));
             *px = [r[0], r[1], r[2], 1.0];
         }
     });
@@ -83,6 +88,22 @@ pub fn pixel_world(f: &Frame, frag: [f32; 2]) -> Option<[f32; 2]> {
     }
     let s = -f.eye[2] / dir[2];
     Some([f.eye[0] + s * dir[0], f.eye[1] + s * dir[1]])
+}
+
+/// log2 of the PTM texels under pixel `frag`, clamped to the chain, as `ptm_lod` in WGSL.
+pub fn ptm_lod(f: &Frame, frag: [f32; 2]) -> f32 {
+    let mut texels = f.cam_up[3];
+    if f.eye[3] != 0.0 {
+        let t = [frag[0] / f.screen[0], frag[1] / f.screen[1]];
+        let dir: [f32; 3] = std::array::from_fn(|k| {
+            f.cam_forward[k]
+                + (2.0 * t[0] - 1.0) * f.cam_right[k]
+                + (1.0 - 2.0 * t[1]) * f.cam_up[k]
+        });
+        let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        texels = texels * f.eye[2] * len / (dir[2] * dir[2]);
+    }
+    texels.max(1.0).log2().clamp(0.0, f.cam_forward[3] - 1.0)
 }
 
 /// Texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights, as `tile_bilinear` in WGSL.
@@ -136,12 +157,30 @@ impl Twin<'_> {
         &self.p.frame
     }
 
-    /// Bilinearly filtered PTM coefficients at p.
-    fn ptm_coeffs(&self, p: [f32; 2]) -> [f32; 16] {
+    /// PTM coefficients at p: bilinear, or trilinear in the MIP chain at level of detail `lod`.
+    fn ptm_coeffs(&self, p: [f32; 2], lod: f32) -> [f32; 16] {
         let f = self.f();
         let n = self.p.variant.basis.map_or(0, |b| b.len());
-        let taps = tile_bilinear(f, p, [f.sizes[0], f.sizes[1]]);
-        bilerp::<16>(&self.p.coeffs, n, &taps)
+        if !self.p.variant.ptm_mip {
+            let taps = tile_bilinear(f, p, [f.sizes[0], f.sizes[1]]);
+            return bilerp::<16>(&self.p.coeffs, n, &taps);
+        }
+        let level = |l: usize| {
+            let lv = self.p.ptm_levels[l];
+            let (mut idx, w) = tile_bilinear(f, p, [lv[1], lv[2]]);
+            idx = idx.map(|i| i + lv[0] as usize);
+            bilerp::<16>(&self.p.coeffs, n, &(idx, w))
+        };
+        let l0 = lod.floor();
+        let fr = lod - l0;
+        let mut c = level(l0 as usize);
+        if fr > 0.0 {
+            let c1 = level(l0 as usize + 1);
+            for k in 0..n {
+                c[k] += fr * (c1[k] - c[k]);
+            }
+        }
+        c
     }
 
     /// K(u, v), clamped to [0, 1] after evaluation.
@@ -261,9 +300,9 @@ impl Twin<'_> {
     }
 
     /// Linear radiance leaving acceptor point p.
-    fn shade(&self, p: [f32; 2]) -> [f32; 3] {
+    fn shade(&self, p: [f32; 2], lod: f32) -> [f32; 3] {
         let albedo = self.albedo_at(p);
-        let c = self.p.variant.basis.map(|_| self.ptm_coeffs(p));
+        let c = self.p.variant.basis.map(|_| self.ptm_coeffs(p, lod));
         let mut radiance = [0f32; 3];
         for (li, light) in self.p.lights[..self.f().counts[0] as usize]
             .iter()
@@ -343,7 +382,12 @@ pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
                 let Some(pos) = pixel_world(&p.frame, [i as f32 + 0.5, j as f32 + 0.5]) else {
                     continue;
                 };
-                let c = twin.ptm_coeffs(pos);
+                let lod = if p.variant.ptm_mip {
+                    ptm_lod(&p.frame, [i as f32 + 0.5, j as f32 + 0.5])
+                } else {
+                    0.0
+                };
+                let c = twin.ptm_coeffs(pos, lod);
                 for l in lights {
                     let lp = l.position_radius;
                     let d = [lp[0] - pos[0], lp[1] - pos[1], lp[2]];

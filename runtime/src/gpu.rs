@@ -213,6 +213,12 @@ impl<'g> Renderer<'g> {
             entries.push((5, table));
         }
 
+        if v.ptm_mip {
+            entries.push((
+                9,
+                gpu.storage("ptm levels", bytemuck::cast_slice(&p.ptm_levels)),
+            ));
+        }
         if v.caster == Some(Blur::Mip) {
             entries.push((6, gpu.storage("mip", bytemuck::cast_slice(&p.mip))));
             entries.push((

@@ -83,9 +83,58 @@ pub fn blur_mip(mip: &[[f32; 4]], levels: &[[u32; 4]], t: [f32; 2], wt: [f32; 2]
     )
 }
 
+/// Appends the MIP chain of a tiled PTM to its texel-major coefficients (`n` per texel, `w`×`h`
+/// texels) and returns per level (texel offset, w, h, 0), level 0 first. Each level halves
+/// every even side by averaging 2 (or 2×2) texels; K is linear in the coefficients, so the
+/// average of the coefficients is the coefficients of the average K. The PTM tiles, so the
+/// chain stops when no side can be halved exactly (a 96² map: 96, 48, 24, 12, 6, 3).
+pub fn build_ptm_chain(coeffs: &mut Vec<f32>, n: usize, w: usize, h: usize) -> Vec<[u32; 4]> {
+    let mut levels = vec![[0, w as u32, h as u32, 0]];
+    let (mut lw, mut lh, mut off) = (w, h, 0usize);
+    while (lw > 1 && lw % 2 == 0) || (lh > 1 && lh % 2 == 0) {
+        let (sx, sy) = (
+            1 + (lw > 1 && lw % 2 == 0) as usize,
+            1 + (lh > 1 && lh % 2 == 0) as usize,
+        );
+        let (nw, nh) = (lw / sx, lh / sy);
+        let next_off = coeffs.len() / n;
+        let scale = 1.0 / (sx * sy) as f32;
+        for j in 0..nh {
+            for i in 0..nw {
+                for k in 0..n {
+                    let mut sum = 0.0f32;
+                    for dy in 0..sy {
+                        for dx in 0..sx {
+                            let t = off + (j * sy + dy) * lw + i * sx + dx;
+                            sum += coeffs[t * n + k];
+                        }
+                    }
+                    coeffs.push(sum * scale);
+                }
+            }
+        }
+        levels.push([next_off as u32, nw as u32, nh as u32, 0]);
+        (lw, lh, off) = (nw, nh, next_off);
+    }
+    levels
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ptm_chain_averages_blocks_and_stops_at_odd_sides() {
+        // 4×2 texels, 2 coefficients each: coefficient 0 = texel index, 1 = 10·index.
+        let mut c: Vec<f32> = (0..8).flat_map(|t| [t as f32, 10.0 * t as f32]).collect();
+        let levels = build_ptm_chain(&mut c, 2, 4, 2);
+        assert_eq!(levels, vec![[0, 4, 2, 0], [8, 2, 1, 0], [10, 1, 1, 0]]);
+        // Level 1: (0+1+4+5)/4 = 2.5 and (2+3+6+7)/4 = 4.5; level 2: their mean 3.5.
+        assert_eq!(&c[16..], &[2.5, 25.0, 4.5, 45.0, 3.5, 35.0]);
+        // A 6×3 map halves x once (3×3), then stops: no side can be halved exactly.
+        let mut c = vec![0.0f32; 18];
+        assert_eq!(build_ptm_chain(&mut c, 1, 6, 3).len(), 2);
+    }
 
     #[test]
     fn chain_halves_to_one_texel_and_keeps_the_mean_over_padded_area() {

@@ -216,6 +216,7 @@ impl Scene {
         frame.counts[3] = MAX_EXPLICIT_SAMPLES;
 
         let mut coeffs = Vec::new();
+        let mut ptm_levels: Vec<[u32; 4]> = Vec::new();
         let mut nonfinite_coeffs = 0;
         let mut basis = None;
         if let Some(ptm) = &self.ptm {
@@ -252,6 +253,22 @@ impl Scene {
             frame.sizes[0] = ptm.width as u32;
             frame.sizes[1] = ptm.height as u32;
             basis = Some(ptm.basis);
+            // PTM texels under one pixel: everywhere for the orthographic view, at unit depth
+            // along the view direction for a perspective one (see `ptm_lod`). A view that never
+            // shows more than one texel per pixel reads level 0 only: no chain, no binding.
+            let texels_per_unit =
+                (ptm.width as f64 / ptm.tile[0]).max(ptm.height as f64 / ptm.tile[1]) as f32;
+            let pixel = if self.perspective.is_some() {
+                let u = frame.cam_up;
+                2.0 * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt() / h as f32
+            } else {
+                ((x1 - x0) / w as f32).max((y1 - y0) / h as f32)
+            };
+            frame.cam_up[3] = pixel * texels_per_unit;
+            if self.perspective.is_some() || frame.cam_up[3] > 1.0 {
+                ptm_levels = crate::mip::build_ptm_chain(&mut coeffs, n, ptm.width, ptm.height);
+                frame.cam_forward[3] = ptm_levels.len() as f32;
+            }
         }
 
         let mut albedo = Vec::new();
@@ -354,11 +371,13 @@ impl Scene {
             albedo_texture: self.albedo_texture.is_some(),
             caster: self.caster.as_ref().map(|_| self.blur),
             colored: self.caster.is_some() && self.colored_shadow,
+            ptm_mip: ptm_levels.len() > 1,
         };
         Ok(Prepared {
             frame,
             lights,
             coeffs,
+            ptm_levels,
             albedo,
             opacity,
             mip,
@@ -381,6 +400,8 @@ pub struct Variant {
     pub caster: Option<Blur>,
     /// Three opacity channels (stained glass) instead of one.
     pub colored: bool,
+    /// The PTM is minified somewhere in the view: trilinear lookups in its MIP chain.
+    pub ptm_mip: bool,
 }
 
 impl Variant {
@@ -398,12 +419,18 @@ impl Variant {
                         if caster.is_none() && colored {
                             continue;
                         }
-                        out.push(Variant {
-                            basis,
-                            albedo_texture,
-                            caster,
-                            colored,
-                        });
+                        for ptm_mip in [false, basis.is_some()] {
+                            out.push(Variant {
+                                basis,
+                                albedo_texture,
+                                caster,
+                                colored,
+                                ptm_mip,
+                            });
+                            if basis.is_none() {
+                                break;
+                            }
+                        }
                     }
                 }
             }
@@ -414,6 +441,9 @@ impl Variant {
     /// Short name, e.g. `ptm11+albedo+sat+colored`.
     pub fn name(&self) -> String {
         let mut parts = vec![self.basis.map_or("nok", |b| b.name()).to_string()];
+        if self.ptm_mip {
+            parts.push("ptm-mip".into());
+        }
         if self.albedo_texture {
             parts.push("albedo".into());
         }
@@ -524,6 +554,9 @@ pub struct Prepared {
     pub lights: Vec<LightGpu>,
     /// PTM coefficients, texel-major: `coeffs[(row·nx + col)·n + k]`.
     pub coeffs: Vec<f32>,
+    /// PTM MIP chain (levels appended to `coeffs`): texel offset, width, height, 0 per level;
+    /// empty when the view never minifies the PTM.
+    pub ptm_levels: Vec<[u32; 4]>,
     /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
     pub albedo: Vec<[f32; 4]>,
     /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three

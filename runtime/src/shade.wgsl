@@ -16,8 +16,8 @@ struct Frame {
     blur: vec4<u32>,        // separable: margins mx, my; padded map w, h
     eye: vec4<f32>,         // perspective eye xyz; w = 1 perspective, 0 orthographic top view
     cam_right: vec4<f32>,   // right · tan(fov/2) · aspect
-    cam_up: vec4<f32>,      // up · tan(fov/2)
-    cam_forward: vec4<f32>, // forward (unit)
+    cam_up: vec4<f32>,      // up · tan(fov/2); w: PTM texels per pixel (at unit depth if perspective)
+    cam_forward: vec4<f32>, // forward (unit); w: PTM MIP levels
 }
 
 struct Light {
@@ -45,6 +45,9 @@ struct Light {
 //#endif
 //#if BLUR_SEPARABLE
 @group(0) @binding(8) var<storage, read> sep_map: array<f32>; // [light][row][col][channel]
+//#endif
+//#if PTM_MIP
+@group(0) @binding(9) var<storage, read> ptm_levels: array<vec4<u32>>; // offset, w, h, 0
 //#endif
 
 // Full-screen triangle: vertices (−1, −1), (3, −1), (−1, 3).
@@ -108,8 +111,53 @@ fn tile_bilinear(p: vec2<f32>, n: vec2<u32>) -> Bilinear {
 //#if PTM
 const NC: u32 = {{NC}}u;
 
+//#if PTM_MIP
+// Level of detail: log2 of the PTM texels under the pixel (frag = pixel + 0.5). Orthographic:
+// the same everywhere. Perspective: the ray eye + s·dir (dir's forward component 1) meets the
+// cloth at depth s = −eye.z/dir.z, where a pixel spans s·δ across the ray and s·δ·|dir|/|dir.z|
+// along the plane's steepest direction; the larger side is taken (isotropic, like trilinear
+// texture filtering).
+fn ptm_lod(frag: vec2<f32>) -> f32 {
+    var texels = frame.cam_up.w;
+    if (frame.eye.w != 0.0) {
+        let t = frag / frame.screen.xy;
+        let dir = frame.cam_forward.xyz + (2.0 * t.x - 1.0) * frame.cam_right.xyz
+            + (1.0 - 2.0 * t.y) * frame.cam_up.xyz;
+        texels = texels * frame.eye.z * length(dir) / (dir.z * dir.z);
+    }
+    return clamp(log2(max(texels, 1.0)), 0.0, frame.cam_forward.w - 1.0);
+}
+
+// Bilinearly filtered coefficients of MIP level `level` at p.
+fn ptm_level(p: vec2<f32>, level: u32) -> array<f32, {{NC}}> {
+    let lv = ptm_levels[level];
+    let b = tile_bilinear(p, lv.yz);
+    let i = (b.index + vec4<u32>(lv.x)) * NC;
+    var c: array<f32, {{NC}}>;
+    for (var k = 0u; k < NC; k++) {
+        c[k] = b.weight.x * coeffs[i.x + k] + b.weight.y * coeffs[i.y + k]
+            + b.weight.z * coeffs[i.z + k] + b.weight.w * coeffs[i.w + k];
+    }
+    return c;
+}
+
+// Trilinear: between the two levels around `lod` (K is linear in the coefficients, so
+// filtering them filters K).
+fn ptm_coeffs(p: vec2<f32>, lod: f32) -> array<f32, {{NC}}> {
+    let l0 = floor(lod);
+    let f = lod - l0;
+    var c = ptm_level(p, u32(l0));
+    if (f > 0.0) {
+        let c1 = ptm_level(p, u32(l0) + 1u);
+        for (var k = 0u; k < NC; k++) {
+            c[k] = c[k] + f * (c1[k] - c[k]);
+        }
+    }
+    return c;
+}
+//#else
 // Bilinearly filtered coefficients at p (K is linear in them, so filtering them filters K).
-fn ptm_coeffs(p: vec2<f32>) -> array<f32, {{NC}}> {
+fn ptm_coeffs(p: vec2<f32>, lod: f32) -> array<f32, {{NC}}> {
     let b = tile_bilinear(p, frame.sizes.xy);
     var c: array<f32, {{NC}}>;
     for (var k = 0u; k < NC; k++) {
@@ -118,6 +166,7 @@ fn ptm_coeffs(p: vec2<f32>) -> array<f32, {{NC}}> {
     }
     return c;
 }
+//#endif
 
 // K(u, v) of the basis, clamped to [0, 1] after evaluation (fits overshoot at grazing angles).
 fn ptm_k(c: array<f32, {{NC}}>, u: f32, v: f32) -> f32 {
@@ -359,10 +408,11 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
 
 // Linear radiance leaving acceptor point p (normal +Z):
 // Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K).
-fn shade(p: vec2<f32>) -> vec3<f32> {
+// `lod`: the PTM's level of detail at this pixel (0 without a MIP chain).
+fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
     let albedo = albedo_at(p);
 //#if PTM
-    let c = ptm_coeffs(p);
+    let c = ptm_coeffs(p, lod);
 //#endif
     var radiance = vec3<f32>(0.0);
     for (var i = 0u; i < frame.counts.x; i++) {
@@ -392,5 +442,9 @@ fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     if (p.z == 0.0) {
         return vec4<f32>(0.0, 0.0, 0.0, 1.0);
     }
-    return vec4<f32>(shade(p.xy), 1.0);
+    var lod = 0.0;
+//#if PTM_MIP
+    lod = ptm_lod(frag.xy);
+//#endif
+    return vec4<f32>(shade(p.xy, lod), 1.0);
 }

@@ -19,6 +19,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.basis.is_some() {
         d.push("PTM");
     }
+    if v.basis.is_some() && v.ptm_mip {
+        d.push("PTM_MIP");
+    }
     if v.albedo_texture {
         d.push("ALBEDO_TEX");
     }
@@ -131,7 +134,8 @@ mod tests {
     #[test]
     fn every_shade_variant_validates_with_naga() {
         let all = Variant::all();
-        assert_eq!(all.len(), 3 * 2 * 9);
+        // No PTM, or ptm6 or ptm11 each with and without a MIP chain; × albedo × caster.
+        assert_eq!(all.len(), (1 + 2 * 2) * 2 * 9);
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -159,6 +163,7 @@ mod tests {
             albedo_texture: false,
             caster: None,
             colored: false,
+            ptm_mip: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -170,7 +175,7 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         let module = validate("plain", &src).unwrap();
-        for name in ["mip", "sep_map"] {
+        for name in ["mip", "sep_map", "ptm_levels", "ptm_lod"] {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");

@@ -132,3 +132,62 @@ fn no_lights_render_black() {
     let (img, _) = gpu::render(&gpu(), &p).unwrap();
     assert!(img.pixels.iter().all(|px| px[..3] == [0.0; 3]));
 }
+
+/// A 64² ptm6 whose constant term is a texel checkerboard of K = 0 and 1 (no light dependence).
+fn checker_ptm() -> ptm_fit::Ptm {
+    let n = 64;
+    let mut planes = vec![vec![0.0f32; n * n]; 6];
+    for (t, c) in planes[5].iter_mut().enumerate() {
+        *c = ((t % n + t / n) % 2) as f32;
+    }
+    ptm_fit::Ptm {
+        basis: Basis::Ptm6,
+        width: n,
+        height: n,
+        tile: [1.0, 1.0],
+        planes,
+    }
+}
+
+#[test]
+fn minified_ptm_is_mip_mapped_and_averages_k() {
+    // 8 tiles of 64 texels across 64 pixels: 8 texels per pixel, level 3, where every texel
+    // averages an 8×8 block of the checkerboard: K = 0.5 exactly, so (1 − K) halves every pixel.
+    // Without the chain each pixel would sample one texel: 0 or 1, an aliased pattern.
+    let mut s = Scene::over_ptm(checker_ptm(), 8, [64, 64]);
+    s.lights = vec![light([4.0, 4.0, 50.0], 0.0, 2500.0)];
+    let p = s.prepare().unwrap();
+    assert!(p.variant.ptm_mip);
+    assert_eq!(p.ptm_levels.len(), 7, "64, 32, …, 1");
+    let (img, _) = gpu::render(&gpu(), &p).unwrap();
+    let twin = cpu::render(&p);
+    assert!(img.max_abs_diff(&twin).unwrap() < 1e-3);
+    let mut free = s.clone();
+    free.ptm = None;
+    let (open, _) = gpu::render(&gpu(), &free.prepare().unwrap()).unwrap();
+    for (a, b) in img.pixels.iter().zip(&open.pixels) {
+        assert!((a[0] / b[0] - 0.5).abs() < 1e-4, "{} vs {}", a[0], b[0]);
+    }
+    // One texel per pixel or fewer: no chain, no binding.
+    let s1 = Scene::over_ptm(checker_ptm(), 1, [64, 64]);
+    let p1 = s1.prepare().unwrap();
+    assert!(!p1.variant.ptm_mip && p1.ptm_levels.is_empty());
+}
+
+#[test]
+fn perspective_over_a_mip_mapped_ptm_matches_twin() {
+    // Level of detail grows towards the horizon; GPU and twin compute it the same way.
+    let mut s = scene(Some(Basis::Ptm11), [96, 64]);
+    s.ptm = Some(random_ptm(Basis::Ptm11, 32, 16, 3));
+    s.perspective = Some(ptm_runtime::scene::Perspective {
+        eye: [-2.0, 0.5, 0.8],
+        target: [3.0, 1.5, 0.0],
+        fov_y_deg: 60.0,
+    });
+    let p = s.prepare().unwrap();
+    assert!(
+        p.variant.ptm_mip && p.ptm_levels.len() == 6,
+        "32×16 … 2×1, 1×1"
+    );
+    check(&s, "perspective, ptm11 MIP chain");
+}
