@@ -3,7 +3,7 @@
 //!
 //! File layout (docs/FORMAT.md): single-part scanline EXR, ZIP compressed, float32 (or half),
 //! one channel per coefficient named `ptm.<monomial>` (`ptm.u2`, `ptm.u`, `ptm.uv`, `ptm.v`,
-//! `ptm.v2`, `ptm.1` for ptm6), optional `err.rms` / `err.max`, header attributes `ptm:*`.
+//! `ptm.v2`, `ptm.1` for ptm6), optional `coverage`, `err.rms` / `err.max`, header attributes `ptm:*`.
 //!
 //! Loading a PTM needs this crate only:
 //! ```no_run
@@ -66,6 +66,8 @@ pub struct PtmInfo {
     /// Per-texel error maps when the file has them (`err.rms`, `err.max`).
     pub err_rms: Option<Vec<f32>>,
     pub err_max: Option<Vec<f32>>,
+    /// Per-texel coverage when the file has it (`coverage`: 0 = no cloth under the texel).
+    pub coverage: Option<Vec<f32>>,
 }
 
 /// EXR channel name of a monomial.
@@ -214,6 +216,10 @@ impl Ptm {
             if !r.warnings.is_empty() {
                 attrs.push(("ptm:warnings", Attr::Texts(r.warnings.clone())));
             }
+            if r.coverage.len() == self.width * self.height {
+                // Holes in the cloth: coefficients 0 there, which reads as "lit" without this.
+                channels.push(("coverage".into(), store(&r.coverage)));
+            }
             if opts.error_map {
                 let n = self.width * self.height;
                 if r.rms_map.len() == n {
@@ -285,6 +291,7 @@ impl Ptm {
             cond: c.f64("ptm:cond", WHAT).ok(),
             rms_mean: c.f64("ptm:rmsMean", WHAT).ok(),
             err_rms: c.take_f32("err.rms", WHAT).ok(),
+            coverage: c.take_f32("coverage", WHAT).ok(),
             err_max: c.take_f32("err.max", WHAT).ok(),
         };
         let ptm = Ptm {

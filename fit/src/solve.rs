@@ -150,11 +150,23 @@ pub struct FitReport {
     pub skipped_samples: usize,
     /// Texels solved individually (dropped samples) whose rank fell below `coefficients`.
     pub rank_deficient_texels: usize,
+    /// Per-texel coverage (fraction of the footprint that saw the swatch) when some texel is
+    /// not fully covered; empty when every texel is (nothing to record).
+    pub coverage: Vec<f32>,
     /// Per-texel maps: weighted RMS and max residual (max empty when streaming).
     pub rms_map: Vec<f32>,
     pub max_map: Vec<f32>,
     /// Seconds per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
+}
+
+/// `coverage` when some texel is not fully covered, else nothing (a file needs no channel of 1s).
+fn partial_coverage(coverage: &[f32]) -> Vec<f32> {
+    if coverage.iter().any(|&c| c < 1.0) {
+        coverage.to_vec()
+    } else {
+        Vec::new()
+    }
 }
 
 /// Evenly spread hold-out lights: index ⌊(j + ½)·n / h⌋ for j < h.
@@ -488,6 +500,8 @@ pub struct Accumulator {
     seen: Vec<bool>,
     mode: Option<bool>,
     masked: Vec<bool>,
+    /// The coverage given to [`Accumulator::set_coverage`], when some texel is below 1.
+    coverage: Vec<f32>,
     /// Held-out light index → its K plane and, per texel, (u, v) when per-texel.
     held: BTreeMap<usize, HeldLight>,
     /// Dropped samples per texel (skip_bad).
@@ -524,6 +538,7 @@ impl Accumulator {
             seen: vec![false; lights.len()],
             mode: None,
             masked: vec![false; t],
+            coverage: Vec::new(),
             held: BTreeMap::new(),
             bad: BTreeMap::new(),
             skipped: 0,
@@ -549,6 +564,7 @@ impl Accumulator {
         for (m, &c) in self.masked.iter_mut().zip(coverage) {
             *m = c <= 0.0;
         }
+        self.coverage = partial_coverage(coverage);
         Ok(())
     }
 
@@ -865,6 +881,7 @@ impl Accumulator {
         };
         report.rms = ErrorStats::of(&rms_map, &self.masked);
         report.rms_map = rms_map;
+        report.coverage = self.coverage.clone();
         report.masked = self.masked.iter().filter(|&&m| m).count();
         let t_solve = t0.elapsed().as_secs_f64();
         if !self.held.is_empty() {
@@ -1155,6 +1172,7 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
         singular_values: f.sigma.clone(),
         solver: solver_words(opts, f, false),
         warnings: prep.warnings.clone(),
+        coverage: partial_coverage(&stack.coverage),
         ..FitReport::default()
     };
     // Texels with non-finite samples: name the first, or refit each from its finite samples.

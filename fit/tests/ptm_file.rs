@@ -138,6 +138,37 @@ fn channels_are_named_by_monomial_and_header_is_complete() {
     assert_eq!(info.lights, Some(20));
     assert_eq!(info.rank, Some(6));
     assert_eq!(info.err_rms.unwrap(), report.rms_map);
+    assert!(
+        !names.iter().any(|n| n == "coverage") && info.coverage.is_none(),
+        "fully covered: no coverage channel"
+    );
+
+    // A hole (coverage 0) and a partly covered texel: both fitting paths record the coverage,
+    // and the file carries it, so a pipeline can tell a hole from lit cloth.
+    let mut holed = stack.clone();
+    holed.coverage[5] = 0.0;
+    holed.coverage[7] = 0.25;
+    let (ptm, report) = fit_stack(&holed, &FitOptions::new(Basis::Ptm6)).unwrap();
+    assert_eq!(report.coverage, holed.coverage);
+    let mut acc = ptm_fit::Accumulator::new(&lights, 4, 3, &FitOptions::new(Basis::Ptm6)).unwrap();
+    acc.set_coverage(&holed.coverage).unwrap();
+    for (i, plane) in holed.k.iter().enumerate() {
+        acc.add_light(i, plane).unwrap();
+    }
+    let (_, streamed) = acc.finish([1.0, 2.0]).unwrap();
+    assert_eq!(streamed.coverage, holed.coverage);
+    let opts = SaveOptions {
+        half: true,
+        report: Some(&report),
+        error_map: false,
+    };
+    ptm.save(&p, &opts).unwrap();
+    let (_, info) = Ptm::load_with_info(&p).unwrap();
+    assert_eq!(
+        info.coverage.unwrap(),
+        holed.coverage,
+        "0, 0.25 and 1 are exact in half"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
