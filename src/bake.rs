@@ -102,16 +102,19 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         [w, h] => [w, h],
         _ => bail!("--res takes N or W,H"),
     };
-    if let (None, None, Some(n)) = (&args.lights, &args.dome, args.dirs) {
-        // Before the dome exists: a typo like --dirs 100000000 must not exhaust memory first.
-        check_memory(args, res, n)?;
-    }
-    let lights: LightSet = match (&args.lights, &args.dome, args.dirs) {
-        (Some(p), _, _) => LightSet::read_lp(p)?,
-        (None, Some(spec), _) => dome::parse(spec, args.min_elevation)?,
-        (None, None, n) => dome::fibonacci(n.unwrap_or(32), args.min_elevation)?,
+    let lights: LightSet = match (&args.lights, &args.dome) {
+        (Some(p), _) => LightSet::read_lp(p)?,
+        (None, Some(spec)) => dome::parse(spec, args.min_elevation)?,
+        (None, None) => {
+            // Checked before the dome exists: --dirs 100000000 must not exhaust memory first.
+            let n = args.dirs.unwrap_or(32);
+            check_memory(args, res, n)?;
+            dome::fibonacci(n, args.min_elevation)?
+        }
     };
-    check_memory(args, res, lights.len())?;
+    if args.lights.is_some() || args.dome.is_some() {
+        check_memory(args, res, lights.len())?;
+    }
     let cfg = BakeConfig {
         res,
         spp: args.spp,

@@ -54,12 +54,8 @@ fn render_with(p: &Prepared, mc_samples: u32) -> Image {
     pixels.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
         for (i, px) in row.iter_mut().enumerate() {
             let frag = [i as f32 + 0.5, j as f32 + 0.5];
-            let lod = if p.variant.ptm_mip {
-                ptm_lod(&p.frame, frag)
-            } else {
-                0.0
-            };
-            let r = pixel_world(&p.frame, frag).map_or([0.0; 3], |q| twin.shade(q, lod));
+            let r = pixel_world(&p.frame, frag)
+                .map_or([0.0; 3], |q| twin.shade(q, ptm_lod(&p.frame, frag)));
             *px = [r[0], r[1], r[2], 1.0];
         }
     });
@@ -80,9 +76,7 @@ pub fn pixel_world(f: &Frame, frag: [f32; 2]) -> Option<[f32; 2]> {
             f.view[3] - (f.view[3] - f.view[1]) * t[1],
         ]);
     }
-    let dir: [f32; 3] = std::array::from_fn(|k| {
-        f.cam_forward[k] + (2.0 * t[0] - 1.0) * f.cam_right[k] + (1.0 - 2.0 * t[1]) * f.cam_up[k]
-    });
+    let dir = view_dir(f, frag);
     if dir[2] >= 0.0 || f.eye[2] <= 0.0 {
         return None;
     }
@@ -90,20 +84,28 @@ pub fn pixel_world(f: &Frame, frag: [f32; 2]) -> Option<[f32; 2]> {
     Some([f.eye[0] + s * dir[0], f.eye[1] + s * dir[1]])
 }
 
-/// log2 of the PTM texels under pixel `frag`, clamped to the chain, as `ptm_lod` in WGSL.
+/// Perspective ray direction through pixel `frag` (forward component 1), as in WGSL.
+fn view_dir(f: &Frame, frag: [f32; 2]) -> [f32; 3] {
+    let t = [frag[0] / f.screen[0], frag[1] / f.screen[1]];
+    std::array::from_fn(|k| {
+        f.cam_forward[k] + (2.0 * t[0] - 1.0) * f.cam_right[k] + (1.0 - 2.0 * t[1]) * f.cam_up[k]
+    })
+}
+
+/// log2 of the PTM texels under pixel `frag`, clamped to the chain, as `ptm_lod` in WGSL;
+/// 0 without a chain.
 pub fn ptm_lod(f: &Frame, frag: [f32; 2]) -> f32 {
+    let levels = f.cam_forward[3];
+    if levels < 2.0 {
+        return 0.0;
+    }
     let mut texels = f.cam_up[3];
     if f.eye[3] != 0.0 {
-        let t = [frag[0] / f.screen[0], frag[1] / f.screen[1]];
-        let dir: [f32; 3] = std::array::from_fn(|k| {
-            f.cam_forward[k]
-                + (2.0 * t[0] - 1.0) * f.cam_right[k]
-                + (1.0 - 2.0 * t[1]) * f.cam_up[k]
-        });
+        let dir = view_dir(f, frag);
         let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
         texels = texels * f.eye[2] * len / (dir[2] * dir[2]);
     }
-    texels.max(1.0).log2().clamp(0.0, f.cam_forward[3] - 1.0)
+    texels.max(1.0).log2().clamp(0.0, levels - 1.0)
 }
 
 /// Texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights, as `tile_bilinear` in WGSL.
@@ -379,15 +381,11 @@ pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
         .map(|j| {
             let (mut lo, mut hi, mut out, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0u64, 0u64);
             for i in 0..w {
-                let Some(pos) = pixel_world(&p.frame, [i as f32 + 0.5, j as f32 + 0.5]) else {
+                let frag = [i as f32 + 0.5, j as f32 + 0.5];
+                let Some(pos) = pixel_world(&p.frame, frag) else {
                     continue;
                 };
-                let lod = if p.variant.ptm_mip {
-                    ptm_lod(&p.frame, [i as f32 + 0.5, j as f32 + 0.5])
-                } else {
-                    0.0
-                };
-                let c = twin.ptm_coeffs(pos, lod);
+                let c = twin.ptm_coeffs(pos, ptm_lod(&p.frame, frag));
                 for l in lights {
                     let lp = l.position_radius;
                     let d = [lp[0] - pos[0], lp[1] - pos[1], lp[2]];

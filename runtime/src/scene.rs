@@ -266,8 +266,12 @@ impl Scene {
             };
             frame.cam_up[3] = pixel * texels_per_unit;
             if self.perspective.is_some() || frame.cam_up[3] > 1.0 {
-                ptm_levels = crate::mip::build_ptm_chain(&mut coeffs, n, ptm.width, ptm.height);
-                frame.cam_forward[3] = ptm_levels.len() as f32;
+                let levels = crate::mip::build_ptm_chain(&mut coeffs, n, ptm.width, ptm.height);
+                // Odd sides give no level beyond 0: then there is no chain at all.
+                if levels.len() > 1 {
+                    frame.cam_forward[3] = levels.len() as f32;
+                    ptm_levels = levels;
+                }
             }
         }
 
@@ -371,7 +375,7 @@ impl Scene {
             albedo_texture: self.albedo_texture.is_some(),
             caster: self.caster.as_ref().map(|_| self.blur),
             colored: self.caster.is_some() && self.colored_shadow,
-            ptm_mip: ptm_levels.len() > 1,
+            ptm_mip: !ptm_levels.is_empty(),
         };
         Ok(Prepared {
             frame,
@@ -419,7 +423,12 @@ impl Variant {
                         if caster.is_none() && colored {
                             continue;
                         }
-                        for ptm_mip in [false, basis.is_some()] {
+                        let mips: &[bool] = if basis.is_some() {
+                            &[false, true]
+                        } else {
+                            &[false]
+                        };
+                        for &ptm_mip in mips {
                             out.push(Variant {
                                 basis,
                                 albedo_texture,
@@ -427,9 +436,6 @@ impl Variant {
                                 colored,
                                 ptm_mip,
                             });
-                            if basis.is_none() {
-                                break;
-                            }
                         }
                     }
                 }
@@ -489,7 +495,8 @@ pub struct Frame {
     pub blur: [u32; 4],
     /// Perspective camera eye (xyz; w = 1 for perspective, 0 for the orthographic top view).
     pub eye: [f32; 4],
-    /// Camera right × tan(fov/2)·aspect, up × tan(fov/2), forward (unit); w unused.
+    /// Camera right × tan(fov/2)·aspect (w unused), up × tan(fov/2) (w: PTM texels per pixel,
+    /// at unit depth for perspective), forward (unit; w: PTM MIP levels, 0 without a chain).
     pub cam_right: [f32; 4],
     pub cam_up: [f32; 4],
     pub cam_forward: [f32; 4],

@@ -58,6 +58,13 @@ fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     return vec4<f32>(x, y, 0.0, 1.0);
 }
 
+// Perspective ray direction through pixel `frag` (its forward component is 1).
+fn view_dir(frag: vec2<f32>) -> vec3<f32> {
+    let t = frag / frame.screen.xy;
+    return frame.cam_forward.xyz + (2.0 * t.x - 1.0) * frame.cam_right.xyz
+        + (1.0 - 2.0 * t.y) * frame.cam_up.xyz;
+}
+
 // Cloth point (x, y) seen through a pixel centre and whether the pixel sees the cloth (z: 1/0);
 // `frag` is @builtin(position).xy (pixel + 0.5). Orthographic: row 0 is y1 of the view.
 // Perspective: the ray eye + s·dir meets z = 0 at s = −eye.z/dir.z (needs dir.z < 0 < eye.z).
@@ -70,8 +77,7 @@ fn pixel_world(frag: vec2<f32>) -> vec3<f32> {
             1.0,
         );
     }
-    let dir = frame.cam_forward.xyz + (2.0 * t.x - 1.0) * frame.cam_right.xyz
-        + (1.0 - 2.0 * t.y) * frame.cam_up.xyz;
+    let dir = view_dir(frag);
     if (dir.z >= 0.0 || frame.eye.z <= 0.0) {
         return vec3<f32>(0.0);
     }
@@ -120,9 +126,7 @@ const NC: u32 = {{NC}}u;
 fn ptm_lod(frag: vec2<f32>) -> f32 {
     var texels = frame.cam_up.w;
     if (frame.eye.w != 0.0) {
-        let t = frag / frame.screen.xy;
-        let dir = frame.cam_forward.xyz + (2.0 * t.x - 1.0) * frame.cam_right.xyz
-            + (1.0 - 2.0 * t.y) * frame.cam_up.xyz;
+        let dir = view_dir(frag);
         texels = texels * frame.eye.z * length(dir) / (dir.z * dir.z);
     }
     return clamp(log2(max(texels, 1.0)), 0.0, frame.cam_forward.w - 1.0);

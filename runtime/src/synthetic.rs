@@ -37,3 +37,19 @@ pub fn leaves(n: usize, rect: [f32; 4], elevation: f32) -> Caster {
         tilt_deg: 0.0,
     }
 }
+
+/// A straight caster edge: opaque (black) for x < 0, clear for x > 0, `n` × `rows` texels over
+/// the world square [−4, 4]² at height `elevation`, untilted (the half-plane of the analytic
+/// penumbra profiles).
+pub fn half_plane(n: usize, rows: usize, elevation: f32) -> Caster {
+    Caster {
+        width: n,
+        height: rows,
+        rgba: (0..n * rows)
+            .map(|t| [0, 0, 0, if t % n < n / 2 { 255 } else { 0 }])
+            .collect(),
+        rect: [-4.0, -4.0, 4.0, 4.0],
+        elevation,
+        tilt_deg: 0.0,
+    }
+}

@@ -30,17 +30,7 @@ fn strip(light: ptm_runtime::Light) -> Scene {
 
 /// Opaque for x < 0, clear for x > 0: 512 × 512 texels over [−4, 4]², at height h.
 fn half_plane(h: f32) -> Caster {
-    let (w, rows) = (512, 512);
-    Caster {
-        width: w,
-        height: rows,
-        rgba: (0..w * rows)
-            .map(|t| [0, 0, 0, if t % w < w / 2 { 255 } else { 0 }])
-            .collect(),
-        rect: [-4.0, -4.0, 4.0, 4.0],
-        elevation: h,
-        tilt_deg: 0.0,
-    }
+    ptm_runtime::synthetic::half_plane(512, 512, h)
 }
 
 /// Per-pixel mean opacity along row 1 of the strip: 1 − radiance(with caster)/radiance(without).
@@ -223,13 +213,7 @@ fn huge_light_spreads_the_caster_thin() {
 
 #[test]
 fn casters_beyond_4096_are_downsampled_and_still_render() {
-    let (w, h) = (8200usize, 3usize);
-    let mut c = half_plane(0.5);
-    c.width = w;
-    c.height = h;
-    c.rgba = (0..w * h)
-        .map(|t| [0, 0, 0, if t % w < w / 2 { 255 } else { 0 }])
-        .collect();
+    let c = ptm_runtime::synthetic::half_plane(8200, 3, 0.5);
     let mut s = strip(light([0.0, 0.0, 2.0], 0.5, 4.0));
     s.caster = Some(c);
     let p = s.prepare().unwrap();

@@ -5,8 +5,8 @@
 use anyhow::Result;
 use ptm_fit::{Basis, Ptm};
 use ptm_runtime::penumbra::{caster_radius, half_plane_fraction};
-use ptm_runtime::synthetic::leaves;
-use ptm_runtime::{compare, cpu, gpu, Blur, Caster, Gpu, Light, Scene};
+use ptm_runtime::synthetic::{half_plane, leaves};
+use ptm_runtime::{compare, cpu, gpu, Blur, Gpu, Light, Scene};
 
 use super::table::{g3, Table};
 
@@ -95,20 +95,6 @@ fn strip(l: Light, blur: Blur) -> Scene {
     s
 }
 
-/// Opaque for x < 0, clear for x > 0: `n` × `rows` texels over [−4, 4] × [−4, 4] at height h.
-fn half_plane(n: usize, rows: usize, h: f32) -> Caster {
-    Caster {
-        width: n,
-        height: rows,
-        rgba: (0..n * rows)
-            .map(|t| [0, 0, 0, if t % n < n / 2 { 255 } else { 0 }])
-            .collect(),
-        rect: [-4.0, -4.0, 4.0, 4.0],
-        elevation: h,
-        tilt_deg: 0.0,
-    }
-}
-
 /// 10 %–90 % width of a rising or falling profile sampled at `xs`, by linear interpolation.
 fn width_10_90(xs: &[f64], o: &[f64]) -> f64 {
     let cross = |level: f64| {
@@ -129,7 +115,9 @@ struct Case {
     does: &'static str,
     light: Light,
     blur: Blur,
-    caster: Caster,
+    /// The half-plane caster: texels a side and height above the cloth (built per case, so
+    /// the 8192² one is held only while it is measured).
+    caster: (usize, f32),
     /// Analytic opacity at acceptor x (None: use the infinite half-plane formula).
     analytic: Option<f64>,
 }
@@ -146,7 +134,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "w = R·d_ca/(d_lc + d_ca) on the caster",
             light: light([0.0, 0.0, 2.0], 0.5),
             blur: Blur::Sat,
-            caster: half_plane(512, 512, h),
+            caster: (512, h),
             analytic: None,
         },
         Case {
@@ -154,7 +142,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "w = 0: one caster lookup, a hard shadow",
             light: light([0.0, 0.0, 2.0], 0.0),
             blur: Blur::Sat,
-            caster: half_plane(512, 512, h),
+            caster: (512, h),
             analytic: None,
         },
         Case {
@@ -162,7 +150,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "w far below a texel: every kernel sample falls in one texel, a hard shadow",
             light: light([0.0, 0.0, 2.0], 1e-6),
             blur: Blur::Explicit,
-            caster: half_plane(512, 512, h),
+            caster: (512, h),
             analytic: None,
         },
         Case {
@@ -170,7 +158,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "w → 0: the shadow is the caster's own texels",
             light: light([0.0, 0.0, 2.0], 0.5),
             blur: Blur::Sat,
-            caster: half_plane(512, 512, 1e-6),
+            caster: (512, 1e-6),
             analytic: None,
         },
         Case {
@@ -178,7 +166,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "every cloth point looks at the caster near the light's foot: w → R",
             light: light([0.02, 0.0, h + 1e-4], 0.05),
             blur: Blur::Sat,
-            caster: half_plane(512, 512, h),
+            caster: (512, h),
             analytic: None,
         },
         Case {
@@ -186,7 +174,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "the caster cannot shadow the cloth: opacity 0",
             light: light([0.02, 0.0, h], 0.05),
             blur: Blur::Sat,
-            caster: half_plane(512, 512, h),
+            caster: (512, h),
             analytic: Some(0.0),
         },
         Case {
@@ -194,7 +182,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "the box holds the whole 8 × 8 caster: opacity = opaque area / box area",
             light: light([0.0, 0.0, 2.0], 1000.0),
             blur: Blur::Sat,
-            caster: half_plane(512, 512, h),
+            caster: (512, h),
             analytic: Some(32.0 / (500.0f64 * 500.0)),
         },
         Case {
@@ -202,7 +190,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             does: "box-downsampled by 2 to ≤ 4096² (reported), u32 SAT sums exact",
             light: light([0.0, 0.0, 2.0], 0.5),
             blur: Blur::Sat,
-            caster: half_plane(big, big, h),
+            caster: (big, h),
             analytic: None,
         },
     ];
@@ -224,7 +212,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
     for c in cases {
         let mut s = strip(c.light, c.blur);
         let free = gpu::render(g, &s.prepare()?)?.0;
-        s.caster = Some(c.caster);
+        s.caster = Some(half_plane(c.caster.0, c.caster.0, c.caster.1));
         let p = s.prepare()?;
         let (lit, timings) = gpu::render(g, &p)?;
         let twin = cpu::render(&p);
@@ -233,6 +221,8 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
         let (r, d_ca) = (c.light.radius as f64, p.frame.caster[0] as f64);
         let d_lc = lz - d_ca;
         let w = caster_radius(r, d_lc, d_ca);
+        // Where the ray from cloth point x to the light centre meets the caster plane.
+        let caster_x = |x: f64| lx + (x - lx) * d_lc / lz;
         let xs: Vec<f64> = (0..STRIP)
             .map(|i| -1.0 + 2.0 * (i as f64 + 0.5) / STRIP as f64)
             .collect();
@@ -248,9 +238,8 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
                 if let Some(a) = c.analytic {
                     return a;
                 }
-                // The caster-plane point on the ray from the acceptor point to the light centre,
-                // and its signed distance into the occluder (x < 0).
-                let cx = lx + (x - lx) * d_lc / lz;
+                // Signed distance of the caster-plane point into the occluder (x < 0).
+                let cx = caster_x(x);
                 match c.blur {
                     Blur::Explicit => half_plane_fraction(-cx, w),
                     _ if w <= 0.0 => half_plane_fraction(-cx, 0.0),
@@ -264,7 +253,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
         let max_dev = xs
             .iter()
             .zip(measured.iter().zip(&analytic))
-            .filter(|(&x, _)| c.analytic.is_some() || (lx + (x - lx) * d_lc / lz).abs() > texel)
+            .filter(|(&x, _)| c.analytic.is_some() || caster_x(x).abs() > texel)
             .map(|(_, (m, a))| (m - a).abs())
             .fold(0f64, f64::max);
         // A profile without an edge in view (constant) has no width.
