@@ -1,5 +1,6 @@
-//! Deterministic synthetic inputs for benchmarks, reports and examples: a leafy caster whose
-//! discs of varying alpha give soft shadows with edges at every scale.
+//! Deterministic synthetic inputs for benchmarks, reports and tests: a leafy caster whose discs
+//! of varying alpha give soft shadows with edges at every scale, and the half-plane edge of the
+//! analytic penumbra profiles.
 
 use crate::scene::Caster;
 
