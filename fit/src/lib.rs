@@ -36,9 +36,9 @@ pub mod ptm;
 pub mod solve;
 pub mod stack;
 
-pub use basis::{Basis, Monomial};
+pub use basis::{Basis, Link, Monomial, UvMap};
 pub use lights::LightSet;
-pub use ptm::{Ptm, PtmInfo, SaveOptions};
+pub use ptm::{Level, Ptm, PtmInfo, SaveOptions};
 pub use solve::{fit_stack, Accumulator, ErrorStats, FitOptions, FitReport, Weight};
 pub use stack::SampleStack;
 

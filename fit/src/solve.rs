@@ -876,6 +876,9 @@ impl Accumulator {
             basis,
             width: self.width,
             height: self.height,
+            link: crate::Link::Identity,
+            uv: crate::UvMap::Projected,
+            mips: Vec::new(),
             tile,
             planes,
         };
@@ -1224,6 +1227,9 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
         basis: opts.basis,
         width: w,
         height: h,
+        link: crate::Link::Identity,
+        uv: crate::UvMap::Projected,
+        mips: Vec::new(),
         tile: stack.tile,
         planes,
     };

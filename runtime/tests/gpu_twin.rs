@@ -144,6 +144,9 @@ fn checker_ptm() -> ptm_fit::Ptm {
         basis: Basis::Ptm6,
         width: n,
         height: n,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [1.0, 1.0],
         planes,
     }
