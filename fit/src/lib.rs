@@ -32,7 +32,9 @@ mod exrio;
 pub mod hp;
 pub mod images;
 pub mod lights;
+pub mod logistic;
 pub mod ptm;
+mod simd;
 pub mod solve;
 pub mod stack;
 
