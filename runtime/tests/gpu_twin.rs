@@ -277,8 +277,16 @@ fn minified_logistic_ptm_renders_from_its_stored_levels() {
     free.ptm = None;
     let (open, _) = gpu::render(&gpu(), &free.prepare().unwrap()).unwrap();
     for (stored, want) in [(true, 0.75f32), (false, 0.5)] {
+        // Through a file, as `ptm preview` reads it: the levels survive the EXR.
+        let path = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("logistic_checker_{stored}.ptm.exr"));
+        logistic_checker(stored)
+            .save(&path, &Default::default())
+            .unwrap();
+        let ptm = ptm_fit::Ptm::load(&path).unwrap();
+        assert_eq!(ptm, logistic_checker(stored));
         let mut s = free.clone();
-        s.ptm = Some(logistic_checker(stored));
+        s.ptm = Some(ptm);
         let p = s.prepare().unwrap();
         assert!(p.variant.ptm_mip && p.ptm_levels.len() == 7);
         let warned = p.warnings == [Warning::LogisticMipsDerived { levels: 7 }];
