@@ -504,7 +504,10 @@ impl std::fmt::Display for Warning {
         match self {
             Warning::LogisticMipsDerived { levels } => write!(
                 f,
-                "the view minifies a logistic PTM that stores no MIP levels, so its {levels}-level                  chain averages coefficients, which does not average K (σ is not linear) and                  misrenders distant cloth; minified logistic PTMs need stored levels: refit with                  `ptm fit`, which writes them"
+                "the view minifies a logistic PTM that stores no MIP levels, so its {levels}-level \
+                 chain averages coefficients, which does not average K (σ is not linear) and \
+                 misrenders distant cloth; minified logistic PTMs need stored levels: refit with \
+                 `ptm fit`, which writes them"
             ),
         }
     }

@@ -291,6 +291,10 @@ fn minified_logistic_ptm_renders_from_its_stored_levels() {
         assert!(p.variant.ptm_mip && p.ptm_levels.len() == 7);
         let warned = p.warnings == [Warning::LogisticMipsDerived { levels: 7 }];
         assert_eq!(warned, !stored, "{:?}", p.warnings);
+        for w in &p.warnings {
+            let text = w.to_string();
+            assert!(!text.contains("  ") && text.contains("`ptm fit`"), "{text}");
+        }
         let (img, _) = gpu::render(&gpu(), &p).unwrap();
         let twin = cpu::render(&p);
         let d = img.max_abs_diff(&twin).unwrap();
