@@ -51,24 +51,24 @@ fn newton_f64(rows: &[Vec<f64>], k: &[f64], rho: f64) -> Vec<f64> {
     let mut c = vec![0.0; m];
     for _ in 0..200 {
         let mut g: Vec<f64> = c.iter().map(|x| rho * x).collect();
-        let mut h = nalgebra::DMatrix::<f64>::identity(m, m) * rho;
+        let mut h = vec![vec![0.0; m]; m];
+        for (i, row) in h.iter_mut().enumerate() {
+            row[i] = rho;
+        }
         for (r, &kk) in rows.iter().zip(k) {
             let z: f64 = r.iter().zip(&c).map(|(a, b)| a * b).sum();
             let p = sigmoid64(z);
             for i in 0..m {
                 g[i] += (p - kk) * r[i];
                 for j in 0..m {
-                    h[(i, j)] += p * (1.0 - p) * r[i] * r[j];
+                    h[i][j] += p * (1.0 - p) * r[i] * r[j];
                 }
             }
         }
         if g.iter().map(|x| x.abs()).fold(0.0, f64::max) < 1e-12 {
             break;
         }
-        let step = h
-            .lu()
-            .solve(&nalgebra::DVector::from_vec(g.clone()))
-            .unwrap();
+        let step = gauss(h, g.clone());
         let j0 = objective(&c);
         let mut t = 1.0;
         loop {
@@ -83,13 +83,38 @@ fn newton_f64(rows: &[Vec<f64>], k: &[f64], rho: f64) -> Vec<f64> {
     c
 }
 
+/// Solves h·x = g by Gaussian elimination with partial pivoting.
+fn gauss(mut h: Vec<Vec<f64>>, mut g: Vec<f64>) -> Vec<f64> {
+    let m = g.len();
+    for col in 0..m {
+        let piv = (col..m)
+            .max_by(|&a, &b| h[a][col].abs().total_cmp(&h[b][col].abs()))
+            .unwrap();
+        h.swap(col, piv);
+        g.swap(col, piv);
+        for r in col + 1..m {
+            let f = h[r][col] / h[col][col];
+            for c in col..m {
+                h[r][c] -= f * h[col][c];
+            }
+            g[r] -= f * g[col];
+        }
+    }
+    let mut x = vec![0.0; m];
+    for i in (0..m).rev() {
+        let s: f64 = (i + 1..m).map(|j| h[i][j] * x[j]).sum();
+        x[i] = (g[i] - s) / h[i][i];
+    }
+    x
+}
+
 #[test]
 fn real_bake_logistic_fit_agrees_with_an_independent_f64_newton_solve() {
     let dir = tempfile::tempdir().unwrap();
     let stack = bake(dir.path(), "10", "48", "4");
     for basis in Basis::ALL {
         for uv in UvMap::ALL {
-            let lambda = 1e-3;
+            let lambda = ptm_fit::logistic::DEFAULT_RIDGE;
             let opts = FitOptions {
                 link: Link::Logistic,
                 uv,
