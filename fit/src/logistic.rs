@@ -38,7 +38,7 @@ pub const DEFAULT_MAX_ITERATIONS: u32 = 30;
 
 /// Largest Newton step (max-norm of the coefficient change) taken at once: far from the optimum
 /// a full step can overshoot; the cap keeps every iterate bounded without a line search.
-const MAX_STEP: f64 = 8.0;
+const MAX_STEP: f64 = 16.0;
 
 /// Logit of the warm start is taken of K clamped to [EPS, 1 − EPS].
 const WARM_EPS: f32 = 0.02;
@@ -223,23 +223,23 @@ fn solve_spd<const M: usize>(hp: &[f64], g: &[f64], ridge: f64) -> [f64; 16] {
     x
 }
 
-/// Fits one tile of `S::LANES` texels whose K values are packed `[used light][lane]` (a value
-/// < 0 marks a sample to leave out: a masked texel, or a non-finite sample dropped by
-/// --skip-bad). `live[q]`: lane q holds a texel to fit.
+/// Per-slot Newton state of a block: a slot is one lane of one tile of the work buffer.
+struct Slots<const M: usize> {
+    /// Coefficients per tile, `[term][lane]`.
+    c: Vec<[[f32; 16]; M]>,
+    /// Block-local texel held by each slot (tile·16 + lane), if any.
+    texel: Vec<Option<usize>>,
+    active: Vec<bool>,
+}
+
+/// Warm start of one tile: least squares of the clamped logits, c = Σₙ Pₙ·logit(kₙ).
 #[inline(always)]
-fn tile<S: Simd, const M: usize, const D: usize>(
-    t: &Tables,
-    kt: &[f32],
-    live: &[bool; 16],
-    out: &mut [TexelFit],
-) {
+fn warm_start<S: Simd, const M: usize>(t: &Tables, kt: &[f32]) -> [[f32; 16]; M] {
     let l = S::LANES;
-    let nfit = t.nfit;
-    let (zero, one) = (S::splat(0.0), S::splat(1.0));
+    let one = S::splat(1.0);
     let (lo, hi) = (S::splat(WARM_EPS), S::splat(1.0 - WARM_EPS));
-    // Warm start: least squares of the clamped logits, c = Σₙ Pₙ·logit(kₙ).
-    let mut c = [zero; M];
-    for n in 0..nfit {
+    let mut c = [S::splat(0.0); M];
+    for n in 0..t.nfit {
         let kv = S::load(&kt[n * l..]);
         let k = S::min(S::max(kv, lo), hi);
         let lg = S::where_nonneg(kv, S::sub(S::ln(k), S::ln(S::sub(one, k))));
@@ -252,84 +252,102 @@ fn tile<S: Simd, const M: usize, const D: usize>(
     for j in 0..M {
         S::store(c[j], &mut cl[j]);
     }
-    let mut active = *live;
-    let mut iterations = [0u32; 16];
-    let mut converged = [false; 16];
-    let mut lanes = [0f32; 16];
-    for _ in 0..t.max_iterations {
-        if !active[..l].iter().any(|&x| x) {
-            break;
-        }
-        for j in 0..M {
-            c[j] = S::load(&cl[j]);
-        }
-        let mut g = [zero; M];
-        let mut h = [zero; D];
-        for n in 0..nfit {
-            let kv = S::load(&kt[n * l..]);
-            let an = &t.a[n * M..(n + 1) * M];
-            let qn = &t.q[n * D..(n + 1) * D];
-            let mut z = zero;
-            for j in 0..M {
-                z = S::fma(S::splat(an[j]), c[j], z);
-            }
-            let p = S::sigmoid(z);
-            let o = S::where_nonneg(kv, S::splat(t.omega[n]));
-            let r = S::mul(o, S::sub(p, kv));
-            let w = S::mul(S::mul(o, p), S::sub(one, p));
-            for j in 0..M {
-                g[j] = S::fma(r, S::splat(an[j]), g[j]);
-            }
-            for e in 0..D {
-                h[e] = S::fma(w, S::splat(qn[e]), h[e]);
-            }
-        }
-        let mut gl = [[0f32; 16]; M];
-        for j in 0..M {
-            S::store(g[j], &mut gl[j]);
-        }
-        let mut hl = [[0f32; 16]; D];
-        for e in 0..D {
-            S::store(h[e], &mut hl[e]);
-        }
-        for q in 0..l {
-            if !active[q] {
-                continue;
-            }
-            let mut hp = [0f64; 136];
-            for (e, &k) in t.pair.iter().enumerate() {
-                hp[e] = hl[k][q] as f64;
-            }
-            let mut grad = [0f64; 16];
-            for j in 0..M {
-                grad[j] = gl[j][q] as f64 + t.ridge * cl[j][q] as f64;
-            }
-            let mut delta = solve_spd::<M>(&hp[..t.pair.len()], &grad[..M], t.ridge);
-            let big = delta[..M].iter().fold(0.0f64, |a, &b| a.max(b.abs()));
-            if !big.is_finite() {
-                active[q] = false;
-                continue;
-            }
-            if big > MAX_STEP {
-                for x in &mut delta[..M] {
-                    *x *= MAX_STEP / big;
-                }
-            }
-            let decrement: f64 = (0..M).map(|j| delta[j] * grad[j]).sum();
-            for j in 0..M {
-                cl[j][q] = (cl[j][q] as f64 - delta[j]) as f32;
-            }
-            iterations[q] += 1;
-            if decrement <= t.tolerance * t.omega_sum || big <= 1e-6 {
-                active[q] = false;
-                converged[q] = true;
-            }
-        }
-    }
+    cl
+}
+
+/// One Newton step for the active lanes of one tile (K packed `[used light][lane]`; a value
+/// < 0 marks a sample to leave out). Returns, per lane, whether it converged or failed now.
+#[inline(always)]
+fn newton_step<S: Simd, const M: usize, const D: usize>(
+    t: &Tables,
+    kt: &[f32],
+    cl: &mut [[f32; 16]; M],
+    active: &[bool],
+    tolerance: f64,
+) -> [bool; 16] {
+    let l = S::LANES;
+    let (zero, one) = (S::splat(0.0), S::splat(1.0));
+    let mut c = [zero; M];
     for j in 0..M {
         c[j] = S::load(&cl[j]);
     }
-    // Final pass: residuals of σ(p) over the fitting lights, classification, held-out error.
+    let mut g = [zero; M];
+    let mut h = [zero; D];
+    for n in 0..t.nfit {
+        let kv = S::load(&kt[n * l..]);
+        let an = &t.a[n * M..(n + 1) * M];
+        let qn = &t.q[n * D..(n + 1) * D];
+        let mut z = zero;
+        for j in 0..M {
+            z = S::fma(S::splat(an[j]), c[j], z);
+        }
+        let p = S::sigmoid(z);
+        let o = S::where_nonneg(kv, S::splat(t.omega[n]));
+        let r = S::mul(o, S::sub(p, kv));
+        let w = S::mul(S::mul(o, p), S::sub(one, p));
+        for j in 0..M {
+            g[j] = S::fma(r, S::splat(an[j]), g[j]);
+        }
+        for e in 0..D {
+            h[e] = S::fma(w, S::splat(qn[e]), h[e]);
+        }
+    }
+    let mut gl = [[0f32; 16]; M];
+    for j in 0..M {
+        S::store(g[j], &mut gl[j]);
+    }
+    let mut hl = [[0f32; 16]; D];
+    for e in 0..D {
+        S::store(h[e], &mut hl[e]);
+    }
+    let mut done = [false; 16];
+    for q in 0..l {
+        if !active[q] {
+            continue;
+        }
+        let mut hp = [0f64; 136];
+        for (e, &k) in t.pair.iter().enumerate() {
+            hp[e] = hl[k][q] as f64;
+        }
+        let mut grad = [0f64; 16];
+        for j in 0..M {
+            grad[j] = gl[j][q] as f64 + t.ridge * cl[j][q] as f64;
+        }
+        let mut delta = solve_spd::<M>(&hp[..t.pair.len()], &grad[..M], t.ridge);
+        let big = delta[..M].iter().fold(0.0f64, |a, &b| a.max(b.abs()));
+        if !big.is_finite() {
+            done[q] = true;
+            continue;
+        }
+        if big > MAX_STEP {
+            for x in &mut delta[..M] {
+                *x *= MAX_STEP / big;
+            }
+        }
+        let decrement: f64 = (0..M).map(|j| delta[j] * grad[j]).sum();
+        for j in 0..M {
+            cl[j][q] = (cl[j][q] as f64 - delta[j]) as f32;
+        }
+        done[q] = decrement <= tolerance * t.omega_sum || big <= 1e-6;
+    }
+    done
+}
+
+/// Residuals of σ(p) over the fitting lights, classification and held-out error of one tile
+/// at its final coefficients.
+#[inline(always)]
+fn final_pass<S: Simd, const M: usize>(
+    t: &Tables,
+    kt: &[f32],
+    cl: &[[f32; 16]; M],
+    live: &[bool],
+    out: &mut [TexelFit],
+) {
+    let l = S::LANES;
+    let mut c = [S::splat(0.0); M];
+    for j in 0..M {
+        c[j] = S::load(&cl[j]);
+    }
     let mut ss = [0f32; 16];
     let mut mx = [0f32; 16];
     let mut sep = [true; 16];
@@ -342,7 +360,7 @@ fn tile<S: Simd, const M: usize, const D: usize>(
     let mut pl = [0f32; 16];
     for n in 0..t.used.len() {
         let an = &t.a[n * M..(n + 1) * M];
-        let mut z = zero;
+        let mut z = S::splat(0.0);
         for j in 0..M {
             z = S::fma(S::splat(an[j]), c[j], z);
         }
@@ -354,7 +372,7 @@ fn tile<S: Simd, const M: usize, const D: usize>(
                 continue;
             }
             let e = pl[q] - kv[q];
-            if n < nfit {
+            if n < t.nfit {
                 ss[q] += t.omega[n] * e * e;
                 mx[q] = mx[q].max(e.abs());
                 valid[q] += 1;
@@ -373,7 +391,6 @@ fn tile<S: Simd, const M: usize, const D: usize>(
             }
         }
     }
-    let _ = &mut lanes;
     for q in 0..l.min(out.len()) {
         let o = &mut out[q];
         if !live[q] {
@@ -383,8 +400,6 @@ fn tile<S: Simd, const M: usize, const D: usize>(
         for j in 0..M {
             o.c[j] = cl[j][q];
         }
-        o.iterations = iterations[q];
-        o.converged = converged[q];
         o.constant = valid[q] > 0 && (ones[q] == valid[q] || zeros[q] == valid[q]);
         o.separable = valid[q] > 0 && sep[q] && !o.constant;
         o.rms = if t.omega_sum > 0.0 {
@@ -401,7 +416,9 @@ fn tile<S: Simd, const M: usize, const D: usize>(
     }
 }
 
-/// Fits every tile of a packed block (`packed`: tiles of `[used light][lane]`).
+/// Fits every texel of a packed block (`packed`: tiles of `[used light][lane]`). Newton runs on
+/// a work copy whose still-active lanes are compacted into the lowest tiles after every step,
+/// so a block costs its texels' mean iteration count, not each tile's slowest lane's.
 #[inline(always)]
 fn block_body<S: Simd, const M: usize, const D: usize>(
     t: &Tables,
@@ -410,14 +427,119 @@ fn block_body<S: Simd, const M: usize, const D: usize>(
     out: &mut [TexelFit],
 ) {
     let (nu, l) = (t.used.len(), S::LANES);
-    for (ti, kt) in packed.chunks_exact(nu * l).enumerate() {
+    let stride_k = nu * l;
+    let tiles = packed.len() / stride_k;
+    let len = out.len();
+    let mut work = packed.to_vec();
+    // Plain loops, not closures, around SIMD code: a closure does not inherit the caller's
+    // target features, so intrinsics inside it would not inline.
+    let mut warm = Vec::with_capacity(tiles);
+    for ti in 0..tiles {
+        warm.push(warm_start::<S, M>(
+            t,
+            &packed[ti * stride_k..(ti + 1) * stride_k],
+        ));
+    }
+    let mut st = Slots::<M> {
+        c: warm,
+        texel: (0..tiles * l).map(|s| (s < len).then_some(s)).collect(),
+        active: (0..tiles * l).map(|s| s < len && live[s]).collect(),
+    };
+    let mut final_c = vec![[0f32; 16]; len];
+    let mut iterations = vec![0u32; len];
+    let mut converged = vec![false; len];
+    let retire = |st: &Slots<M>, s: usize, final_c: &mut Vec<[f32; 16]>| {
+        if let Some(i) = st.texel[s] {
+            for j in 0..M {
+                final_c[i][j] = st.c[s / l][j][s % l];
+            }
+        }
+    };
+    {
+        loop {
+            let count = st.active.iter().filter(|&&a| a).count();
+            if count == 0 {
+                break;
+            }
+            // Compact: move active lanes beyond the first `count` slots into free slots below.
+            let mut holes = (0..count)
+                .filter(|&s| !st.active[s])
+                .collect::<Vec<_>>()
+                .into_iter();
+            for s in count..tiles * l {
+                if !st.active[s] {
+                    continue;
+                }
+                let f = holes.next().expect("as many holes below as actives above");
+                let (ts, qs, tf, qf) = (s / l, s % l, f / l, f % l);
+                for li in 0..nu {
+                    work[tf * stride_k + li * l + qf] = work[ts * stride_k + li * l + qs];
+                }
+                for j in 0..M {
+                    st.c[tf][j][qf] = st.c[ts][j][qs];
+                }
+                // A retired texel in the hole keeps its result in final_c; the slot is reused.
+                st.texel.swap(f, s);
+                st.active[f] = true;
+                st.active[s] = false;
+            }
+            for ti in 0..count.div_ceil(l) {
+                let act = &st.active[ti * l..(ti + 1) * l];
+                let done = newton_step::<S, M, D>(
+                    t,
+                    &work[ti * stride_k..(ti + 1) * stride_k],
+                    &mut st.c[ti],
+                    act,
+                    t.tolerance,
+                );
+                for q in 0..l {
+                    let s = ti * l + q;
+                    if !st.active[s] {
+                        continue;
+                    }
+                    let i = st.texel[s].expect("an active slot holds a texel");
+                    iterations[i] += 1;
+                    if done[q] || iterations[i] >= t.max_iterations {
+                        converged[i] = done[q];
+                        st.active[s] = false;
+                        retire(&st, s, &mut final_c);
+                    }
+                }
+            }
+        }
+    }
+    // Lanes still active at the cap keep their last iterate.
+    for s in 0..tiles * l {
+        if st.active[s] {
+            retire(&st, s, &mut final_c);
+        }
+    }
+    for ti in 0..tiles {
+        let mut cl = [[0f32; 16]; M];
+        for q in 0..l {
+            if let Some(c) = final_c.get(ti * l + q) {
+                for j in 0..M {
+                    cl[j][q] = c[j];
+                }
+            }
+        }
         let b0 = ti * l;
+        let end = (b0 + l).min(len);
         let mut lv = [false; 16];
         for q in 0..l {
             lv[q] = live.get(b0 + q).copied().unwrap_or(false);
         }
-        let end = (b0 + l).min(out.len());
-        tile::<S, M, D>(t, kt, &lv, &mut out[b0..end]);
+        final_pass::<S, M>(
+            t,
+            &packed[ti * stride_k..(ti + 1) * stride_k],
+            &cl,
+            &lv,
+            &mut out[b0..end],
+        );
+        for (q, o) in out[b0..end].iter_mut().enumerate() {
+            o.iterations = iterations[b0 + q];
+            o.converged = converged[b0 + q];
+        }
     }
 }
 
@@ -531,26 +653,36 @@ fn run_block(kernel: Kernel, t: &Tables, packed: &[f32], live: &[bool], out: &mu
     }
 }
 
-/// Where the K of a fit comes from, per (light, texel) of level 0.
+/// Where the K of a fit comes from, per (light, texel) of the level being fitted.
 pub(crate) enum Source<'a> {
     /// A stored stack: K planes `[light][texel]`, coverage per texel (the box filter's weight).
     Planes {
         k: &'a [Vec<f32>],
         coverage: &'a [f32],
     },
-    /// A streaming bake: occluded sample counts `[light][texel]` and covered samples per texel.
+    /// A pooled stack level: K per light (−1 = nothing covered) and the pooled weight per texel.
+    Weighted {
+        k: &'a [Vec<f32>],
+        w: &'a [f32],
+    },
+    /// Exact counts: occluded samples `[light][texel]` and covered samples per texel (a
+    /// streaming bake's level 0 in u8 or u16, pooled levels in u16 or u32).
     Counts8 {
         occ: &'a [Vec<u8>],
-        cov: &'a [u16],
+        cov: &'a [u32],
     },
     Counts16 {
         occ: &'a [Vec<u16>],
-        cov: &'a [u16],
+        cov: &'a [u32],
+    },
+    Counts32 {
+        occ: &'a [Vec<u32>],
+        cov: &'a [u32],
     },
 }
 
-/// The footprint of level-ℓ texels in level-0 texels: (width, height, fx, fy) with texel (x, y)
-/// covering columns [x·fx, (x+1)·fx) and rows [y·fy, (y+1)·fy).
+/// The sizes of level 0 and of every MIP level down to 1×1 (halved, rounded down; a side that is
+/// already 1 stays 1), with the pooling factors (fx, fy) ∈ {1, 2} from the level above.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Footprint {
     pub width: usize,
@@ -560,30 +692,24 @@ pub(crate) struct Footprint {
 }
 
 impl Footprint {
-    pub fn base(width: usize, height: usize) -> Footprint {
-        Footprint {
+    pub fn chain(width: usize, height: usize) -> Vec<Footprint> {
+        let mut out = vec![Footprint {
             width,
             height,
             fx: 1,
             fy: 1,
-        }
-    }
-
-    /// Level 0, then every MIP level down to 1×1 (sizes halved and rounded down; a side that is
-    /// already 1 stays 1 and stops widening its footprint).
-    pub fn chain(width: usize, height: usize) -> Vec<Footprint> {
-        let mut out = vec![Footprint::base(width, height)];
+        }];
         let mut f = out[0];
         while f.width > 1 || f.height > 1 {
-            let (sx, sy) = (
+            let (fx, fy) = (
                 if f.width > 1 { 2 } else { 1 },
                 if f.height > 1 { 2 } else { 1 },
             );
             f = Footprint {
-                width: f.width / sx,
-                height: f.height / sy,
-                fx: f.fx * sx,
-                fy: f.fy * sy,
+                width: f.width / fx,
+                height: f.height / fy,
+                fx,
+                fy,
             };
             out.push(f);
         }
@@ -592,19 +718,13 @@ impl Footprint {
 }
 
 impl Source<'_> {
-    /// K of light `l` for the `out.len()` level texels from index `start` of level `fp` (of a
-    /// level-0 image `w0` wide): the box-filtered K of each footprint (coverage-weighted for a
-    /// stack, pooled counts for a bake), or −1 where nothing of the footprint is covered (or,
-    /// for a stack, where every sample of it is not finite).
-    fn fill(&self, l: usize, fp: Footprint, w0: usize, start: usize, out: &mut [f32]) {
-        let base = fp.fx == 1 && fp.fy == 1;
+    /// K of light `l` for the `out.len()` texels from index `start`, or −1 where the texel has
+    /// no covered sample (or, for a stack, a non-finite one).
+    fn fill(&self, l: usize, start: usize, out: &mut [f32]) {
+        let r = start..start + out.len();
         match self {
-            Source::Planes { k, coverage } if base => {
-                let (k, c) = (
-                    &k[l][start..start + out.len()],
-                    &coverage[start..start + out.len()],
-                );
-                for ((o, &kv), &cv) in out.iter_mut().zip(k).zip(c) {
+            Source::Planes { k, coverage } => {
+                for ((o, &kv), &cv) in out.iter_mut().zip(&k[l][r.clone()]).zip(&coverage[r]) {
                     *o = if cv > 0.0 && kv.is_finite() {
                         kv.clamp(0.0, 1.0)
                     } else {
@@ -612,52 +732,160 @@ impl Source<'_> {
                     };
                 }
             }
-            Source::Planes { k, coverage } => {
-                for (i, o) in out.iter_mut().enumerate() {
-                    let ti = start + i;
-                    let (x0, y0) = ((ti % fp.width) * fp.fx, (ti / fp.width) * fp.fy);
-                    let (mut num, mut den) = (0f64, 0f64);
-                    for yy in y0..y0 + fp.fy {
-                        let r = yy * w0 + x0;
-                        for (&kv, &cv) in k[l][r..r + fp.fx].iter().zip(&coverage[r..r + fp.fx]) {
-                            if cv > 0.0 && kv.is_finite() {
-                                num += (cv * kv.clamp(0.0, 1.0)) as f64;
-                                den += cv as f64;
-                            }
-                        }
-                    }
-                    *o = if den > 0.0 { (num / den) as f32 } else { -1.0 };
-                }
-            }
-            Source::Counts8 { occ, cov } => pooled(&occ[l], cov, fp, w0, start, out),
-            Source::Counts16 { occ, cov } => pooled(&occ[l], cov, fp, w0, start, out),
+            Source::Weighted { k, .. } => out.copy_from_slice(&k[l][r]),
+            Source::Counts8 { occ, cov } => ratio(&occ[l][r.clone()], &cov[r], out),
+            Source::Counts16 { occ, cov } => ratio(&occ[l][r.clone()], &cov[r], out),
+            Source::Counts32 { occ, cov } => ratio(&occ[l][r.clone()], &cov[r], out),
+        }
+    }
+
+    fn lights(&self) -> usize {
+        match self {
+            Source::Planes { k, .. } | Source::Weighted { k, .. } => k.len(),
+            Source::Counts8 { occ, .. } => occ.len(),
+            Source::Counts16 { occ, .. } => occ.len(),
+            Source::Counts32 { occ, .. } => occ.len(),
         }
     }
 }
 
-/// Pooled counts Σ occluded / Σ covered over each footprint (exact integer sums).
-fn pooled<T: Copy + Into<u32>>(
-    occ: &[T],
-    cov: &[u16],
-    fp: Footprint,
-    w0: usize,
-    start: usize,
-    out: &mut [f32],
-) {
-    for (i, o) in out.iter_mut().enumerate() {
-        let ti = start + i;
-        let (x0, y0) = ((ti % fp.width) * fp.fx, (ti / fp.width) * fp.fy);
-        let (mut num, mut den) = (0u64, 0u64);
-        for yy in y0..y0 + fp.fy {
-            let r = yy * w0 + x0;
-            num += occ[r..r + fp.fx].iter().map(|&v| v.into()).sum::<u32>() as u64;
-            den += cov[r..r + fp.fx].iter().map(|&v| v as u32).sum::<u32>() as u64;
-        }
-        *o = if den > 0 {
-            (num as f64 / den as f64) as f32
+#[inline]
+fn ratio<T: Copy + Into<u32>>(occ: &[T], cov: &[u32], out: &mut [f32]) {
+    for ((o, &n), &c) in out.iter_mut().zip(occ).zip(cov) {
+        *o = if c > 0 {
+            (n.into() as f64 / c as f64) as f32
         } else {
             -1.0
         };
+    }
+}
+
+/// A MIP level's K data, pooled from the level above: what [`Source`] borrows for that level.
+pub(crate) enum Pooled {
+    Weighted { k: Vec<Vec<f32>>, w: Vec<f32> },
+    Counts16 { occ: Vec<Vec<u16>>, cov: Vec<u32> },
+    Counts32 { occ: Vec<Vec<u32>>, cov: Vec<u32> },
+}
+
+impl Pooled {
+    pub fn source(&self) -> Source<'_> {
+        match self {
+            Pooled::Weighted { k, w } => Source::Weighted { k, w },
+            Pooled::Counts16 { occ, cov } => Source::Counts16 { occ, cov },
+            Pooled::Counts32 { occ, cov } => Source::Counts32 { occ, cov },
+        }
+    }
+}
+
+/// The children (level-above texel indices) of texel (x, y) of level `to`.
+#[inline]
+fn children(from_w: usize, to: Footprint, x: usize, y: usize) -> [Option<usize>; 4] {
+    let mut out = [None; 4];
+    let mut i = 0;
+    for dy in 0..to.fy {
+        for dx in 0..to.fx {
+            out[i] = Some((y * to.fy + dy) * from_w + x * to.fx + dx);
+            i += 1;
+        }
+    }
+    out
+}
+
+/// Pools `src` (a level `from_w` texels wide) into level `to`: the box filter of the MIP chain.
+/// Counts add exactly (u16 while the pooled covered count fits, else u32); stack levels take
+/// the weighted mean of the covered children's K, weights the coverage (then the pooled
+/// weights). Parallel over lights; exact or order-independent, so thread counts do not matter.
+pub(crate) fn pool(src: &Source, from_w: usize, to: Footprint) -> Pooled {
+    let n = to.width * to.height;
+    let kids = |t: usize| children(from_w, to, t % to.width, t / to.width);
+    let sum_cov = |cov: &[u32]| -> Vec<u32> {
+        (0..n)
+            .map(|t| kids(t).iter().flatten().map(|&c| cov[c]).sum())
+            .collect()
+    };
+    fn add<T: Copy + Into<u32> + Sync, U: TryFrom<u32> + Send>(
+        occ: &[Vec<T>],
+        n: usize,
+        kids: &(dyn Fn(usize) -> [Option<usize>; 4] + Sync),
+    ) -> Vec<Vec<U>> {
+        occ.par_iter()
+            .map(|plane| {
+                (0..n)
+                    .map(|t| {
+                        let s: u32 = kids(t).iter().flatten().map(|&c| plane[c].into()).sum();
+                        U::try_from(s)
+                            .ok()
+                            .expect("pooled count fits by construction")
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+    match src {
+        Source::Planes { .. } | Source::Weighted { .. } => {
+            let wsrc: &[f32] = match src {
+                Source::Planes { coverage, .. } => coverage,
+                Source::Weighted { w, .. } => w,
+                _ => unreachable!("a stack source"),
+            };
+            let w: Vec<f32> = (0..n)
+                .map(|t| kids(t).iter().flatten().map(|&c| wsrc[c]).sum())
+                .collect();
+            let from_len = wsrc.len();
+            let k = (0..src.lights())
+                .into_par_iter()
+                .map(|l| {
+                    let mut row = vec![0f32; from_len];
+                    src.fill(l, 0, &mut row);
+                    (0..n)
+                        .map(|t| {
+                            let (mut num, mut den) = (0f64, 0f64);
+                            for &c in kids(t).iter().flatten() {
+                                if row[c] >= 0.0 && wsrc[c] > 0.0 {
+                                    num += (wsrc[c] * row[c]) as f64;
+                                    den += wsrc[c] as f64;
+                                }
+                            }
+                            if den > 0.0 {
+                                (num / den) as f32
+                            } else {
+                                -1.0
+                            }
+                        })
+                        .collect()
+                })
+                .collect();
+            Pooled::Weighted { k, w }
+        }
+        Source::Counts8 { cov, .. }
+        | Source::Counts16 { cov, .. }
+        | Source::Counts32 { cov, .. } => {
+            let cov = sum_cov(cov);
+            let wide = cov.iter().any(|&c| c > u16::MAX as u32);
+            match (src, wide) {
+                (Source::Counts8 { occ, .. }, false) => Pooled::Counts16 {
+                    occ: add(occ, n, &kids),
+                    cov,
+                },
+                (Source::Counts16 { occ, .. }, false) => Pooled::Counts16 {
+                    occ: add(occ, n, &kids),
+                    cov,
+                },
+                (Source::Counts8 { occ, .. }, true) => Pooled::Counts32 {
+                    occ: add(occ, n, &kids),
+                    cov,
+                },
+                (Source::Counts16 { occ, .. }, true) => Pooled::Counts32 {
+                    occ: add(occ, n, &kids),
+                    cov,
+                },
+                (Source::Counts32 { occ, .. }, _) => Pooled::Counts32 {
+                    occ: add(occ, n, &kids),
+                    cov,
+                },
+                _ => unreachable!("a counts source"),
+            }
+        }
     }
 }
 
@@ -670,13 +898,11 @@ const BLOCK: usize = 256;
 pub(crate) fn fit_level(
     t: &Tables,
     src: &Source,
-    fp: Footprint,
-    w0: usize,
+    texels: usize,
     live: &(dyn Fn(usize) -> bool + Sync),
     kernel: Kernel,
 ) -> Vec<TexelFit> {
     assert!(kernel.supported(), "kernel {} not supported", kernel.name());
-    let texels = fp.width * fp.height;
     let lanes = kernel.lanes();
     let nu = t.used.len();
     let mut out = vec![TexelFit::default(); texels];
@@ -692,7 +918,7 @@ pub(crate) fn fit_level(
             let mut row = vec![0f32; tiles * lanes];
             let mut any = vec![false; len];
             for (li, &l) in t.used.iter().enumerate() {
-                src.fill(l, fp, w0, start, &mut row[..len]);
+                src.fill(l, start, &mut row[..len]);
                 for i in 0..len {
                     if !live_v[i] {
                         row[i] = -1.0;

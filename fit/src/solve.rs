@@ -588,15 +588,29 @@ fn fit_logistic(
     let t_factor = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     let chain = Footprint::chain(w, h);
-    let fits = logistic::fit_level(&tables, src, chain[0], w, &|ti| !masked[ti], kernel);
+    let fits = logistic::fit_level(&tables, src, t, &|ti| !masked[ti], kernel);
     let t_level0 = t1.elapsed().as_secs_f64();
     let t2 = Instant::now();
     let mut mips = Vec::new();
     if opts.mips {
+        // Each level pools the one above (exact counts, or coverage-weighted K), is fitted, and
+        // replaces it: at most two levels' data are alive, the first a quarter of level 0.
+        let mut above: Option<logistic::Pooled> = None;
+        let mut above_w = w;
         for fp in &chain[1..] {
+            let pooled = match &above {
+                None => logistic::pool(src, above_w, *fp),
+                Some(p) => logistic::pool(&p.source(), above_w, *fp),
+            };
             // A coarse texel is fitted when any of its footprint is covered (the kernel leaves
             // out texels whose every sample is missing).
-            let level = logistic::fit_level(&tables, src, *fp, w, &|_| true, kernel);
+            let level = logistic::fit_level(
+                &tables,
+                &pooled.source(),
+                fp.width * fp.height,
+                &|_| true,
+                kernel,
+            );
             mips.push(crate::Level {
                 width: fp.width,
                 height: fp.height,
@@ -604,6 +618,8 @@ fn fit_logistic(
                     .map(|j| level.iter().map(|x| x.c[j]).collect())
                     .collect(),
             });
+            above = Some(pooled);
+            above_w = fp.width;
         }
     }
     let t_mips = t2.elapsed().as_secs_f64();
@@ -705,41 +721,46 @@ fn fit_logistic(
 pub(crate) fn identity_mips(ptm: &Ptm, coverage: &[f32]) -> Vec<crate::Level> {
     let m = ptm.basis.len();
     let chain = Footprint::chain(ptm.width, ptm.height);
-    let w0 = ptm.width;
-    chain[1..]
-        .iter()
-        .map(|fp| {
-            let mut planes = vec![vec![0f32; fp.width * fp.height]; m];
-            for y in 0..fp.height {
-                for x in 0..fp.width {
-                    let mut num = [0f64; 16];
-                    let mut den = 0f64;
-                    for yy in y * fp.fy..(y + 1) * fp.fy {
-                        for xx in x * fp.fx..(x + 1) * fp.fx {
-                            let t = yy * w0 + xx;
-                            let c = coverage.get(t).copied().unwrap_or(1.0) as f64;
-                            if c > 0.0 {
-                                den += c;
-                                for j in 0..m {
-                                    num[j] += c * ptm.planes[j][t] as f64;
-                                }
-                            }
-                        }
-                    }
-                    if den > 0.0 {
-                        for j in 0..m {
-                            planes[j][y * fp.width + x] = (num[j] / den) as f32;
-                        }
+    let mut planes: Vec<Vec<f32>> = ptm.planes.clone();
+    let mut weight: Vec<f64> = (0..ptm.width * ptm.height)
+        .map(|t| coverage.get(t).copied().unwrap_or(1.0).max(0.0) as f64)
+        .collect();
+    let mut above_w = ptm.width;
+    let mut out = Vec::new();
+    for fp in &chain[1..] {
+        let n = fp.width * fp.height;
+        let mut next = vec![vec![0f32; n]; m];
+        let mut next_w = vec![0f64; n];
+        for t in 0..n {
+            let (x, y) = (t % fp.width, t / fp.width);
+            let mut num = [0f64; 16];
+            let mut den = 0f64;
+            for dy in 0..fp.fy {
+                for dx in 0..fp.fx {
+                    let c = (y * fp.fy + dy) * above_w + x * fp.fx + dx;
+                    den += weight[c];
+                    for j in 0..m {
+                        num[j] += weight[c] * planes[j][c] as f64;
                     }
                 }
             }
-            crate::Level {
-                width: fp.width,
-                height: fp.height,
-                planes,
+            next_w[t] = den;
+            if den > 0.0 {
+                for j in 0..m {
+                    next[j][t] = (num[j] / den) as f32;
+                }
             }
-        })
-        .collect()
+        }
+        out.push(crate::Level {
+            width: fp.width,
+            height: fp.height,
+            planes: next.clone(),
+        });
+        planes = next;
+        weight = next_w;
+        above_w = fp.width;
+    }
+    out
 }
 
 /// Streaming accumulator used by `ptm bake --fit`: samples are added light by light, memory is
@@ -774,7 +795,7 @@ pub struct Accumulator {
     /// and the occluded counts of every light (u8 while spp ≤ 255, else u16): exact, and
     /// texels × lights bytes where a stored f32 stack would take four times that.
     spp: Option<u32>,
-    cov: Vec<u16>,
+    cov: Vec<u32>,
     occ8: Vec<Vec<u8>>,
     occ16: Vec<Vec<u16>>,
     full_coverage: Vec<f32>,
@@ -885,7 +906,7 @@ impl Accumulator {
             self.cov = (0..t)
                 .map(|ti| {
                     let c = self.full_coverage.get(ti).copied().unwrap_or(1.0);
-                    (c as f64 * spp as f64).round() as u16
+                    (c as f64 * spp as f64).round() as u32
                 })
                 .collect();
             if spp <= u8::MAX as u32 {
