@@ -198,6 +198,8 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     if let Some(b) = bar {
         b.finish_and_clear();
     }
+    // The primary samples are not needed past the trace: free them before the fit's solve.
+    drop(baker);
     if report.uncovered_texels > 0 {
         eprintln!(
             "ptm bake: {} of {} texels see no swatch (coverage 0, masked)",

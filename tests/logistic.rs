@@ -92,12 +92,13 @@ fn gauss(mut h: Vec<Vec<f64>>, mut g: Vec<f64>) -> Vec<f64> {
             .unwrap();
         h.swap(col, piv);
         g.swap(col, piv);
-        for r in col + 1..m {
-            let f = h[r][col] / h[col][col];
-            for c in col..m {
-                h[r][c] -= f * h[col][c];
+        let (pivot_row, pivot_g) = (h[col].clone(), g[col]);
+        for (row, gr) in h.iter_mut().zip(g.iter_mut()).skip(col + 1) {
+            let f = row[col] / pivot_row[col];
+            for (x, &y) in row[col..].iter_mut().zip(&pivot_row[col..]) {
+                *x -= f * y;
             }
-            g[r] -= f * g[col];
+            *gr -= f * pivot_g;
         }
     }
     let mut x = vec![0.0; m];

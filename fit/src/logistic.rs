@@ -138,7 +138,7 @@ impl Tables {
 /// Per-texel result of the kernel.
 #[derive(Clone, Copy, Debug, Default)]
 pub(crate) struct TexelFit {
-    pub c: [f32; 16],
+    pub c: [f32; 11],
     pub iterations: u32,
     pub converged: bool,
     /// Every fitting light's K is 0 or 1 and σ(p) classifies each on the right side of ½.
@@ -174,7 +174,8 @@ fn solve_spd<const M: usize>(hp: &[f64], g: &[f64], ridge: f64) -> [f64; 16] {
         for k in 0..j {
             s -= l[j][k] * l[j][k];
         }
-        if !(s > 1e-13 * scale) {
+        // Not positive (or NaN): not positive definite at this precision.
+        if s.is_nan() || s <= 1e-13 * scale {
             ok = false;
             break;
         }
@@ -763,6 +764,7 @@ fn ratio<T: Copy + Into<u32>>(occ: &[T], cov: &[u32], out: &mut [f32]) {
 /// A MIP level's K data, pooled from the level above: what [`Source`] borrows for that level.
 pub(crate) enum Pooled {
     Weighted { k: Vec<Vec<f32>>, w: Vec<f32> },
+    Counts8 { occ: Vec<Vec<u8>>, cov: Vec<u32> },
     Counts16 { occ: Vec<Vec<u16>>, cov: Vec<u32> },
     Counts32 { occ: Vec<Vec<u32>>, cov: Vec<u32> },
 }
@@ -771,6 +773,7 @@ impl Pooled {
     pub fn source(&self) -> Source<'_> {
         match self {
             Pooled::Weighted { k, w } => Source::Weighted { k, w },
+            Pooled::Counts8 { occ, cov } => Source::Counts8 { occ, cov },
             Pooled::Counts16 { occ, cov } => Source::Counts16 { occ, cov },
             Pooled::Counts32 { occ, cov } => Source::Counts32 { occ, cov },
         }
@@ -861,29 +864,33 @@ pub(crate) fn pool(src: &Source, from_w: usize, to: Footprint) -> Pooled {
         | Source::Counts16 { cov, .. }
         | Source::Counts32 { cov, .. } => {
             let cov = sum_cov(cov);
-            let wide = cov.iter().any(|&c| c > u16::MAX as u32);
-            match (src, wide) {
-                (Source::Counts8 { occ, .. }, false) => Pooled::Counts16 {
-                    occ: add(occ, n, &kids),
-                    cov,
-                },
-                (Source::Counts16 { occ, .. }, false) => Pooled::Counts16 {
-                    occ: add(occ, n, &kids),
-                    cov,
-                },
-                (Source::Counts8 { occ, .. }, true) => Pooled::Counts32 {
-                    occ: add(occ, n, &kids),
-                    cov,
-                },
-                (Source::Counts16 { occ, .. }, true) => Pooled::Counts32 {
-                    occ: add(occ, n, &kids),
-                    cov,
-                },
-                (Source::Counts32 { occ, .. }, _) => Pooled::Counts32 {
-                    occ: add(occ, n, &kids),
-                    cov,
-                },
-                _ => unreachable!("a counts source"),
+            // The narrowest type that holds every pooled count (occluded ≤ covered).
+            let top = cov.iter().copied().max().unwrap_or(0);
+            macro_rules! pooled_as {
+                ($variant:ident) => {
+                    match src {
+                        Source::Counts8 { occ, .. } => Pooled::$variant {
+                            occ: add(occ, n, &kids),
+                            cov,
+                        },
+                        Source::Counts16 { occ, .. } => Pooled::$variant {
+                            occ: add(occ, n, &kids),
+                            cov,
+                        },
+                        Source::Counts32 { occ, .. } => Pooled::$variant {
+                            occ: add(occ, n, &kids),
+                            cov,
+                        },
+                        _ => unreachable!("a counts source"),
+                    }
+                };
+            }
+            if top <= u8::MAX as u32 {
+                pooled_as!(Counts8)
+            } else if top <= u16::MAX as u32 {
+                pooled_as!(Counts16)
+            } else {
+                pooled_as!(Counts32)
             }
         }
     }
@@ -901,42 +908,86 @@ pub(crate) fn fit_level(
     texels: usize,
     live: &(dyn Fn(usize) -> bool + Sync),
     kernel: Kernel,
-) -> Vec<TexelFit> {
+) -> LevelFit {
     assert!(kernel.supported(), "kernel {} not supported", kernel.name());
     let lanes = kernel.lanes();
     let nu = t.used.len();
-    let mut out = vec![TexelFit::default(); texels];
-    out.par_chunks_mut(BLOCK).enumerate().for_each_init(
-        Vec::new,
-        |packed: &mut Vec<f32>, (bi, chunk)| {
-            let start = bi * BLOCK;
-            let len = chunk.len();
-            let tiles = len.div_ceil(lanes);
-            packed.clear();
-            packed.resize(tiles * nu * lanes, -1.0);
-            let mut live_v: Vec<bool> = (start..start + len).map(live).collect();
-            let mut row = vec![0f32; tiles * lanes];
-            let mut any = vec![false; len];
-            for (li, &l) in t.used.iter().enumerate() {
-                src.fill(l, start, &mut row[..len]);
-                for i in 0..len {
-                    if !live_v[i] {
-                        row[i] = -1.0;
+    let mut out = LevelFit {
+        planes: vec![vec![0f32; texels]; t.m],
+        rms: vec![0f32; texels],
+        max: vec![0f32; texels],
+        holdout: vec![0f32; texels],
+        iterations: vec![0u32; texels],
+        converged: vec![false; texels],
+        separable: vec![false; texels],
+        constant: vec![false; texels],
+    };
+    // Blocks run in parallel a batch at a time and are scattered into the planes, so per-texel
+    // results never take more than a batch's worth of memory beside the planes.
+    const BATCH: usize = 64;
+    let blocks = texels.div_ceil(BLOCK);
+    for b0 in (0..blocks).step_by(BATCH) {
+        let results: Vec<Vec<TexelFit>> = (b0..(b0 + BATCH).min(blocks))
+            .into_par_iter()
+            .map_init(Vec::new, |packed: &mut Vec<f32>, bi| {
+                let start = bi * BLOCK;
+                let len = BLOCK.min(texels - start);
+                let tiles = len.div_ceil(lanes);
+                packed.clear();
+                packed.resize(tiles * nu * lanes, -1.0);
+                let mut live_v: Vec<bool> = (start..start + len).map(live).collect();
+                let mut row = vec![0f32; tiles * lanes];
+                let mut any = vec![false; len];
+                for (li, &l) in t.used.iter().enumerate() {
+                    src.fill(l, start, &mut row[..len]);
+                    for i in 0..len {
+                        if !live_v[i] {
+                            row[i] = -1.0;
+                        }
+                        any[i] |= li < t.nfit && row[i] >= 0.0;
                     }
-                    any[i] |= li < t.nfit && row[i] >= 0.0;
+                    for (tile, r) in row.chunks_exact(lanes).enumerate() {
+                        let o = (tile * nu + li) * lanes;
+                        packed[o..o + lanes].copy_from_slice(r);
+                    }
                 }
-                for (tile, r) in row.chunks_exact(lanes).enumerate() {
-                    let o = (tile * nu + li) * lanes;
-                    packed[o..o + lanes].copy_from_slice(r);
+                for (lv, a) in live_v.iter_mut().zip(&any) {
+                    *lv &= a;
                 }
+                let mut fits = vec![TexelFit::default(); len];
+                run_block(kernel, t, packed, &live_v, &mut fits);
+                fits
+            })
+            .collect();
+        for (bi, fits) in (b0..).zip(results) {
+            for (i, f) in fits.iter().enumerate() {
+                let ti = bi * BLOCK + i;
+                for j in 0..t.m {
+                    out.planes[j][ti] = f.c[j];
+                }
+                out.rms[ti] = f.rms;
+                out.max[ti] = f.max;
+                out.holdout[ti] = f.holdout;
+                out.iterations[ti] = f.iterations;
+                out.converged[ti] = f.converged;
+                out.separable[ti] = f.separable;
+                out.constant[ti] = f.constant;
             }
-            for (lv, a) in live_v.iter_mut().zip(&any) {
-                *lv &= a;
-            }
-            run_block(kernel, t, packed, &live_v, chunk);
-        },
-    );
+        }
+    }
     out
+}
+
+/// Per-texel results of a level's fit, as planes.
+pub(crate) struct LevelFit {
+    pub planes: Vec<Vec<f32>>,
+    pub rms: Vec<f32>,
+    pub max: Vec<f32>,
+    pub holdout: Vec<f32>,
+    pub iterations: Vec<u32>,
+    pub converged: Vec<bool>,
+    pub separable: Vec<bool>,
+    pub constant: Vec<bool>,
 }
 
 #[cfg(test)]
@@ -946,7 +997,6 @@ mod tests {
     #[test]
     fn spd_solver_handles_singular_matrices() {
         // Rank 1: H = e₀e₀ᵀ; g along e₀ and e₁: the pseudo-inverse keeps only e₀.
-        let m = 2;
         let hp = [1.0, 0.0, 0.0];
         let x = solve_spd::<2>(&hp, &[2.0, 3.0], 0.0);
         assert!((x[0] - 2.0).abs() < 1e-12 && x[1].abs() < 1e-12);

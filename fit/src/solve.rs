@@ -20,7 +20,7 @@ use std::time::Instant;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
-use crate::logistic::{self, Footprint, Kernel, Source, Tables, TexelFit};
+use crate::logistic::{self, Footprint, Kernel, Source, Tables};
 use crate::{Basis, Error, LightSet, Link, Ptm, Result, SampleStack, UvMap};
 
 /// How each light's squared error counts in the fit.
@@ -590,6 +590,35 @@ fn fit_logistic(
     let chain = Footprint::chain(w, h);
     let fits = logistic::fit_level(&tables, src, t, &|ti| !masked[ti], kernel);
     let t_level0 = t1.elapsed().as_secs_f64();
+    let fitted: Vec<usize> = (0..t).filter(|&ti| !masked[ti]).collect();
+    let stats = LogisticStats {
+        iterations_mean: fitted
+            .iter()
+            .map(|&ti| fits.iterations[ti] as f64)
+            .sum::<f64>()
+            / fitted.len().max(1) as f64,
+        iterations_max: fitted
+            .iter()
+            .map(|&ti| fits.iterations[ti])
+            .max()
+            .unwrap_or(0),
+        not_converged: fitted.iter().filter(|&&ti| !fits.converged[ti]).count(),
+        separable: fitted.iter().filter(|&&ti| fits.separable[ti]).count(),
+        constant: fitted.iter().filter(|&&ti| fits.constant[ti]).count(),
+        lambda,
+        ridge: tables.ridge,
+        tolerance: opts.tolerance,
+        max_iterations: opts.max_iterations,
+        kernel: kernel.name(),
+    };
+    drop(fitted);
+    let logistic::LevelFit {
+        planes,
+        rms: rms_map,
+        max: max_map,
+        holdout: hold_map,
+        ..
+    } = fits;
     let t2 = Instant::now();
     let mut mips = Vec::new();
     if opts.mips {
@@ -614,40 +643,13 @@ fn fit_logistic(
             mips.push(crate::Level {
                 width: fp.width,
                 height: fp.height,
-                planes: (0..m)
-                    .map(|j| level.iter().map(|x| x.c[j]).collect())
-                    .collect(),
+                planes: level.planes,
             });
             above = Some(pooled);
             above_w = fp.width;
         }
     }
     let t_mips = t2.elapsed().as_secs_f64();
-    let planes: Vec<Vec<f32>> = (0..m)
-        .map(|j| fits.iter().map(|x| x.c[j]).collect())
-        .collect();
-    let rms_map: Vec<f32> = fits.iter().map(|x| x.rms).collect();
-    let max_map: Vec<f32> = fits.iter().map(|x| x.max).collect();
-    let hold_map: Vec<f32> = fits.iter().map(|x| x.holdout).collect();
-    let fitted: Vec<&TexelFit> = fits
-        .iter()
-        .zip(masked)
-        .filter(|(_, &mk)| !mk)
-        .map(|(x, _)| x)
-        .collect();
-    let stats = LogisticStats {
-        iterations_mean: fitted.iter().map(|x| x.iterations as f64).sum::<f64>()
-            / fitted.len().max(1) as f64,
-        iterations_max: fitted.iter().map(|x| x.iterations).max().unwrap_or(0),
-        not_converged: fitted.iter().filter(|x| !x.converged).count(),
-        separable: fitted.iter().filter(|x| x.separable).count(),
-        constant: fitted.iter().filter(|x| x.constant).count(),
-        lambda,
-        ridge: tables.ridge,
-        tolerance: opts.tolerance,
-        max_iterations: opts.max_iterations,
-        kernel: kernel.name(),
-    };
     let mut warnings = prep.warnings.clone();
     if stats.not_converged > 0 {
         warnings.push(format!(
@@ -836,7 +838,11 @@ impl Accumulator {
             prep,
             g: Vec::new(),
             gram: Vec::new(),
-            s: vec![0.0; t],
+            s: if opts.link == Link::Logistic {
+                Vec::new()
+            } else {
+                vec![0.0; t]
+            },
             wsum: Vec::new(),
             seen: vec![false; lights.len()],
             mode: None,

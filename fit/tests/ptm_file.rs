@@ -280,3 +280,28 @@ fn logistic_hemispherical_mip_chain_round_trips() {
         assert!((back.eval(3, 2, pu, pv) - want).abs() < 1e-6);
     }
 }
+
+/// A file whose `ptm:link` or `ptm:uv` this version does not know is refused, naming the value
+/// (never evaluated as a plain polynomial).
+#[test]
+fn unknown_link_or_uv_map_is_an_error_naming_it() {
+    let dir = tmpdir("unknown");
+    let mut ptm = sample_ptm(Basis::Ptm6);
+    ptm.link = ptm_fit::Link::Logistic;
+    ptm.uv = ptm_fit::UvMap::Hemispherical;
+    let p = dir.join("u.ptm.exr");
+    ptm.save(&p, &SaveOptions::default()).unwrap();
+    let bytes = std::fs::read(&p).unwrap();
+    let patch = |from: &[u8], to: &[u8]| {
+        let mut b = bytes.clone();
+        let i = b.windows(from.len()).position(|w| w == from).unwrap();
+        b[i..i + to.len()].copy_from_slice(to);
+        let q = dir.join("patched.ptm.exr");
+        std::fs::write(&q, b).unwrap();
+        Ptm::load(&q).unwrap_err().to_string()
+    };
+    let e = patch(b"logistic", b"sigmoidz");
+    assert!(e.contains("sigmoidz") && e.contains("ptm:link"), "{e}");
+    let e = patch(b"hemispherical", b"hemispherixal");
+    assert!(e.contains("hemispherixal") && e.contains("ptm:uv"), "{e}");
+}
