@@ -129,8 +129,18 @@ fn plan(quick: bool) -> Plan {
     }
 }
 
+/// The 1-minute load average (Linux `/proc/loadavg`), or "unknown": how busy the machine was
+/// while the report timed things.
+fn load_average() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()
+        .and_then(|s| s.split_whitespace().next().map(str::to_owned))
+        .unwrap_or_else(|| "unknown".into())
+}
+
 pub fn run(args: &Args) -> Result<serde_json::Value> {
     let started = Instant::now();
+    let load_at_start = load_average();
     let plan = plan(args.quick);
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
@@ -444,8 +454,11 @@ pub fn run(args: &Args) -> Result<serde_json::Value> {
     }
     let md_path = args.out.join("report.md");
     md += &format!(
-        "\n_Generated in {:.0} s._\n",
-        started.elapsed().as_secs_f64()
+        "\n_Generated in {:.0} s; load average {} at the start, {} at the end (other work on the \
+         machine inflates the seconds, not the errors, which are deterministic)._\n",
+        started.elapsed().as_secs_f64(),
+        load_at_start,
+        load_average()
     );
     ptm_fit::atomic::write_atomic(&md_path, |f| {
         use std::io::Write;
