@@ -7,6 +7,7 @@ use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 
 use super::study::{pareto, Outcome};
+use super::MODELS;
 
 const FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
@@ -36,8 +37,25 @@ const COLORS: [RGBColor; 6] = [
     RGBColor(23, 190, 207),
 ];
 
-/// Scatter (log time, linear error) of RMS error of K against bake + fit seconds, one colour per swatch, each
-/// swatch's Pareto front joined by a line.
+/// One marker per (link, uv) model, in the order of `report::MODELS`: identity link hollow
+/// circle (projected) or cross (hemispherical); logistic link filled triangle (projected) or
+/// filled circle (hemispherical, `ptm fit`'s default).
+fn marker<'a, C: 'static + Clone>(
+    model: usize,
+    at: C,
+    color: RGBColor,
+) -> DynElement<'static, BitMapBackend<'a>, C> {
+    match model {
+        0 => Circle::new(at, 4, color.stroke_width(2)).into_dyn(),
+        1 => Cross::new(at, 4, color.stroke_width(2)).into_dyn(),
+        2 => TriangleMarker::new(at, 6, color.filled()).into_dyn(),
+        _ => Circle::new(at, 5, color.filled()).into_dyn(),
+    }
+}
+
+/// Scatter (log time, linear error) of RMS error of K against bake + fit seconds: one colour per
+/// swatch, one marker per (link, uv) model; each swatch's Pareto front over every setting is the
+/// solid line, the front of the plain PTM alone (identity, projected) the dashed one.
 pub fn error_vs_time(path: &Path, series: &[(String, Vec<Outcome>)]) -> Result<()> {
     register_font()?;
     let pts = series.iter().flat_map(|(_, o)| o.iter());
@@ -53,9 +71,15 @@ pub fn error_vs_time(path: &Path, series: &[(String, Vec<Outcome>)]) -> Result<(
     }
     let (x0, x1) = ((x0 * 0.7).max(1e-4), x1 * 1.4);
     let (y0, y1) = (y0 * 0.9, y1 * 1.1);
+    let model_of = |o: &Outcome| {
+        MODELS
+            .iter()
+            .position(|&m| m == (o.setting.link, o.setting.uv))
+            .unwrap_or(0)
+    };
     let tmp = ptm_fit::atomic::tmp_path(path).with_extension("png");
     {
-        let root = BitMapBackend::new(&tmp, (960, 640)).into_drawing_area();
+        let root = BitMapBackend::new(&tmp, (1040, 680)).into_drawing_area();
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(
@@ -78,18 +102,56 @@ pub fn error_vs_time(path: &Path, series: &[(String, Vec<Outcome>)]) -> Result<(
                 .draw_series(
                     outcomes
                         .iter()
-                        .map(|o| Circle::new((o.seconds(), o.errors.rms), 4, color.filled())),
+                        .map(|o| marker(model_of(o), (o.seconds(), o.errors.rms), color)),
                 )?
                 .label(name.clone())
-                .legend(move |(x, y)| Circle::new((x + 8, y), 4, color.filled()));
-            let front: Vec<(f64, f64)> = pareto(outcomes)
+                .legend(move |(x, y)| {
+                    Rectangle::new([(x, y - 5), (x + 16, y + 5)], color.filled())
+                });
+            let line = |subset: Vec<Outcome>| -> Vec<(f64, f64)> {
+                pareto(&subset)
+                    .iter()
+                    .map(|&i| (subset[i].seconds(), subset[i].errors.rms))
+                    .collect()
+            };
+            chart.draw_series(LineSeries::new(
+                line(outcomes.clone()),
+                color.stroke_width(2),
+            ))?;
+            let plain: Vec<Outcome> = outcomes
                 .iter()
-                .map(|&i| (outcomes[i].seconds(), outcomes[i].errors.rms))
+                .filter(|o| model_of(o) == 0)
+                .cloned()
                 .collect();
-            chart.draw_series(LineSeries::new(front, color.stroke_width(2)))?;
+            chart.draw_series(DashedLineSeries::new(
+                line(plain),
+                6,
+                4,
+                color.stroke_width(1),
+            ))?;
+        }
+        let grey = RGBColor(90, 90, 90);
+        for (mi, (link, uv)) in MODELS.iter().enumerate() {
+            chart
+                .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+                .label(format!("{}, {}", link.name(), uv.name()))
+                .legend(move |(x, y)| marker(mi, (x + 8, y), grey));
         }
         chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label("Pareto front, all settings")
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 16, y)], grey.stroke_width(2)));
+        chart
+            .draw_series(std::iter::empty::<Circle<(f64, f64), i32>>())?
+            .label("Pareto front, identity, projected")
+            .legend(move |(x, y)| {
+                EmptyElement::at((x, y))
+                    + PathElement::new([(0, 0), (5, 0)], grey.stroke_width(1))
+                    + PathElement::new([(10, 0), (16, 0)], grey.stroke_width(1))
+            });
+        chart
             .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font(("sans-serif", 14))

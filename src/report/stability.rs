@@ -3,7 +3,9 @@
 //! extreme scales or broken in the ways real meshes are.
 use anyhow::Result;
 use ptm_bake::{bake_planes, dome, Swatch};
-use ptm_fit::{fit_stack, Basis, FitOptions, LightSet, Ptm, SampleStack, SaveOptions};
+use ptm_fit::{
+    fit_stack, Basis, FitOptions, FitReport, LightSet, Link, Ptm, SampleStack, SaveOptions, UvMap,
+};
 use ptm_swatches::Mesh;
 
 use super::study::{bake_config, measure, Truth};
@@ -30,7 +32,27 @@ fn max_abs_coef(ptm: &Ptm) -> f64 {
         .fold(0f64, |m, &c| m.max(c.abs() as f64))
 }
 
-/// The light layouts of the issue, fitted with both bases on a real bake.
+/// Newton's iterations (mean/max) and separable/constant texels of a logistic fit, or "-".
+fn newton_cells(rep: &FitReport) -> [String; 2] {
+    match &rep.logistic {
+        Some(l) => [
+            format!(
+                "{:.1}/{} ({} at the cap)",
+                l.iterations_mean, l.iterations_max, l.not_converged
+            ),
+            format!("{}/{}", l.separable, l.constant),
+        ],
+        None => ["-".into(), "-".into()],
+    }
+}
+
+/// The plain PTM and `ptm fit`'s default model.
+const FITS: [(Link, UvMap); 2] = [
+    (Link::Identity, UvMap::Projected),
+    (Link::Logistic, UvMap::Hemispherical),
+];
+
+/// The light layouts of the issue, fitted with both bases and both of [`FITS`] on a real bake.
 pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
     let mut near_ring = dome::rings("30x16")?;
     for (i, d) in near_ring.dirs.iter_mut().enumerate() {
@@ -66,48 +88,136 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
         &[
             "light layout",
             "basis",
+            "link, uv",
             "rank",
             "cond",
             "what ptm says",
             "max |coef|",
             "RMS err K (held out)",
             "K outside [0,1]",
+            "Newton iterations mean/max",
+            "separable/constant texels",
         ],
     );
     for (name, lights) in &cases {
         let stack = bake_stack(swatch, lights, truth.res, spp)?;
         for basis in Basis::ALL {
-            let row = match fit_stack(&stack, &FitOptions::new(basis)) {
-                Ok((ptm, rep)) => {
-                    let e = measure(&ptm, &truth.lights, &k_true, &cov);
-                    vec![
-                        name.to_string(),
-                        basis.name().into(),
-                        format!("{}/{}", rep.rank, basis.len()),
-                        g3(rep.cond),
-                        if rep.warnings.is_empty() {
-                            "ok".into()
-                        } else {
-                            rep.warnings.join(" ")
-                        },
-                        g3(max_abs_coef(&ptm)),
-                        g3(e.rms),
-                        format!("{:.1}% (max {})", 100.0 * e.outside, g3(e.outside_max)),
-                    ]
-                }
-                Err(err) => {
-                    let mut r = vec![
-                        name.to_string(),
-                        basis.name().into(),
-                        "-".into(),
-                        "-".into(),
-                    ];
-                    r.push(format!("error: {err}"));
-                    r.extend(["-".into(), "-".into(), "-".into()]);
-                    r
-                }
+            for (link, uv) in FITS {
+                let fit = format!("{}, {}", link.name(), uv.name());
+                let opts = FitOptions {
+                    link,
+                    uv,
+                    ..FitOptions::new(basis)
+                };
+                let row = match fit_stack(&stack, &opts) {
+                    Ok((ptm, rep)) => {
+                        let e = measure(&ptm, &truth.lights, &k_true, &cov);
+                        let [iters, sep] = newton_cells(&rep);
+                        vec![
+                            name.to_string(),
+                            basis.name().into(),
+                            fit,
+                            format!("{}/{}", rep.rank, basis.len()),
+                            g3(rep.cond),
+                            if rep.warnings.is_empty() {
+                                "ok".into()
+                            } else {
+                                rep.warnings.join(" ")
+                            },
+                            g3(max_abs_coef(&ptm)),
+                            g3(e.rms),
+                            format!("{:.1}% (max {})", 100.0 * e.outside, g3(e.outside_max)),
+                            iters,
+                            sep,
+                        ]
+                    }
+                    Err(err) => {
+                        let mut r = vec![
+                            name.to_string(),
+                            basis.name().into(),
+                            fit,
+                            "-".into(),
+                            "-".into(),
+                            format!("error: {err}"),
+                        ];
+                        r.extend(std::iter::repeat_n("-".to_string(), 5));
+                        r
+                    }
+                };
+                t.push(row);
+            }
+        }
+    }
+    Ok(t)
+}
+
+/// The logistic link's ridge λ (relative to the mean eigenvalue of AᵀΩA) from 1e-6 to 10 on a
+/// Fibonacci dome of `dirs` lights, hemispherical (u, v), beside the identity link's fit of the
+/// same stack: what λ does to the error, the coefficients, Newton and the separable texels.
+pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Table> {
+    let (k_true, cov) = truth.at(truth.res);
+    let lights = dome::fibonacci(dirs, 5.0)?;
+    let stack = bake_stack(swatch, &lights, truth.res, spp)?;
+    let mut t = Table::new(
+        "stability_ridge",
+        &[
+            "basis",
+            "link, uv",
+            "λ",
+            "RMS err K (held out)",
+            "max |coef|",
+            "Newton iterations mean/max",
+            "texels at the iteration cap",
+            "separable texels",
+            "constant texels",
+            "fit s",
+        ],
+    );
+    for basis in Basis::ALL {
+        let t0 = std::time::Instant::now();
+        let (ptm, _) = fit_stack(
+            &stack,
+            &FitOptions {
+                uv: UvMap::Projected,
+                ..FitOptions::new(basis)
+            },
+        )?;
+        let secs = t0.elapsed().as_secs_f64();
+        t.push(vec![
+            basis.name().into(),
+            "identity, projected".into(),
+            "-".into(),
+            g3(measure(&ptm, &truth.lights, &k_true, &cov).rms),
+            g3(max_abs_coef(&ptm)),
+            "-".into(),
+            "-".into(),
+            "-".into(),
+            "-".into(),
+            g3(secs),
+        ]);
+        for lambda in [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0] {
+            let opts = FitOptions {
+                link: Link::Logistic,
+                uv: UvMap::Hemispherical,
+                regularize: Some(lambda),
+                ..FitOptions::new(basis)
             };
-            t.push(row);
+            let t0 = std::time::Instant::now();
+            let (ptm, rep) = fit_stack(&stack, &opts)?;
+            let secs = t0.elapsed().as_secs_f64();
+            let l = rep.logistic.clone().unwrap_or_default();
+            t.push(vec![
+                basis.name().into(),
+                "logistic, hemispherical".into(),
+                format!("{lambda:e}"),
+                g3(measure(&ptm, &truth.lights, &k_true, &cov).rms),
+                g3(max_abs_coef(&ptm)),
+                format!("{:.1}/{}", l.iterations_mean, l.iterations_max),
+                l.not_converged.to_string(),
+                l.separable.to_string(),
+                l.constant.to_string(),
+                g3(secs),
+            ]);
         }
     }
     Ok(t)

@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use ptm_bake::{dome, BakeConfig, Baker, Swatch};
-use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, Ptm, Weight};
+use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, Link, Ptm, UvMap, Weight};
 use rayon::prelude::*;
 
 /// Held-out directions: Fibonacci above 5°, turned 0.7 rad in azimuth so that no test light
@@ -178,7 +178,8 @@ pub fn measure(ptm: &Ptm, lights: &LightSet, k_true: &[Vec<f32>], coverage: &[f3
     }
 }
 
-/// One point of the sweep.
+/// One point of the sweep: how the bake samples (lights, samples per texel, texels) and how the
+/// fit models K (basis, light weight, link, (u, v) map).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setting {
     pub dirs: usize,
@@ -186,18 +187,27 @@ pub struct Setting {
     pub res: usize,
     pub basis: Basis,
     pub weight: Weight,
+    pub link: Link,
+    pub uv: UvMap,
 }
 
 impl Setting {
     pub fn label(&self) -> String {
         format!(
-            "{} lights, spp {}, {}², {}, {}",
+            "{} lights, spp {}, {}², {}, {}, {}, {}",
             self.dirs,
             self.spp,
             self.res,
             self.basis.name(),
-            self.weight.name()
+            self.weight.name(),
+            self.link.name(),
+            self.uv.name()
         )
+    }
+
+    /// The bake this setting needs: settings that share it are fitted from one trace.
+    pub fn bake_key(&self) -> (usize, u32, usize) {
+        (self.dirs, self.spp, self.res)
     }
 }
 
@@ -205,10 +215,13 @@ impl Setting {
 #[derive(Clone, Debug)]
 pub struct Outcome {
     pub setting: Setting,
-    /// Scene build + primary hits + shadow rays, and the streaming fit (accumulate + solve).
+    /// Scene build + primary hits + shadow rays (shared by the settings of one bake), and this
+    /// setting's streaming fit (accumulate, then solve: SVD apply or Newton per texel).
     pub bake_s: f64,
     pub fit_s: f64,
     pub errors: Errors,
+    /// Logistic link: what Newton did (iterations, separable and constant texels).
+    pub logistic: Option<ptm_fit::solve::LogisticStats>,
 }
 
 impl Outcome {
@@ -217,43 +230,65 @@ impl Outcome {
     }
 }
 
-/// Bakes the Fibonacci dome of `s.dirs` lights and fits it streaming (the `ptm bake --fit`
-/// path), timing each, then measures against `truth` resampled to `s.res`.
-pub fn run_setting(
+/// Bakes the Fibonacci dome of `settings[0].dirs` lights once and fits it streaming (the
+/// `ptm bake --fit` path) once per setting, all of which share that bake (`bake_key`); times
+/// the trace and each fit separately, then measures each PTM against `truth` resampled to the
+/// settings' resolution. MIP levels are not fitted: the error is level 0's.
+pub fn run_settings(
     swatch: &Swatch,
     truth: &Truth,
     coarse: &(Vec<Vec<f32>>, Vec<f32>),
-    s: &Setting,
-) -> Result<Outcome> {
-    let lights = dome::fibonacci(s.dirs, 5.0)?;
-    let opts = FitOptions {
-        weight: s.weight,
-        ..FitOptions::new(s.basis)
-    };
-    let t0 = Instant::now();
-    let mut acc = Accumulator::new(&lights, s.res, s.res, &opts)?;
-    let factor_s = t0.elapsed().as_secs_f64();
-    let mut stream_s = 0.0;
-    let t1 = Instant::now();
-    let mut baker = Baker::new(swatch, &bake_config(s.res, s.spp, 1))?;
-    acc.set_coverage(baker.coverage())?;
-    baker.trace(&lights, &mut |i, k, _| {
+    settings: &[Setting],
+) -> Result<Vec<Outcome>> {
+    let s0 = &settings[0];
+    assert!(settings.iter().all(|s| s.bake_key() == s0.bake_key()));
+    let lights = dome::fibonacci(s0.dirs, 5.0)?;
+    let mut fit_s = vec![0.0; settings.len()];
+    let mut accs = Vec::with_capacity(settings.len());
+    for (s, secs) in settings.iter().zip(&mut fit_s) {
+        let opts = FitOptions {
+            weight: s.weight,
+            link: s.link,
+            uv: s.uv,
+            mips: false,
+            ..FitOptions::new(s.basis)
+        };
         let t = Instant::now();
-        acc.add_light(i, k)?;
-        stream_s += t.elapsed().as_secs_f64();
+        let mut acc = Accumulator::new(&lights, s.res, s.res, &opts)?;
+        acc.set_spp(s.spp)?;
+        *secs += t.elapsed().as_secs_f64();
+        accs.push(acc);
+    }
+    let t1 = Instant::now();
+    let mut baker = Baker::new(swatch, &bake_config(s0.res, s0.spp, 1))?;
+    for acc in &mut accs {
+        acc.set_coverage(baker.coverage())?;
+    }
+    let mut stream_s = 0.0;
+    baker.trace(&lights, &mut |i, k, _| {
+        for (acc, secs) in accs.iter_mut().zip(fit_s.iter_mut()) {
+            let t = Instant::now();
+            acc.add_light(i, k)?;
+            let dt = t.elapsed().as_secs_f64();
+            *secs += dt;
+            stream_s += dt;
+        }
         Ok(())
     })?;
-    let traced = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
-    let (ptm, _) = acc.finish(swatch.tile)?;
-    let fit_s = factor_s + stream_s + t2.elapsed().as_secs_f64();
-    let bake_s = (traced - stream_s).max(0.0);
-    Ok(Outcome {
-        setting: s.clone(),
-        bake_s,
-        fit_s,
-        errors: measure(&ptm, &truth.lights, &coarse.0, &coarse.1),
-    })
+    let bake_s = (t1.elapsed().as_secs_f64() - stream_s).max(0.0);
+    let mut out = Vec::with_capacity(settings.len());
+    for ((s, acc), secs) in settings.iter().zip(accs).zip(fit_s) {
+        let t = Instant::now();
+        let (ptm, rep) = acc.finish(swatch.tile)?;
+        out.push(Outcome {
+            setting: s.clone(),
+            bake_s,
+            fit_s: secs + t.elapsed().as_secs_f64(),
+            errors: measure(&ptm, &truth.lights, &coarse.0, &coarse.1),
+            logistic: rep.logistic,
+        });
+    }
+    Ok(out)
 }
 
 /// Indices of the Pareto front (no other outcome is both faster and more accurate), by time.
@@ -283,9 +318,12 @@ mod tests {
                 res: 1,
                 basis: Basis::Ptm6,
                 weight: Weight::Uniform,
+                link: Link::Identity,
+                uv: UvMap::Projected,
             },
             bake_s: secs,
             fit_s: 0.0,
+            logistic: None,
             errors: Errors {
                 rms,
                 ..Default::default()
