@@ -349,49 +349,45 @@ fn final_pass<S: Simd, const M: usize>(
     for j in 0..M {
         c[j] = S::load(&cl[j]);
     }
-    let mut ss = [0f32; 16];
-    let mut mx = [0f32; 16];
-    let mut sep = [true; 16];
-    let mut ones = [0u32; 16];
-    let mut zeros = [0u32; 16];
-    let mut valid = [0u32; 16];
-    let mut hs = [0f32; 16];
-    let mut hn = [0u32; 16];
-    let mut zl = [0f32; 16];
-    let mut pl = [0f32; 16];
+    // All in vectors: a masked-out sample (k < 0) adds nothing; equality tests on K (exactly 0
+    // or 1) are sign tests, since valid K lies in [0, 1].
+    let (zero, one) = (S::splat(0.0), S::splat(1.0));
+    let (mut ss, mut mx, mut hs, mut hn) = (zero, zero, zero, zero);
+    let (mut valid, mut ones, mut zeros, mut wrong) = (zero, zero, zero, zero);
     for n in 0..t.used.len() {
         let an = &t.a[n * M..(n + 1) * M];
-        let mut z = S::splat(0.0);
+        let mut z = zero;
         for j in 0..M {
             z = S::fma(S::splat(an[j]), c[j], z);
         }
-        S::store(z, &mut zl);
-        S::store(S::sigmoid(z), &mut pl);
-        let kv = &kt[n * l..(n + 1) * l];
-        for q in 0..l {
-            if kv[q] < 0.0 {
-                continue;
-            }
-            let e = pl[q] - kv[q];
-            if n < t.nfit {
-                ss[q] += t.omega[n] * e * e;
-                mx[q] = mx[q].max(e.abs());
-                valid[q] += 1;
-                if kv[q] == 1.0 {
-                    ones[q] += 1;
-                    sep[q] &= zl[q] > 0.0;
-                } else if kv[q] == 0.0 {
-                    zeros[q] += 1;
-                    sep[q] &= zl[q] < 0.0;
-                } else {
-                    sep[q] = false;
-                }
-            } else {
-                hs[q] += e * e;
-                hn[q] += 1;
-            }
+        let kv = S::load(&kt[n * l..]);
+        let e = S::sub(S::sigmoid(z), kv);
+        let e2 = S::where_nonneg(kv, S::mul(e, e));
+        let v = S::where_nonneg(kv, one);
+        if n < t.nfit {
+            ss = S::fma(S::splat(t.omega[n]), e2, ss);
+            mx = S::max(mx, S::where_nonneg(kv, S::max(e, S::sub(zero, e))));
+            valid = S::add(valid, v);
+            // k = 1 ⇔ k − 1 ≥ 0; k = 0 ⇔ k ≥ 0 and −k ≥ 0.
+            let is1 = S::where_nonneg(S::sub(kv, one), one);
+            let is0 = S::where_nonneg(kv, S::where_nonneg(S::sub(zero, kv), one));
+            ones = S::add(ones, is1);
+            zeros = S::add(zeros, is0);
+            // Misclassified: k = 1 with z ≤ 0, k = 0 with z ≥ 0, or any fractional k.
+            let frac = S::sub(S::sub(v, is1), is0);
+            let w1 = S::mul(is1, S::where_nonneg(S::sub(zero, z), one));
+            let w0 = S::mul(is0, S::where_nonneg(z, one));
+            wrong = S::add(wrong, S::add(frac, S::add(w1, w0)));
+        } else {
+            hs = S::add(hs, e2);
+            hn = S::add(hn, v);
         }
     }
+    let mut lanes = [[0f32; 16]; 8];
+    for (dst, v) in lanes.iter_mut().zip([ss, mx, hs, hn, valid, ones, zeros, wrong]) {
+        S::store(v, dst);
+    }
+    let [ss, mx, hs, hn, valid, ones, zeros, wrong] = lanes;
     for q in 0..l.min(out.len()) {
         let o = &mut out[q];
         if !live[q] {
@@ -401,16 +397,16 @@ fn final_pass<S: Simd, const M: usize>(
         for j in 0..M {
             o.c[j] = cl[j][q];
         }
-        o.constant = valid[q] > 0 && (ones[q] == valid[q] || zeros[q] == valid[q]);
-        o.separable = valid[q] > 0 && sep[q] && !o.constant;
+        o.constant = valid[q] > 0.0 && (ones[q] == valid[q] || zeros[q] == valid[q]);
+        o.separable = valid[q] > 0.0 && wrong[q] == 0.0 && !o.constant;
         o.rms = if t.omega_sum > 0.0 {
             (ss[q] / t.omega_sum as f32).sqrt()
         } else {
             0.0
         };
         o.max = mx[q];
-        o.holdout = if hn[q] > 0 {
-            (hs[q] / hn[q] as f32).sqrt()
+        o.holdout = if hn[q] > 0.0 {
+            (hs[q] / hn[q]).sqrt()
         } else {
             0.0
         };
