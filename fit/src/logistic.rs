@@ -293,28 +293,101 @@ fn newton_step<S: Simd, const M: usize, const D: usize>(
             h[e] = S::fma(w, S::splat(qn[e]), h[e]);
         }
     }
+    // The Newton system (H + ρI)·δ = ∇J, lane-parallel: Cholesky in f32. An inexact step is
+    // still a descent step and the gradient, not the step, fixes the converged point; a lane
+    // whose pivot is not safely positive (no ridge on a rank-deficient dome) is solved again in
+    // f64 with a pseudo-inverse.
+    let rho = S::splat(t.ridge as f32);
+    let mut grad = [zero; M];
+    for j in 0..M {
+        grad[j] = S::fma(rho, c[j], g[j]);
+    }
+    let mut lo = [[zero; M]; M];
+    {
+        let mut q = 0;
+        for i in 0..M {
+            for j in i..M {
+                lo[j][i] = h[t.pair[q]];
+                q += 1;
+            }
+            lo[i][i] = S::add(lo[i][i], rho);
+        }
+    }
+    let mut scale = zero;
+    for i in 0..M {
+        scale = S::max(scale, lo[i][i]);
+    }
+    let floor = S::mul(scale, S::splat(1e-6));
+    let mut bad = zero;
+    for j in 0..M {
+        let mut p = lo[j][j];
+        for k in 0..j {
+            p = S::sub(p, S::mul(lo[j][k], lo[j][k]));
+        }
+        bad = S::add(bad, S::where_nonneg(S::sub(floor, p), one));
+        let d = S::sqrt(S::max(p, floor));
+        let inv = S::recip(d);
+        lo[j][j] = d;
+        for i in j + 1..M {
+            let mut x = lo[i][j];
+            for k in 0..j {
+                x = S::sub(x, S::mul(lo[i][k], lo[j][k]));
+            }
+            lo[i][j] = S::mul(x, inv);
+        }
+    }
+    let mut y = [zero; M];
+    for i in 0..M {
+        let mut x = grad[i];
+        for k in 0..i {
+            x = S::sub(x, S::mul(lo[i][k], y[k]));
+        }
+        y[i] = S::div(x, lo[i][i]);
+    }
+    let mut dv = [zero; M];
+    for i in (0..M).rev() {
+        let mut x = y[i];
+        for k in i + 1..M {
+            x = S::sub(x, S::mul(lo[k][i], dv[k]));
+        }
+        dv[i] = S::div(x, lo[i][i]);
+    }
+    let mut dl = [[0f32; 16]; M];
     let mut gl = [[0f32; 16]; M];
     for j in 0..M {
-        S::store(g[j], &mut gl[j]);
+        S::store(dv[j], &mut dl[j]);
+        S::store(grad[j], &mut gl[j]);
     }
+    let mut badl = [0f32; 16];
+    S::store(bad, &mut badl);
+    let fallback = (0..l).any(|q| active[q] && badl[q] > 0.0);
     let mut hl = [[0f32; 16]; D];
-    for e in 0..D {
-        S::store(h[e], &mut hl[e]);
+    if fallback {
+        for e in 0..D {
+            S::store(h[e], &mut hl[e]);
+        }
     }
     let mut done = [false; 16];
     for q in 0..l {
         if !active[q] {
             continue;
         }
-        let mut hp = [0f64; 136];
-        for (e, &k) in t.pair.iter().enumerate() {
-            hp[e] = hl[k][q] as f64;
+        let mut delta = [0f64; 16];
+        if badl[q] > 0.0 {
+            let mut hp = [0f64; 136];
+            for (e, &k) in t.pair.iter().enumerate() {
+                hp[e] = hl[k][q] as f64;
+            }
+            let mut grad = [0f64; 16];
+            for j in 0..M {
+                grad[j] = gl[j][q] as f64;
+            }
+            delta = solve_spd::<M>(&hp[..t.pair.len()], &grad[..M], t.ridge);
+        } else {
+            for j in 0..M {
+                delta[j] = dl[j][q] as f64;
+            }
         }
-        let mut grad = [0f64; 16];
-        for j in 0..M {
-            grad[j] = gl[j][q] as f64 + t.ridge * cl[j][q] as f64;
-        }
-        let mut delta = solve_spd::<M>(&hp[..t.pair.len()], &grad[..M], t.ridge);
         let big = delta[..M].iter().fold(0.0f64, |a, &b| a.max(b.abs()));
         if !big.is_finite() {
             done[q] = true;
@@ -325,7 +398,7 @@ fn newton_step<S: Simd, const M: usize, const D: usize>(
                 *x *= MAX_STEP / big;
             }
         }
-        let decrement: f64 = (0..M).map(|j| delta[j] * grad[j]).sum();
+        let decrement: f64 = (0..M).map(|j| delta[j] * gl[j][q] as f64).sum();
         for j in 0..M {
             cl[j][q] = (cl[j][q] as f64 - delta[j]) as f32;
         }
@@ -384,7 +457,10 @@ fn final_pass<S: Simd, const M: usize>(
         }
     }
     let mut lanes = [[0f32; 16]; 8];
-    for (dst, v) in lanes.iter_mut().zip([ss, mx, hs, hn, valid, ones, zeros, wrong]) {
+    for (dst, v) in lanes
+        .iter_mut()
+        .zip([ss, mx, hs, hn, valid, ones, zeros, wrong])
+    {
         S::store(v, dst);
     }
     let [ss, mx, hs, hn, valid, ones, zeros, wrong] = lanes;

@@ -22,6 +22,7 @@ pub(crate) trait Simd {
     fn fma(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     fn min(a: Self::V, b: Self::V) -> Self::V;
     fn max(a: Self::V, b: Self::V) -> Self::V;
+    fn sqrt(a: Self::V) -> Self::V;
     /// x where k ≥ 0, else 0 (k < 0 or NaN).
     fn where_nonneg(k: Self::V, x: Self::V) -> Self::V;
     /// 2ⁿ for integer-valued n in [−126, 127].
@@ -126,6 +127,10 @@ impl Simd for Portable {
         std::array::from_fn(|i| if a[i] > b[i] { a[i] } else { b[i] })
     }
     #[inline(always)]
+    fn sqrt(a: [f32; 8]) -> [f32; 8] {
+        std::array::from_fn(|i| a[i].sqrt())
+    }
+    #[inline(always)]
     fn where_nonneg(k: [f32; 8], x: [f32; 8]) -> [f32; 8] {
         std::array::from_fn(|i| if k[i] >= 0.0 { x[i] } else { 0.0 })
     }
@@ -193,6 +198,10 @@ impl Simd for Avx2 {
     #[inline(always)]
     fn max(a: Self::V, b: Self::V) -> Self::V {
         unsafe { std::arch::x86_64::_mm256_max_ps(a, b) }
+    }
+    #[inline(always)]
+    fn sqrt(a: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm256_sqrt_ps(a) }
     }
     #[inline(always)]
     fn recip(x: Self::V) -> Self::V {
@@ -282,6 +291,10 @@ impl Simd for Avx512 {
     #[inline(always)]
     fn max(a: Self::V, b: Self::V) -> Self::V {
         unsafe { std::arch::x86_64::_mm512_max_ps(a, b) }
+    }
+    #[inline(always)]
+    fn sqrt(a: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm512_sqrt_ps(a) }
     }
     #[inline(always)]
     fn recip(x: Self::V) -> Self::V {
