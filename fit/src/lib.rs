@@ -33,6 +33,7 @@ pub mod hp;
 pub mod images;
 pub mod lights;
 pub mod ptm;
+pub mod shard;
 pub mod solve;
 pub mod stack;
 

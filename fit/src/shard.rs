@@ -1,0 +1,767 @@
+//! Farm bakes: the partition of a bake into shards of texel rows, the part file one shard
+//! writes, and the merge of all parts into exactly the file one machine would have written.
+//!
+//! A shard is a block of whole image rows, starting at a multiple of [`ROW_BLOCK`] (the
+//! tracer's 4×4 texel blocks). Sample positions hash the global texel index and the streaming
+//! fit is per texel, so a shard's rows are bit-identical to the same rows of a whole bake; the
+//! merge concatenates them and recomputes what is file-level (error statistics, coverage
+//! channel presence) from the per-texel maps the parts carry.
+//!
+//! Part layout (docs/FORMAT.md, "Part files"): a single-part EXR of width × (rows of the
+//! shard), the channels of the final file for those rows (plus `err.rms` and `coverage` for a
+//! PTM part), and `part:*` attributes: version, kind, shard index and count, rows, full size,
+//! the bake's settings, the swatch's content hash, the writing software and a CRC-32 of the
+//! decoded content. Parts are written atomically, so a killed task leaves no part at all.
+use std::collections::BTreeMap;
+use std::fmt;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use exr::meta::attribute::AttributeValue;
+
+use crate::exrio::{self, Attr, Samples};
+use crate::ptm::channel_name;
+use crate::stack::k_channel;
+use crate::{Basis, Error, ErrorStats, FitReport, LightSet, Ptm, Result, SampleStack};
+
+/// Value of `part:version`.
+pub const PART_VERSION: &str = "ptm-part/1";
+
+/// Shards start at multiples of this many rows (the tracer's texel blocks are 4×4).
+pub const ROW_BLOCK: usize = 4;
+
+/// Shard `index` of `count` (0-based), as `--shard I/N` names it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl std::str::FromStr for Shard {
+    type Err = String;
+
+    /// Parses `I/N` with 0 ≤ I < N.
+    fn from_str(s: &str) -> std::result::Result<Self, String> {
+        let bad = |why: &str| format!("--shard {s:?}: {why} (expected I/N with 0 <= I < N, e.g. 0/4)");
+        let (i, n) = s.split_once('/').ok_or_else(|| bad("no `/`"))?;
+        let index: usize = i
+            .trim()
+            .parse()
+            .map_err(|_| bad(&format!("shard index {i:?} is not a whole number >= 0")))?;
+        let count: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| bad(&format!("shard count {n:?} is not a whole number >= 1")))?;
+        if count == 0 {
+            return Err(bad("the shard count must be at least 1"));
+        }
+        if index >= count {
+            return Err(bad(&format!(
+                "shard index {index} is out of range: shards of {count} are numbered 0 to {}",
+                count - 1
+            )));
+        }
+        Ok(Shard { index, count })
+    }
+}
+
+impl fmt::Display for Shard {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl Shard {
+    /// Image rows of this shard in a bake of `height` rows: blocks of [`ROW_BLOCK`] rows split
+    /// as evenly as whole blocks allow (shard i gets blocks ⌊i·B/N⌋ … ⌊(i+1)·B/N⌋). An error
+    /// when there are fewer blocks than shards (a shard would be empty).
+    pub fn rows(&self, height: usize) -> Result<Range<usize>> {
+        let blocks = height.div_ceil(ROW_BLOCK);
+        if self.count > blocks {
+            return Err(Error::Invalid(format!(
+                "--shard {self}: {height} rows make only {blocks} blocks of {ROW_BLOCK} rows, so \
+                 at most {blocks} shards"
+            )));
+        }
+        let at = |i: usize| (i * blocks / self.count * ROW_BLOCK).min(height);
+        Ok(at(self.index)..at(self.index + 1))
+    }
+
+    /// The part file of this shard for final output `out`: `samples.exr` →
+    /// `samples.part-0002-of-0004.exr`, `weave.ptm.exr` → `weave.ptm.part-0002-of-0004.exr`.
+    pub fn part_path(&self, out: &Path) -> PathBuf {
+        let name = out
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let stem = name.strip_suffix(".exr").unwrap_or(&name);
+        out.with_file_name(format!(
+            "{stem}.part-{:04}-of-{:04}.exr",
+            self.index, self.count
+        ))
+    }
+}
+
+/// 64-bit FNV-1a of byte chunks, as 16 hex digits: a content fingerprint (of a swatch, a light
+/// set), not a security hash.
+pub fn fingerprint<'a>(chunks: impl IntoIterator<Item = &'a [u8]>) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for c in chunks {
+        for &b in c {
+            h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    format!("{h:016x}")
+}
+
+/// What identifies a part: which shard, and of which bake.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PartMeta {
+    pub shard: Shard,
+    /// Rows of the full image this part holds.
+    pub rows: Range<usize>,
+    /// Size of the full image (texels per row, rows).
+    pub width: usize,
+    pub height: usize,
+    /// Every setting of the full bake that changes its output, in words (equal for all parts).
+    pub settings: String,
+    /// Content hash of the swatch (see [`fingerprint`]).
+    pub swatch: String,
+    /// Writing software and version, e.g. `ptm 0.1.0`.
+    pub software: String,
+}
+
+/// The fit's file-level facts that do not depend on texels (the same in every part) and the
+/// per-texel maps the merge recomputes statistics from.
+#[derive(Clone, Debug)]
+pub struct PtmPart {
+    pub ptm: Ptm,
+    /// Light count, lights in the fit, solver, rank, condition, light-set warnings; `rms_map`
+    /// holds the part's rows.
+    pub fit: FitReport,
+    /// Coverage of the part's rows (always stored, also where it is all 1).
+    pub coverage: Vec<f32>,
+    pub lights: LightSet,
+}
+
+/// A part's content: rows of a sample stack, or rows of a PTM with its fit facts.
+#[derive(Clone, Debug)]
+pub enum PartData {
+    Stack(SampleStack),
+    Ptm(PtmPart),
+}
+
+/// A part read and checked.
+#[derive(Clone, Debug)]
+pub struct Part {
+    pub path: PathBuf,
+    pub meta: PartMeta,
+    pub data: PartData,
+}
+
+/// The merged result, ready to write with [`SampleStack::write_into`] or [`Ptm::save`].
+pub enum Merged {
+    Stack(SampleStack),
+    Ptm(Ptm, Box<FitReport>, LightSet),
+}
+
+impl Merged {
+    pub fn lights(&self) -> &LightSet {
+        match self {
+            Merged::Stack(s) => &s.lights,
+            Merged::Ptm(_, _, l) => l,
+        }
+    }
+}
+
+fn light_attrs(lights: &LightSet) -> [(&'static str, Attr); 2] {
+    let dirs = lights
+        .dirs
+        .iter()
+        .map(|d| format!("{:e} {:e} {:e}", d[0], d[1], d[2]))
+        .collect();
+    [
+        ("part:lightDirs", Attr::Texts(dirs)),
+        ("part:lightNames", Attr::Texts(lights.names.clone())),
+    ]
+}
+
+/// CRC-32 over the part's identity and every channel (name-sorted, f32 little-endian bits).
+fn checksum(meta_words: &str, channels: &[(String, Samples)]) -> String {
+    let mut order: Vec<usize> = (0..channels.len()).collect();
+    order.sort_by(|&a, &b| channels[a].0.cmp(&channels[b].0));
+    let mut h = crc32fast::Hasher::new();
+    h.update(meta_words.as_bytes());
+    for i in order {
+        let (name, s) = &channels[i];
+        h.update(name.as_bytes());
+        h.update(&[0]);
+        if let Samples::F32(v) = s {
+            h.update(bytemuck_f32(v));
+        }
+    }
+    format!("crc32:{:08x}", h.finalize())
+}
+
+/// The bytes of an f32 slice (little-endian on every target this crate builds for).
+fn bytemuck_f32(v: &[f32]) -> &[u8] {
+    #[cfg(target_endian = "big")]
+    compile_error!("part checksums assume a little-endian target");
+    // SAFETY: f32 has no padding and every bit pattern is a valid u8 sequence.
+    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) }
+}
+
+/// The identity attributes in one line, as hashed by the checksum.
+fn meta_words(m: &PartMeta, kind: &str) -> String {
+    format!(
+        "{PART_VERSION}|{kind}|{}|{}..{}|{}x{}|{}|{}|{}",
+        m.shard, m.rows.start, m.rows.end, m.width, m.height, m.settings, m.swatch, m.software
+    )
+}
+
+fn meta_attrs(m: &PartMeta, kind: &str) -> Vec<(&'static str, Attr)> {
+    vec![
+        ("part:version", Attr::Text(PART_VERSION.into())),
+        ("part:kind", Attr::Text(kind.into())),
+        ("part:index", Attr::I32(m.shard.index as i32)),
+        ("part:count", Attr::I32(m.shard.count as i32)),
+        ("part:rowStart", Attr::I32(m.rows.start as i32)),
+        ("part:rowEnd", Attr::I32(m.rows.end as i32)),
+        ("part:width", Attr::I32(m.width as i32)),
+        ("part:height", Attr::I32(m.height as i32)),
+        ("part:settings", Attr::Text(m.settings.clone())),
+        ("part:swatch", Attr::Text(m.swatch.clone())),
+        ("part:software", Attr::Text(m.software.clone())),
+    ]
+}
+
+fn check_rows(meta: &PartMeta, width: usize, rows: usize) -> Result<()> {
+    if width != meta.width || rows != meta.rows.len() {
+        return Err(Error::Invalid(format!(
+            "part {}: data of {width}×{rows} texels for rows {}..{} of a {}-wide image",
+            meta.shard, meta.rows.start, meta.rows.end, meta.width
+        )));
+    }
+    Ok(())
+}
+
+/// Writes the rows of a sample stack as part `path`, atomically.
+pub fn write_stack_part(path: &Path, meta: &PartMeta, stack: SampleStack) -> Result<()> {
+    stack.validate()?;
+    check_rows(meta, stack.width, stack.height)?;
+    let mut channels = Vec::with_capacity(stack.k.len() * 3 + 1);
+    for (i, plane) in stack.k.into_iter().enumerate() {
+        channels.push((k_channel(i), Samples::F32(plane)));
+    }
+    channels.push(("coverage".to_string(), Samples::F32(stack.coverage)));
+    if let Some(uv) = &stack.uv {
+        for (i, plane) in uv.iter().enumerate() {
+            channels.push((
+                format!("u.{i:04}"),
+                Samples::F32(plane.iter().map(|p| p[0]).collect()),
+            ));
+            channels.push((
+                format!("v.{i:04}"),
+                Samples::F32(plane.iter().map(|p| p[1]).collect()),
+            ));
+        }
+    }
+    let mut attrs = meta_attrs(meta, "stack");
+    attrs.extend(light_attrs(&stack.lights));
+    attrs.push(("part:tileW", Attr::F64(stack.tile[0])));
+    attrs.push(("part:tileH", Attr::F64(stack.tile[1])));
+    attrs.push((
+        "part:uv",
+        Attr::Text(if stack.uv.is_some() { "per-texel" } else { "distant" }.into()),
+    ));
+    attrs.push(("part:checksum", Attr::Text(checksum(&meta_words(meta, "stack"), &channels))));
+    exrio::write(path, stack.width, stack.height, channels, attrs)
+}
+
+/// Writes the rows of a fitted PTM as part `path`, atomically: coefficients, the per-texel RMS
+/// residual and coverage of its rows, and the fit's texel-independent facts.
+pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()> {
+    let (ptm, fit) = (&part.ptm, &part.fit);
+    ptm.validate()?;
+    check_rows(meta, ptm.width, ptm.height)?;
+    let n = ptm.width * ptm.height;
+    if fit.rms_map.len() != n || part.coverage.len() != n {
+        return Err(Error::Invalid(format!(
+            "part {}: the RMS and coverage maps must have {n} texels",
+            meta.shard
+        )));
+    }
+    let mut channels: Vec<(String, Samples)> = ptm
+        .basis
+        .monomials()
+        .iter()
+        .zip(&ptm.planes)
+        .map(|(m, p)| (channel_name(m.name), Samples::F32(p.clone())))
+        .collect();
+    channels.push(("err.rms".into(), Samples::F32(fit.rms_map.clone())));
+    channels.push(("coverage".into(), Samples::F32(part.coverage.clone())));
+    let mut attrs = meta_attrs(meta, "ptm");
+    attrs.extend(light_attrs(&part.lights));
+    attrs.extend([
+        ("part:tileW", Attr::F64(ptm.tile[0])),
+        ("part:tileH", Attr::F64(ptm.tile[1])),
+        ("part:basis", Attr::Text(ptm.basis.name().into())),
+        ("part:nLights", Attr::I32(fit.lights as i32)),
+        ("part:nLightsFit", Attr::I32(fit.lights_fit as i32)),
+        ("part:solver", Attr::Text(fit.solver.clone())),
+        ("part:rank", Attr::I32(fit.rank as i32)),
+    ]);
+    if fit.cond.is_finite() {
+        attrs.push(("part:cond", Attr::F64(fit.cond)));
+    }
+    if !fit.warnings.is_empty() {
+        attrs.push(("part:warnings", Attr::Texts(fit.warnings.clone())));
+    }
+    attrs.push(("part:checksum", Attr::Text(checksum(&meta_words(meta, "ptm"), &channels))));
+    exrio::write(path, ptm.width, ptm.height, channels, attrs)
+}
+
+fn err(path: &Path, reason: impl Into<String>) -> Error {
+    Error::Format {
+        path: path.display().to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// EXR text is Latin-1 bytes (as `exrio` reads it).
+fn latin1(t: &exr::meta::attribute::Text) -> String {
+    t.bytes().iter().map(|&b| b as char).collect()
+}
+
+/// Header attributes of a part, without decoding its pixels.
+fn read_header(path: &Path) -> Result<BTreeMap<String, Attr>> {
+    if let Err(e) = std::fs::metadata(path) {
+        return Err(Error::Io {
+            path: path.display().to_string(),
+            source: e,
+        });
+    }
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| err(path, format!("not a readable OpenEXR file (truncated?): {e}")))?;
+    let mut out = BTreeMap::new();
+    for h in &meta.headers {
+        for (name, value) in h.own_attributes.other.iter().chain(&h.shared_attributes.other) {
+            let a = match value {
+                AttributeValue::Text(t) => Attr::Text(latin1(t)),
+                AttributeValue::TextVector(v) => Attr::Texts(v.iter().map(latin1).collect()),
+                AttributeValue::F64(x) => Attr::F64(*x),
+                AttributeValue::I32(x) => Attr::I32(*x),
+                _ => continue,
+            };
+            out.insert(latin1(name), a);
+        }
+    }
+    Ok(out)
+}
+
+fn meta_from(path: &Path, attrs: &BTreeMap<String, Attr>) -> Result<(PartMeta, String)> {
+    let text = |k: &str| match attrs.get(k) {
+        Some(Attr::Text(s)) => Ok(s.clone()),
+        _ => Err(err(path, format!("part lacks the text attribute `{k}`"))),
+    };
+    let int = |k: &str| match attrs.get(k) {
+        Some(Attr::I32(x)) if *x >= 0 => Ok(*x as usize),
+        _ => Err(err(path, format!("part lacks the integer attribute `{k}`"))),
+    };
+    match attrs.get("part:version") {
+        Some(Attr::Text(v)) if v == PART_VERSION => {}
+        Some(Attr::Text(v)) => {
+            return Err(err(
+                path,
+                format!("part version {v:?} is not supported (expected {PART_VERSION:?})"),
+            ))
+        }
+        _ => {
+            return Err(err(
+                path,
+                "not a ptm part file (no `part:version`; parts are written by `ptm bake --shard I/N`)",
+            ))
+        }
+    }
+    let meta = PartMeta {
+        shard: Shard {
+            index: int("part:index")?,
+            count: int("part:count")?,
+        },
+        rows: int("part:rowStart")?..int("part:rowEnd")?,
+        width: int("part:width")?,
+        height: int("part:height")?,
+        settings: text("part:settings")?,
+        swatch: text("part:swatch")?,
+        software: text("part:software")?,
+    };
+    let kind = text("part:kind")?;
+    Ok((meta, kind))
+}
+
+/// Reads a part's identity (header only; cheap).
+pub fn read_meta(path: &Path) -> Result<(PartMeta, String)> {
+    meta_from(path, &read_header(path)?)
+}
+
+/// Reads and checks a whole part: every channel decodes and the checksum matches.
+pub fn read_part(path: &Path) -> Result<Part> {
+    let mut c = exrio::read(path)?;
+    let attrs: BTreeMap<String, Attr> = c.attrs.clone().into_iter().collect();
+    let (meta, kind) = meta_from(path, &attrs)?;
+    const WHAT: &str = "part";
+    if c.width != meta.width || c.height != meta.rows.len() {
+        return Err(c.error(format!(
+            "holds {}×{} texels but names rows {}..{} of a {}-wide image",
+            c.width, c.height, meta.rows.start, meta.rows.end, meta.width
+        )));
+    }
+    let stored = c.text("part:checksum", WHAT)?;
+    let mut names: Vec<&String> = c.channels.keys().collect();
+    names.sort();
+    let mut h = crc32fast::Hasher::new();
+    h.update(meta_words(&meta, &kind).as_bytes());
+    for name in names {
+        h.update(name.as_bytes());
+        h.update(&[0]);
+        if let Samples::F32(v) = &c.channels[name] {
+            h.update(bytemuck_f32(v));
+        }
+    }
+    let found = format!("crc32:{:08x}", h.finalize());
+    if found != stored {
+        return Err(c.error(format!(
+            "checksum mismatch (stored {stored}, content {found}): the part is damaged; delete it \
+             and rerun shard {}",
+            meta.shard
+        )));
+    }
+    let dir_text = c.texts("part:lightDirs", WHAT)?;
+    let mut dirs = Vec::with_capacity(dir_text.len());
+    for s in &dir_text {
+        let v: Vec<f64> = s.split_whitespace().filter_map(|t| t.parse().ok()).collect();
+        if v.len() != 3 {
+            return Err(c.error(format!("light direction {s:?} is not `x y z`")));
+        }
+        dirs.push([v[0], v[1], v[2]]);
+    }
+    let lights = LightSet {
+        names: c.texts("part:lightNames", WHAT)?,
+        dirs,
+    };
+    let tile = [c.f64("part:tileW", WHAT)?, c.f64("part:tileH", WHAT)?];
+    let data = match kind.as_str() {
+        "stack" => {
+            let n = lights.len();
+            let mut k = Vec::with_capacity(n);
+            for i in 0..n {
+                k.push(c.take_f32(&k_channel(i), WHAT)?);
+            }
+            let coverage = c.take_f32("coverage", WHAT)?;
+            let uv = if c.text("part:uv", WHAT)? == "per-texel" {
+                let mut uv = Vec::with_capacity(n);
+                for i in 0..n {
+                    let u = c.take_f32(&format!("u.{i:04}"), WHAT)?;
+                    let v = c.take_f32(&format!("v.{i:04}"), WHAT)?;
+                    uv.push(u.into_iter().zip(v).map(|(u, v)| [u, v]).collect());
+                }
+                Some(uv)
+            } else {
+                None
+            };
+            PartData::Stack(SampleStack {
+                width: c.width,
+                height: c.height,
+                tile,
+                lights,
+                k,
+                coverage,
+                uv,
+            })
+        }
+        "ptm" => {
+            let name = c.text("part:basis", WHAT)?;
+            let basis = Basis::from_name(&name)
+                .ok_or_else(|| c.error(format!("unknown basis {name:?}")))?;
+            let mut planes = Vec::with_capacity(basis.len());
+            for m in basis.monomials() {
+                planes.push(c.take_f32(&channel_name(m.name), WHAT)?);
+            }
+            let fit = FitReport {
+                basis: Some(basis),
+                lights: c.f64("part:nLights", WHAT)? as usize,
+                lights_fit: c.f64("part:nLightsFit", WHAT)? as usize,
+                solver: c.text("part:solver", WHAT)?,
+                rank: c.f64("part:rank", WHAT)? as usize,
+                cond: c.f64("part:cond", WHAT).unwrap_or(f64::INFINITY),
+                warnings: c.texts("part:warnings", WHAT).unwrap_or_default(),
+                rms_map: c.take_f32("err.rms", WHAT)?,
+                ..FitReport::default()
+            };
+            let coverage = c.take_f32("coverage", WHAT)?;
+            let ptm = Ptm {
+                basis,
+                width: c.width,
+                height: c.height,
+                tile,
+                planes,
+            };
+            PartData::Ptm(PtmPart {
+                ptm,
+                fit,
+                coverage,
+                lights,
+            })
+        }
+        other => return Err(c.error(format!("unknown part kind {other:?}"))),
+    };
+    Ok(Part {
+        path: path.to_path_buf(),
+        meta,
+        data,
+    })
+}
+
+/// Part files in `dir` (names containing `.part-` and ending in `.exr`), sorted.
+pub fn parts_in(dir: &Path) -> Result<Vec<PathBuf>> {
+    let io = |e| Error::Io {
+        path: dir.display().to_string(),
+        source: e,
+    };
+    let mut out = Vec::new();
+    for e in std::fs::read_dir(dir).map_err(io)? {
+        let p = e.map_err(io)?.path();
+        let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        if name.contains(".part-") && name.ends_with(".exr") {
+            out.push(p);
+        }
+    }
+    out.sort();
+    Ok(out)
+}
+
+/// Checks that `paths` are exactly the shards 0 … N−1 of one bake (same settings, swatch,
+/// software, size, kind; none missing or twice; rows as the partition gives them), reading
+/// headers only. Returns the metas in shard order. Errors name the files and both values.
+pub fn check_set(paths: &[PathBuf]) -> Result<Vec<(PathBuf, PartMeta)>> {
+    if paths.is_empty() {
+        return Err(Error::Invalid("no part files to merge".into()));
+    }
+    let mut metas = Vec::with_capacity(paths.len());
+    for p in paths {
+        let (m, kind) = read_meta(p)?;
+        metas.push((p.clone(), m, kind));
+    }
+    let (p0, m0, k0) = metas[0].clone();
+    let (m0, k0) = (&m0, &k0);
+    for (p, m, k) in &metas[1..] {
+        let differ = |what: &str, a: &dyn fmt::Display, b: &dyn fmt::Display| {
+            Error::Invalid(format!(
+                "{} and {} are parts of different bakes: {what} {a:?} against {b:?}",
+                p0.display(),
+                p.display(),
+                a = a.to_string(),
+                b = b.to_string()
+            ))
+        };
+        if m.software != m0.software {
+            return Err(differ("software version", &m0.software, &m.software));
+        }
+        if k != k0 {
+            return Err(differ("kind", k0, k));
+        }
+        if m.settings != m0.settings {
+            return Err(differ("settings", &m0.settings, &m.settings));
+        }
+        if m.swatch != m0.swatch {
+            return Err(differ("swatch content hash", &m0.swatch, &m.swatch));
+        }
+        if (m.width, m.height) != (m0.width, m0.height) {
+            return Err(differ(
+                "image size",
+                &format!("{}x{}", m0.width, m0.height),
+                &format!("{}x{}", m.width, m.height),
+            ));
+        }
+        if m.shard.count != m0.shard.count {
+            return Err(differ("shard count", &m0.shard.count, &m.shard.count));
+        }
+    }
+    let count = m0.shard.count;
+    let mut slots: Vec<Option<(PathBuf, PartMeta)>> = vec![None; count];
+    for (p, m, _) in metas {
+        let i = m.shard.index;
+        if i >= count {
+            return Err(err(&p, format!("shard index {i} of {count} is out of range")));
+        }
+        let want = m.shard.rows(m.height)?;
+        if m.rows != want {
+            return Err(err(
+                &p,
+                format!(
+                    "shard {} holds rows {}..{}, the partition gives {}..{}",
+                    m.shard, m.rows.start, m.rows.end, want.start, want.end
+                ),
+            ));
+        }
+        if let Some((q, _)) = &slots[i] {
+            return Err(Error::Invalid(format!(
+                "shard {i}/{count} given twice: {} and {}",
+                q.display(),
+                p.display()
+            )));
+        }
+        slots[i] = Some((p, m));
+    }
+    let missing: Vec<String> = (0..count)
+        .filter(|&i| slots[i].is_none())
+        .map(|i| format!("{i}/{count}"))
+        .collect();
+    if !missing.is_empty() {
+        return Err(Error::Invalid(format!(
+            "missing shard(s) {} of the bake of {} (rerun them, then merge again)",
+            missing.join(", "),
+            p0.display()
+        )));
+    }
+    Ok(slots.into_iter().flatten().collect())
+}
+
+/// Same as `ErrorStats::of` in `solve.rs` (mean, 99th percentile by selection, max over the
+/// unmasked texels), so merged statistics are the one-machine bake's to the bit.
+fn error_stats(values: &[f32], mask: &[bool]) -> ErrorStats {
+    let mut v: Vec<f32> = values
+        .iter()
+        .zip(mask)
+        .filter(|(_, &m)| !m)
+        .map(|(&x, _)| x)
+        .collect();
+    if v.is_empty() {
+        return ErrorStats::default();
+    }
+    let mean = v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
+    let max = v.iter().copied().fold(f32::MIN, f32::max);
+    let i99 = ((v.len() as f64 * 0.99).ceil() as usize).clamp(1, v.len()) - 1;
+    let (_, p99, _) = v.select_nth_unstable_by(i99, f32::total_cmp);
+    ErrorStats {
+        mean,
+        p99: *p99 as f64,
+        max: max as f64,
+    }
+}
+
+/// Merges a complete set of parts (see [`check_set`]) into the whole stack or PTM.
+pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
+    let set = check_set(paths)?;
+    let mut out: Option<Merged> = None;
+    let mut coverage: Vec<f32> = Vec::new();
+    for (path, _) in &set {
+        let part = read_part(path)?;
+        match (part.data, &mut out) {
+            (PartData::Stack(s), None) => out = Some(Merged::Stack(s)),
+            (PartData::Stack(s), Some(Merged::Stack(all))) => {
+                if s.lights != all.lights || s.tile != all.tile || s.uv.is_some() != all.uv.is_some() {
+                    return Err(err(path, "lights or tile differ from the first part's"));
+                }
+                for (a, b) in all.k.iter_mut().zip(s.k) {
+                    a.extend(b);
+                }
+                all.coverage.extend(s.coverage);
+                if let (Some(a), Some(b)) = (all.uv.as_mut(), s.uv) {
+                    for (a, b) in a.iter_mut().zip(b) {
+                        a.extend(b);
+                    }
+                }
+                all.height += s.height;
+            }
+            (PartData::Ptm(p), None) => {
+                coverage = p.coverage;
+                out = Some(Merged::Ptm(p.ptm, Box::new(p.fit), p.lights));
+            }
+            (PartData::Ptm(p), Some(Merged::Ptm(ptm, fit, lights))) => {
+                let same = p.ptm.basis == ptm.basis
+                    && p.ptm.tile == ptm.tile
+                    && p.lights == *lights
+                    && p.fit.solver == fit.solver
+                    && (p.fit.lights, p.fit.lights_fit, p.fit.rank) == (fit.lights, fit.lights_fit, fit.rank)
+                    && p.fit.cond.to_bits() == fit.cond.to_bits()
+                    && p.fit.warnings == fit.warnings;
+                if !same {
+                    return Err(err(path, "its fit (basis, lights, solver, rank, warnings) differs from the first part's"));
+                }
+                for (a, b) in ptm.planes.iter_mut().zip(p.ptm.planes) {
+                    a.extend(b);
+                }
+                ptm.height += p.ptm.height;
+                fit.rms_map.extend(p.fit.rms_map);
+                coverage.extend(p.coverage);
+            }
+            _ => return Err(err(path, "part kinds differ")),
+        }
+    }
+    let mut out = out.expect("check_set refuses an empty set");
+    if let Merged::Ptm(ptm, fit, _) = &mut out {
+        finish_fit(ptm, fit, coverage);
+    }
+    Ok(out)
+}
+
+/// Recomputes the file-level statistics of a merged fit from its per-texel maps, as
+/// `Accumulator::finish` computes them for a whole bake. The one place a new per-file figure
+/// (e.g. of a MIP chain) is to be added.
+fn finish_fit(ptm: &Ptm, fit: &mut FitReport, coverage: Vec<f32>) {
+    let masked: Vec<bool> = coverage.iter().map(|&c| c <= 0.0).collect();
+    fit.texels = ptm.width * ptm.height;
+    fit.masked = masked.iter().filter(|&&m| m).count();
+    fit.rms = error_stats(&fit.rms_map, &masked);
+    fit.coverage = if coverage.iter().any(|&c| c < 1.0) {
+        coverage
+    } else {
+        Vec::new()
+    };
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_parse_and_refuse() {
+        assert_eq!("2/4".parse::<Shard>(), Ok(Shard { index: 2, count: 4 }));
+        for bad in ["0/0", "5/4", "4/4", "-1/3", "x/3", "1", "1/y", ""] {
+            let e = bad.parse::<Shard>().unwrap_err();
+            assert!(e.contains("--shard"), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn partition_covers_every_row_once_block_aligned() {
+        for h in [4, 5, 63, 64, 1000, 1024] {
+            for n in 1..=h.div_ceil(ROW_BLOCK).min(9) {
+                let mut next = 0;
+                for i in 0..n {
+                    let r = Shard { index: i, count: n }.rows(h).unwrap();
+                    assert_eq!(r.start, next);
+                    assert_eq!(r.start % ROW_BLOCK, 0);
+                    assert!(!r.is_empty());
+                    next = r.end;
+                }
+                assert_eq!(next, h);
+            }
+        }
+        assert!(Shard { index: 0, count: 3 }.rows(8).is_err());
+    }
+
+    #[test]
+    fn part_names() {
+        let s = Shard { index: 2, count: 4 };
+        assert_eq!(
+            s.part_path(Path::new("d/w.ptm.exr")),
+            Path::new("d/w.ptm.part-0002-of-0004.exr")
+        );
+        assert_eq!(
+            s.part_path(Path::new("samples.exr")),
+            Path::new("samples.part-0002-of-0004.exr")
+        );
+    }
+}
