@@ -186,14 +186,35 @@ fn light_attrs(lights: &LightSet) -> [(&'static str, Attr); 2] {
     ]
 }
 
-/// CRC-32 over the part's identity and every channel (name-sorted, f32 little-endian bits).
-fn checksum(meta_words: &str, channels: &[(String, Samples)]) -> String {
-    let mut order: Vec<usize> = (0..channels.len()).collect();
-    order.sort_by(|&a, &b| channels[a].0.cmp(&channels[b].0));
+/// CRC-32 over every `part:*` attribute but the checksum (name-sorted, values in a fixed
+/// binary form) and every channel (name-sorted, f32 little-endian bits).
+fn checksum<'a>(
+    attrs: impl IntoIterator<Item = (&'a str, &'a Attr)>,
+    channels: impl IntoIterator<Item = (&'a str, &'a Samples)>,
+) -> String {
     let mut h = crc32fast::Hasher::new();
-    h.update(meta_words.as_bytes());
-    for i in order {
-        let (name, s) = &channels[i];
+    let mut attrs: Vec<_> = attrs
+        .into_iter()
+        .filter(|(n, _)| n.starts_with("part:") && *n != "part:checksum")
+        .collect();
+    attrs.sort_by_key(|a| a.0);
+    for (name, a) in attrs {
+        h.update(name.as_bytes());
+        h.update(&[0]);
+        match a {
+            Attr::Text(s) => h.update(s.as_bytes()),
+            Attr::Texts(v) => v.iter().for_each(|s| {
+                h.update(s.as_bytes());
+                h.update(&[0]);
+            }),
+            Attr::F64(x) => h.update(&x.to_le_bytes()),
+            Attr::I32(x) => h.update(&x.to_le_bytes()),
+        }
+        h.update(&[0]);
+    }
+    let mut channels: Vec<_> = channels.into_iter().collect();
+    channels.sort_by_key(|c| c.0);
+    for (name, s) in channels {
         h.update(name.as_bytes());
         h.update(&[0]);
         if let Samples::F32(v) = s {
@@ -203,20 +224,21 @@ fn checksum(meta_words: &str, channels: &[(String, Samples)]) -> String {
     format!("crc32:{:08x}", h.finalize())
 }
 
+fn sealed(mut attrs: Vec<(&'static str, Attr)>, channels: &[(String, Samples)]) -> Vec<(&'static str, Attr)> {
+    let sum = checksum(
+        attrs.iter().map(|(n, a)| (*n, a)),
+        channels.iter().map(|(n, s)| (n.as_str(), s)),
+    );
+    attrs.push(("part:checksum", Attr::Text(sum)));
+    attrs
+}
+
 /// The bytes of an f32 slice (little-endian on every target this crate builds for).
 fn bytemuck_f32(v: &[f32]) -> &[u8] {
     #[cfg(target_endian = "big")]
     compile_error!("part checksums assume a little-endian target");
     // SAFETY: f32 has no padding and every bit pattern is a valid u8 sequence.
     unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) }
-}
-
-/// The identity attributes in one line, as hashed by the checksum.
-fn meta_words(m: &PartMeta, kind: &str) -> String {
-    format!(
-        "{PART_VERSION}|{kind}|{}|{}..{}|{}x{}|{}|{}|{}",
-        m.shard, m.rows.start, m.rows.end, m.width, m.height, m.settings, m.swatch, m.software
-    )
 }
 
 fn meta_attrs(m: &PartMeta, kind: &str) -> Vec<(&'static str, Attr)> {
@@ -274,7 +296,7 @@ pub fn write_stack_part(path: &Path, meta: &PartMeta, stack: SampleStack) -> Res
         "part:uv",
         Attr::Text(if stack.uv.is_some() { "per-texel" } else { "distant" }.into()),
     ));
-    attrs.push(("part:checksum", Attr::Text(checksum(&meta_words(meta, "stack"), &channels))));
+    let attrs = sealed(attrs, &channels);
     exrio::write(path, stack.width, stack.height, channels, attrs)
 }
 
@@ -317,7 +339,7 @@ pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()
     if !fit.warnings.is_empty() {
         attrs.push(("part:warnings", Attr::Texts(fit.warnings.clone())));
     }
-    attrs.push(("part:checksum", Attr::Text(checksum(&meta_words(meta, "ptm"), &channels))));
+    let attrs = sealed(attrs, &channels);
     exrio::write(path, ptm.width, ptm.height, channels, attrs)
 }
 
@@ -417,18 +439,10 @@ pub fn read_part(path: &Path) -> Result<Part> {
         )));
     }
     let stored = c.text("part:checksum", WHAT)?;
-    let mut names: Vec<&String> = c.channels.keys().collect();
-    names.sort();
-    let mut h = crc32fast::Hasher::new();
-    h.update(meta_words(&meta, &kind).as_bytes());
-    for name in names {
-        h.update(name.as_bytes());
-        h.update(&[0]);
-        if let Samples::F32(v) = &c.channels[name] {
-            h.update(bytemuck_f32(v));
-        }
-    }
-    let found = format!("crc32:{:08x}", h.finalize());
+    let found = checksum(
+        c.attrs.iter().map(|(n, a)| (n.as_str(), a)),
+        c.channels.iter().map(|(n, s)| (n.as_str(), s)),
+    );
     if found != stored {
         return Err(c.error(format!(
             "checksum mismatch (stored {stored}, content {found}): the part is damaged; delete it \
