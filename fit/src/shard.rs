@@ -561,6 +561,17 @@ pub fn check_set(paths: &[PathBuf]) -> Result<Vec<(PathBuf, PartMeta)>> {
     if paths.is_empty() {
         return Err(Error::Invalid("no part files to merge".into()));
     }
+    let absent: Vec<String> = paths
+        .iter()
+        .filter(|p| !p.exists())
+        .map(|p| p.display().to_string())
+        .collect();
+    if !absent.is_empty() {
+        return Err(Error::Invalid(format!(
+            "missing part(s) {} (rerun their shards, then merge again)",
+            absent.join(", ")
+        )));
+    }
     let mut metas = Vec::with_capacity(paths.len());
     for p in paths {
         let (m, kind) = read_meta(p)?;
