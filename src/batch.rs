@@ -91,7 +91,10 @@ pub fn read_manifest(path: &Path) -> anyhow::Result<Vec<Job>> {
         Some(_) => bail!("{}: `defaults` must be a table", path.display()),
     };
     if let Some(k) = doc.keys().find(|k| *k != "defaults" && *k != "bake") {
-        bail!("{}: unknown top-level key `{k}` (expected [defaults] and [[bake]])", path.display());
+        bail!(
+            "{}: unknown top-level key `{k}` (expected [defaults] and [[bake]])",
+            path.display()
+        );
     }
     let bakes = match doc.get("bake") {
         Some(toml::Value::Array(a)) if !a.is_empty() => a,
@@ -124,11 +127,15 @@ pub fn read_manifest(path: &Path) -> anyhow::Result<Vec<Job>> {
                 args.push(s);
             }
         }
-        let line = BakeLine::try_parse_from(std::iter::once("bake".to_string()).chain(args.clone()))
-            .map_err(|e| anyhow::anyhow!("{what}: {}", e.render().to_string().trim()))?;
-        Shard { index: 0, count: shards }
-            .rows(line.args.res.last().copied().unwrap_or(0))
-            .with_context(|| what.clone())?;
+        let line =
+            BakeLine::try_parse_from(std::iter::once("bake".to_string()).chain(args.clone()))
+                .map_err(|e| anyhow::anyhow!("{what}: {}", e.render().to_string().trim()))?;
+        Shard {
+            index: 0,
+            count: shards,
+        }
+        .rows(line.args.res.last().copied().unwrap_or(0))
+        .with_context(|| what.clone())?;
         jobs.push(Job {
             args,
             output: line.args.output.clone(),
@@ -140,7 +147,10 @@ pub fn read_manifest(path: &Path) -> anyhow::Result<Vec<Job>> {
 
 /// Single-quotes `s` for a POSIX shell.
 fn quote(s: &str) -> String {
-    if !s.is_empty() && s.chars().all(|c| c.is_ascii_alphanumeric() || "-_./:=,@%+".contains(c)) {
+    if !s.is_empty()
+        && s.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./:=,@%+".contains(c))
+    {
         s.to_string()
     } else {
         format!("'{}'", s.replace('\'', r"'\''"))
@@ -149,7 +159,13 @@ fn quote(s: &str) -> String {
 
 fn part_paths(job: &Job) -> Vec<PathBuf> {
     (0..job.shards)
-        .map(|index| Shard { index, count: job.shards }.part_path(&job.output))
+        .map(|index| {
+            Shard {
+                index,
+                count: job.shards,
+            }
+            .part_path(&job.output)
+        })
         .collect()
 }
 
@@ -178,11 +194,18 @@ fn run_here(jobs: &[Job], dir: &Path) -> anyhow::Result<Value> {
         }
         for i in 0..job.shards {
             let shard = format!("{i}/{}", job.shards);
-            eprintln!("ptm batch: bake {n}, shard {shard}: {}", job.output.display());
+            eprintln!(
+                "ptm batch: bake {n}, shard {shard}: {}",
+                job.output.display()
+            );
             let line = BakeLine::try_parse_from(
-                ["bake".to_string()].into_iter().chain(job.args.clone()).chain(["--shard".into(), shard]),
+                ["bake".to_string()]
+                    .into_iter()
+                    .chain(job.args.clone())
+                    .chain(["--shard".into(), shard]),
             )?;
-            crate::bake::run(&line.args).with_context(|| format!("bake {n} ({})", job.output.display()))?;
+            crate::bake::run(&line.args)
+                .with_context(|| format!("bake {n} ({})", job.output.display()))?;
         }
         let merge = crate::merge::Args {
             parts: part_paths(job),
@@ -208,11 +231,23 @@ fn write_slurm(args: &Args, jobs: &[Job], dir: &Path, out: &Path) -> anyhow::Res
             line.push(format!("{i}/{}", job.shards));
             writeln!(tasks, "{}", line.join(" "))?;
         }
-        let parts: Vec<String> = part_paths(job).iter().map(|p| quote(&p.to_string_lossy())).collect();
-        writeln!(merges, "{} -o {}", parts.join(" "), quote(&job.output.to_string_lossy()))?;
+        let parts: Vec<String> = part_paths(job)
+            .iter()
+            .map(|p| quote(&p.to_string_lossy()))
+            .collect();
+        writeln!(
+            merges,
+            "{} -o {}",
+            parts.join(" "),
+            quote(&job.output.to_string_lossy())
+        )?;
     }
     let n_tasks = tasks.lines().count();
-    let extra: String = args.sbatch.iter().map(|o| format!("#SBATCH {o}\n")).collect();
+    let extra: String = args
+        .sbatch
+        .iter()
+        .map(|o| format!("#SBATCH {o}\n"))
+        .collect();
     let head = |name: &str| {
         format!(
             "#!/bin/bash\n# Written by `ptm batch {}`.\n#SBATCH --job-name={name}\n{extra}set -euo pipefail\n\

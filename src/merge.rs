@@ -25,7 +25,10 @@ pub fn part_files(args: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
         if p.is_dir() {
             let found = shard::parts_in(p)?;
             if found.is_empty() {
-                bail!("{}: no part files (*.part-*.exr) in this directory", p.display());
+                bail!(
+                    "{}: no part files (*.part-*.exr) in this directory",
+                    p.display()
+                );
             }
             out.extend(found);
         } else {
@@ -73,7 +76,9 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     lights.write_lp(&lp)?;
     let t_write = t1.elapsed().as_secs_f64();
     let total = t0.elapsed().as_secs_f64();
-    let out_bytes = std::fs::metadata(&args.output).map(|m| m.len()).unwrap_or(0);
+    let out_bytes = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
     eprintln!(
         "ptm merge: {} parts ({:.1} MB) → {} ({width}×{height}, {} lights) and {} in {total:.2} s",
         files.len(),

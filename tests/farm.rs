@@ -38,14 +38,23 @@ fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) {
     let whole = format!("whole-{out}");
     ok(&[&["bake"], bake, &["-o", &whole]].concat(), d);
     let want = std::fs::read(d.join(&whole)).unwrap();
-    let lp = |f: &str| f.strip_suffix(".exr").unwrap().trim_end_matches(".ptm").to_string() + ".lp";
+    let lp = |f: &str| {
+        f.strip_suffix(".exr")
+            .unwrap()
+            .trim_end_matches(".ptm")
+            .to_string()
+            + ".lp"
+    };
     let want_lp = std::fs::read(d.join(lp(&whole))).unwrap();
     for &n in counts {
         let name = format!("n{n}-{out}");
         let mut parts = Vec::new();
         for i in 0..n {
             let s = format!("{i}/{n}");
-            let j = ok(&[&["--json", "bake"], bake, &["-o", &name, "--shard", &s]].concat(), d);
+            let j = ok(
+                &[&["--json", "bake"], bake, &["-o", &name, "--shard", &s]].concat(),
+                d,
+            );
             let j: serde_json::Value = serde_json::from_str(&j).unwrap();
             parts.push(j["output"].as_str().unwrap().to_string());
         }
@@ -55,12 +64,21 @@ fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) {
         args.extend(["-o", &merged]);
         ok(&args, d);
         let got = std::fs::read(d.join(&merged)).unwrap();
-        assert!(got == want, "{bake:?} in {n} shards: merged {merged} differs from {whole}");
-        assert_eq!(std::fs::read(d.join(lp(&merged))).unwrap(), want_lp, "{n} shards: .lp");
+        assert!(
+            got == want,
+            "{bake:?} in {n} shards: merged {merged} differs from {whole}"
+        );
+        assert_eq!(
+            std::fs::read(d.join(lp(&merged))).unwrap(),
+            want_lp,
+            "{n} shards: .lp"
+        );
     }
 }
 
-const BAKE: &[&str] = &["--res", "40,36", "--dirs", "12", "--spp", "4", "--seed", "3"];
+const BAKE: &[&str] = &[
+    "--res", "40,36", "--dirs", "12", "--spp", "4", "--seed", "3",
+];
 
 #[test]
 fn sharded_stack_is_byte_identical() {
@@ -69,12 +87,20 @@ fn sharded_stack_is_byte_identical() {
 
 #[test]
 fn sharded_ptm6_is_byte_identical() {
-    sharded_equals_whole(&[BAKE, &["--fit", "ptm6"]].concat(), "w.ptm.exr", &[1, 3, 4]);
+    sharded_equals_whole(
+        &[BAKE, &["--fit", "ptm6"]].concat(),
+        "w.ptm.exr",
+        &[1, 3, 4],
+    );
 }
 
 #[test]
 fn sharded_ptm11_is_byte_identical() {
-    sharded_equals_whole(&[BAKE, &["--fit", "ptm11"]].concat(), "w.ptm.exr", &[1, 3, 4]);
+    sharded_equals_whole(
+        &[BAKE, &["--fit", "ptm11"]].concat(),
+        "w.ptm.exr",
+        &[1, 3, 4],
+    );
 }
 
 /// A floor over the lower 60 % of a 1×1 tile with a box on it: rows near y = H see no swatch
@@ -93,9 +119,19 @@ fn sharded_bakes_with_holes_and_point_lights_are_byte_identical() {
     let obj = dir.path().join("half.obj");
     std::fs::write(&obj, HALF_FLOOR_OBJ).unwrap();
     let obj = obj.to_str().unwrap();
-    let holes = ["--swatch", obj, "--tile", "1,1", "--res", "32,30", "--dirs", "8", "--spp", "5"];
-    sharded_equals_whole(&[&holes[..], &["--fit", "ptm6"]].concat(), "h.ptm.exr", &[3]);
-    sharded_equals_whole(&[&holes[..], &["--light-distance", "3"]].concat(), "h.exr", &[4]);
+    let holes = [
+        "--swatch", obj, "--tile", "1,1", "--res", "32,30", "--dirs", "8", "--spp", "5",
+    ];
+    sharded_equals_whole(
+        &[&holes[..], &["--fit", "ptm6"]].concat(),
+        "h.ptm.exr",
+        &[3],
+    );
+    sharded_equals_whole(
+        &[&holes[..], &["--light-distance", "3"]].concat(),
+        "h.exr",
+        &[4],
+    );
 }
 
 #[test]
@@ -109,17 +145,39 @@ fn bad_shards_are_refused_clearly() {
         ("one/3", "not a whole number"),
         ("2", "no `/`"),
     ] {
-        let e = refused(&["bake", "--res", "16", "-o", "s.exr", "--shard", bad], dir.path());
+        let e = refused(
+            &["bake", "--res", "16", "-o", "s.exr", "--shard", bad],
+            dir.path(),
+        );
         assert!(e.contains(says), "--shard {bad}: {e}");
     }
-    let e = refused(&["bake", "--res", "8", "-o", "s.exr", "--shard", "0/3"], dir.path());
+    let e = refused(
+        &["bake", "--res", "8", "-o", "s.exr", "--shard", "0/3"],
+        dir.path(),
+    );
     assert!(e.contains("at most 2 shards"), "{e}");
     let e = refused(
-        &["bake", "--res", "8", "--fit", "ptm6", "--light-distance", "2", "-o", "s.ptm.exr", "--shard", "0/2"],
+        &[
+            "bake",
+            "--res",
+            "8",
+            "--fit",
+            "ptm6",
+            "--light-distance",
+            "2",
+            "-o",
+            "s.ptm.exr",
+            "--shard",
+            "0/2",
+        ],
         dir.path(),
     );
     assert!(e.contains("not supported"), "{e}");
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "refusals write nothing");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "refusals write nothing"
+    );
 }
 
 #[test]
@@ -128,15 +186,34 @@ fn merge_refuses_incomplete_mixed_and_damaged_sets() {
     let d = dir.path();
     let bake = ["bake", "--res", "16", "--dirs", "6", "--spp", "1"];
     for i in 0..3 {
-        ok(&[&bake[..], &["-o", "a.exr", "--shard", &format!("{i}/3")]].concat(), d);
+        ok(
+            &[&bake[..], &["-o", "a.exr", "--shard", &format!("{i}/3")]].concat(),
+            d,
+        );
     }
-    ok(&[&bake[..], &["--seed", "9", "-o", "b.exr", "--shard", "1/3"]].concat(), d);
+    ok(
+        &[&bake[..], &["--seed", "9", "-o", "b.exr", "--shard", "1/3"]].concat(),
+        d,
+    );
     let p = |s: &str| format!("a.part-000{s}-of-0003.exr");
     let e = refused(&["merge", &p("0"), &p("2"), "-o", "m.exr"], d);
     assert!(e.contains("missing shard(s) 1/3"), "{e}");
-    let e = refused(&["merge", &p("0"), &p("1"), &p("1"), &p("2"), "-o", "m.exr"], d);
+    let e = refused(
+        &["merge", &p("0"), &p("1"), &p("1"), &p("2"), "-o", "m.exr"],
+        d,
+    );
     assert!(e.contains("shard 1/3 given twice"), "{e}");
-    let e = refused(&["merge", &p("0"), "b.part-0001-of-0003.exr", &p("2"), "-o", "m.exr"], d);
+    let e = refused(
+        &[
+            "merge",
+            &p("0"),
+            "b.part-0001-of-0003.exr",
+            &p("2"),
+            "-o",
+            "m.exr",
+        ],
+        d,
+    );
     assert!(
         e.contains("different bakes: settings") && e.contains("seed=0") && e.contains("seed=9"),
         "both values shown: {e}"
@@ -148,7 +225,10 @@ fn merge_refuses_incomplete_mixed_and_damaged_sets() {
     forged[at + 8] = b'9';
     std::fs::write(d.join("forged.exr"), &forged).unwrap();
     let e = refused(&["merge", &p("0"), "forged.exr", &p("2"), "-o", "m.exr"], d);
-    assert!(e.contains("forged.exr") && e.contains("checksum mismatch"), "{e}");
+    assert!(
+        e.contains("forged.exr") && e.contains("checksum mismatch"),
+        "{e}"
+    );
     // A truncated part (a task killed while copying, a full disk) is named.
     std::fs::write(d.join("cut.exr"), &bytes[..bytes.len() / 2]).unwrap();
     let e = refused(&["merge", &p("0"), "cut.exr", &p("2"), "-o", "m.exr"], d);
@@ -165,7 +245,9 @@ fn merge_refuses_incomplete_mixed_and_damaged_sets() {
 fn complete_parts_are_skipped_and_damaged_ones_rebaked() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let bake = ["--json", "bake", "--res", "16", "--dirs", "6", "-o", "a.exr", "--shard", "1/2"];
+    let bake = [
+        "--json", "bake", "--res", "16", "--dirs", "6", "-o", "a.exr", "--shard", "1/2",
+    ];
     ok(&bake, d);
     let j: serde_json::Value = serde_json::from_str(&ok(&bake, d)).unwrap();
     assert_eq!(j["skipped"], true);
@@ -189,18 +271,42 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
     )
     .unwrap();
     ok(&["batch", "jobs.toml"], d);
-    ok(&["bake", "--res", "24", "--dirs", "8", "--spp", "2", "-o", "a.exr"], d);
-    assert_eq!(std::fs::read(d.join("out/a.exr")).unwrap(), std::fs::read(d.join("a.exr")).unwrap());
+    ok(
+        &[
+            "bake", "--res", "24", "--dirs", "8", "--spp", "2", "-o", "a.exr",
+        ],
+        d,
+    );
+    assert_eq!(
+        std::fs::read(d.join("out/a.exr")).unwrap(),
+        std::fs::read(d.join("a.exr")).unwrap()
+    );
     assert!(d.join("out/b.ptm.exr").exists());
-    let (_, _, err) = ptm(&["batch", "jobs.toml", "--slurm", "job", "--throttle", "2"], d);
+    let (_, _, err) = ptm(
+        &["batch", "jobs.toml", "--slurm", "job", "--throttle", "2"],
+        d,
+    );
     assert!(err.contains("submit.sh"), "{err}");
     let tasks = std::fs::read_to_string(d.join("job/tasks.txt")).unwrap();
     assert_eq!(tasks.lines().count(), 5, "{tasks}");
-    assert!(tasks.lines().last().unwrap().ends_with("--shard 1/2"), "{tasks}");
+    assert!(
+        tasks.lines().last().unwrap().ends_with("--shard 1/2"),
+        "{tasks}"
+    );
     let submit = std::fs::read_to_string(d.join("job/submit.sh")).unwrap();
-    assert!(submit.contains("--array=0-4%2") && submit.contains("afterany"), "{submit}");
+    assert!(
+        submit.contains("--array=0-4%2") && submit.contains("afterany"),
+        "{submit}"
+    );
     // A manifest with a flag ptm bake does not know is refused before anything runs.
-    std::fs::write(d.join("bad.toml"), "[[bake]]\noutput = \"x.exr\"\nresolution = 4\n").unwrap();
+    std::fs::write(
+        d.join("bad.toml"),
+        "[[bake]]\noutput = \"x.exr\"\nresolution = 4\n",
+    )
+    .unwrap();
     let e = refused(&["batch", "bad.toml"], d);
-    assert!(e.contains("bad.toml: bake 0") && e.contains("--resolution"), "{e}");
+    assert!(
+        e.contains("bad.toml: bake 0") && e.contains("--resolution"),
+        "{e}"
+    );
 }

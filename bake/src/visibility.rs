@@ -129,7 +129,7 @@ impl Baker {
                 cfg.spp
             )));
         }
-        if rows.start % 4 != 0 || rows.is_empty() || rows.end > ny {
+        if !rows.start.is_multiple_of(4) || rows.is_empty() || rows.end > ny {
             return Err(Error::Config(format!(
                 "rows {}..{} of {ny}: a shard must be a non-empty range of rows starting at a \
                  multiple of 4",

@@ -42,7 +42,8 @@ impl std::str::FromStr for Shard {
 
     /// Parses `I/N` with 0 ≤ I < N.
     fn from_str(s: &str) -> std::result::Result<Self, String> {
-        let bad = |why: &str| format!("--shard {s:?}: {why} (expected I/N with 0 <= I < N, e.g. 0/4)");
+        let bad =
+            |why: &str| format!("--shard {s:?}: {why} (expected I/N with 0 <= I < N, e.g. 0/4)");
         let (i, n) = s.split_once('/').ok_or_else(|| bad("no `/`"))?;
         let index: usize = i
             .trim()
@@ -148,7 +149,7 @@ pub struct PtmPart {
 #[derive(Clone, Debug)]
 pub enum PartData {
     Stack(SampleStack),
-    Ptm(PtmPart),
+    Ptm(Box<PtmPart>),
 }
 
 /// A part read and checked.
@@ -224,7 +225,10 @@ fn checksum<'a>(
     format!("crc32:{:08x}", h.finalize())
 }
 
-fn sealed(mut attrs: Vec<(&'static str, Attr)>, channels: &[(String, Samples)]) -> Vec<(&'static str, Attr)> {
+fn sealed(
+    mut attrs: Vec<(&'static str, Attr)>,
+    channels: &[(String, Samples)],
+) -> Vec<(&'static str, Attr)> {
     let sum = checksum(
         attrs.iter().map(|(n, a)| (*n, a)),
         channels.iter().map(|(n, s)| (n.as_str(), s)),
@@ -294,7 +298,14 @@ pub fn write_stack_part(path: &Path, meta: &PartMeta, stack: SampleStack) -> Res
     attrs.push(("part:tileH", Attr::F64(stack.tile[1])));
     attrs.push((
         "part:uv",
-        Attr::Text(if stack.uv.is_some() { "per-texel" } else { "distant" }.into()),
+        Attr::Text(
+            if stack.uv.is_some() {
+                "per-texel"
+            } else {
+                "distant"
+            }
+            .into(),
+        ),
     ));
     let attrs = sealed(attrs, &channels);
     exrio::write(path, stack.width, stack.height, channels, attrs)
@@ -363,11 +374,20 @@ fn read_header(path: &Path) -> Result<BTreeMap<String, Attr>> {
             source: e,
         });
     }
-    let meta = exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| err(path, format!("not a readable OpenEXR file (truncated?): {e}")))?;
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| {
+        err(
+            path,
+            format!("not a readable OpenEXR file (truncated?): {e}"),
+        )
+    })?;
     let mut out = BTreeMap::new();
     for h in &meta.headers {
-        for (name, value) in h.own_attributes.other.iter().chain(&h.shared_attributes.other) {
+        for (name, value) in h
+            .own_attributes
+            .other
+            .iter()
+            .chain(&h.shared_attributes.other)
+        {
             let a = match value {
                 AttributeValue::Text(t) => Attr::Text(latin1(t)),
                 AttributeValue::TextVector(v) => Attr::Texts(v.iter().map(latin1).collect()),
@@ -398,12 +418,10 @@ fn meta_from(path: &Path, attrs: &BTreeMap<String, Attr>) -> Result<(PartMeta, S
                 format!("part version {v:?} is not supported (expected {PART_VERSION:?})"),
             ))
         }
-        _ => {
-            return Err(err(
-                path,
-                "not a ptm part file (no `part:version`; parts are written by `ptm bake --shard I/N`)",
-            ))
-        }
+        _ => return Err(err(
+            path,
+            "not a ptm part file (no `part:version`; parts are written by `ptm bake --shard I/N`)",
+        )),
     }
     let meta = PartMeta {
         shard: Shard {
@@ -453,7 +471,10 @@ pub fn read_part(path: &Path) -> Result<Part> {
     let dir_text = c.texts("part:lightDirs", WHAT)?;
     let mut dirs = Vec::with_capacity(dir_text.len());
     for s in &dir_text {
-        let v: Vec<f64> = s.split_whitespace().filter_map(|t| t.parse().ok()).collect();
+        let v: Vec<f64> = s
+            .split_whitespace()
+            .filter_map(|t| t.parse().ok())
+            .collect();
         if v.len() != 3 {
             return Err(c.error(format!("light direction {s:?} is not `x y z`")));
         }
@@ -520,12 +541,12 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 tile,
                 planes,
             };
-            PartData::Ptm(PtmPart {
+            PartData::Ptm(Box::new(PtmPart {
                 ptm,
                 fit,
                 coverage,
                 lights,
-            })
+            }))
         }
         other => return Err(c.error(format!("unknown part kind {other:?}"))),
     };
@@ -545,7 +566,10 @@ pub fn parts_in(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for e in std::fs::read_dir(dir).map_err(io)? {
         let p = e.map_err(io)?.path();
-        let name = p.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = p
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
         if name.contains(".part-") && name.ends_with(".exr") {
             out.push(p);
         }
@@ -617,7 +641,10 @@ pub fn check_set(paths: &[PathBuf]) -> Result<Vec<(PathBuf, PartMeta)>> {
     for (p, m, _) in metas {
         let i = m.shard.index;
         if i >= count {
-            return Err(err(&p, format!("shard index {i} of {count} is out of range")));
+            return Err(err(
+                &p,
+                format!("shard index {i} of {count} is out of range"),
+            ));
         }
         let want = m.shard.rows(m.height)?;
         if m.rows != want {
@@ -685,7 +712,10 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
         match (part.data, &mut out) {
             (PartData::Stack(s), None) => out = Some(Merged::Stack(s)),
             (PartData::Stack(s), Some(Merged::Stack(all))) => {
-                if s.lights != all.lights || s.tile != all.tile || s.uv.is_some() != all.uv.is_some() {
+                if s.lights != all.lights
+                    || s.tile != all.tile
+                    || s.uv.is_some() != all.uv.is_some()
+                {
                     return Err(err(path, "lights or tile differ from the first part's"));
                 }
                 for (a, b) in all.k.iter_mut().zip(s.k) {
@@ -700,6 +730,7 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
                 all.height += s.height;
             }
             (PartData::Ptm(p), None) => {
+                let p = *p;
                 coverage = p.coverage;
                 out = Some(Merged::Ptm(p.ptm, Box::new(p.fit), p.lights));
             }
@@ -708,7 +739,8 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
                     && p.ptm.tile == ptm.tile
                     && p.lights == *lights
                     && p.fit.solver == fit.solver
-                    && (p.fit.lights, p.fit.lights_fit, p.fit.rank) == (fit.lights, fit.lights_fit, fit.rank)
+                    && (p.fit.lights, p.fit.lights_fit, p.fit.rank)
+                        == (fit.lights, fit.lights_fit, fit.rank)
                     && p.fit.cond.to_bits() == fit.cond.to_bits()
                     && p.fit.warnings == fit.warnings;
                 if !same {
@@ -761,7 +793,7 @@ mod tests {
 
     #[test]
     fn partition_covers_every_row_once_block_aligned() {
-        for h in [4, 5, 63, 64, 1000, 1024] {
+        for h in [4usize, 5, 63, 64, 1000, 1024] {
             for n in 1..=h.div_ceil(ROW_BLOCK).min(9) {
                 let mut next = 0;
                 for i in 0..n {
