@@ -7,7 +7,10 @@
 //! `MERGE_LIGHTS` lights (built from the baked K planes, in 8 parts): read, check and
 //! concatenate the parts, write the stack (target: 1024² × 256 lights ≤ 2 s).
 //!
-//! `cargo run --release -p ptm-bake --example bench_shards [-- SWATCH RES LIGHTS SPP MERGE_LIGHTS]`
+//! Each configuration runs REPEATS times, interleaved, and the fastest run counts (the CI-class
+//! machine is shared: a slow run measures the neighbours, not the bake).
+//!
+//! `cargo run --release -p ptm-bake --example bench_shards [-- SWATCH RES LIGHTS SPP MERGE_LIGHTS REPEATS]`
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -24,6 +27,9 @@ struct Stages {
     shadow: f64,
     solve: f64,
     write: f64,
+    /// CPU seconds of the whole process over the bake (user + system, all threads): what farm
+    /// slots pay, and much less disturbed than wall time by neighbours on a shared machine.
+    cpu: f64,
 }
 
 impl Stages {
@@ -38,7 +44,18 @@ impl Stages {
         self.shadow += o.shadow;
         self.solve += o.solve;
         self.write += o.write;
+        self.cpu += o.cpu;
     }
+}
+
+/// User + system CPU seconds of this process so far (/proc/self/stat, clock ticks of 1/100 s).
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    // After the parenthesised command name come fields 3, 4, …: utime and stime are 14 and 15.
+    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let tick = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
+    (tick(11) + tick(12)) / 100.0
 }
 
 struct Job<'a> {
@@ -56,6 +73,7 @@ fn bake(
     keep: Option<&mut Vec<Vec<f32>>>,
 ) -> Result<(Stages, PathBuf), Box<dyn std::error::Error>> {
     let mut st = Stages::default();
+    let cpu0 = cpu_seconds();
     let t = Instant::now();
     let swatch = Swatch::load(job.spec, None)?;
     st.load = t.elapsed().as_secs_f64();
@@ -114,6 +132,7 @@ fn bake(
         }
     };
     st.write = t.elapsed().as_secs_f64();
+    st.cpu = cpu_seconds() - cpu0;
     Ok((st, path))
 }
 
@@ -125,6 +144,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n_lights: usize = arg(2, "64").parse()?;
     let spp: u32 = arg(3, "4").parse()?;
     let merge_lights: usize = arg(4, "256").parse()?;
+    let repeats: usize = arg(5, "3").parse()?;
     let dir = tempdir()?;
     let lights = dome::fibonacci(n_lights, 5.0)?;
     let job = Job {
@@ -145,9 +165,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
     let mut planes = Vec::new();
     let whole = dir.join("whole.ptm.exr");
-    // The first bake warms caches and the allocator; the second is the one-shot reference.
-    bake(&job, None, &whole, None)?;
-    let (one, _) = bake(&job, None, &whole, Some(&mut planes))?;
+    // The first bake warms caches and the allocator and keeps the K planes for the merge test.
+    bake(&job, None, &whole, Some(&mut planes))?;
+    let counts = [1usize, 2, 4, 8];
+    let mut best: Vec<Option<Stages>> = vec![None; 1 + counts.len()];
+    let keep = |b: &mut Option<Stages>, s: Stages| {
+        if b.is_none_or(|b| s.cpu < b.cpu) {
+            *b = Some(s);
+        }
+    };
+    for _ in 0..repeats {
+        keep(&mut best[0], bake(&job, None, &whole, None)?.0);
+        for (c, &n) in counts.iter().enumerate() {
+            let out = dir.join(format!("n{n}.ptm.exr"));
+            let mut sum = Stages::default();
+            for index in 0..n {
+                sum.add(&bake(&job, Some(Shard { index, count: n }), &out, None)?.0);
+            }
+            keep(&mut best[c + 1], sum);
+        }
+    }
+    let one = best[0].unwrap();
     let row = |name: &str, s: &Stages, base: Option<&Stages>| {
         let pct = |a: f64, b: f64| {
             format!(
@@ -157,28 +195,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         match base {
             None => println!(
-                "{name:>9} | load {:.3} | scene {:.3} | primary {:.3} | shadow+fit {:.3} | solve {:.3} | write {:.3} | total {:.3} s",
-                s.load, s.scene, s.primary, s.shadow, s.solve, s.write, s.total()
+                "{name:>9} | load {:.3} | scene {:.3} | primary {:.3} | shadow+fit {:.3} | solve {:.3} | write {:.3} | wall {:.3} s | cpu {:.2} s",
+                s.load, s.scene, s.primary, s.shadow, s.solve, s.write, s.total(), s.cpu
             ),
             Some(b) => println!(
-                "{name:>9} | load {:.3} | scene {:.3} | primary {:.3} | shadow+fit {:.3} | solve {:.3} | write {:.3} | total {:.3} s | overhead {} (per shard {:.3} s)",
+                "{name:>9} | load {:.3} | scene {:.3} | primary {:.3} | shadow+fit {:.3} | solve {:.3} | write {:.3} | wall {:.3} s ({}) | cpu {:.2} s ({}, per shard {:+.3} s)",
                 s.load, s.scene, s.primary, s.shadow, s.solve, s.write, s.total(),
                 pct(s.total(), b.total()),
-                (s.total() - b.total()) / name.trim_start_matches("N = ").parse::<f64>().unwrap_or(1.0)
+                s.cpu,
+                pct(s.cpu, b.cpu),
+                (s.cpu - b.cpu) / name.trim_start_matches("N = ").parse::<f64>().unwrap_or(1.0)
             ),
         }
     };
+    println!(
+        "least CPU time of {repeats} interleaved runs each (overhead against the one-shot bake):"
+    );
     row("one-shot", &one, None);
-    for n in [1usize, 2, 4, 8] {
+    for (c, &n) in counts.iter().enumerate() {
         let out = dir.join(format!("n{n}.ptm.exr"));
-        let mut sum = Stages::default();
-        let mut parts = Vec::new();
-        for index in 0..n {
-            let (st, p) = bake(&job, Some(Shard { index, count: n }), &out, None)?;
-            sum.add(&st);
-            parts.push(p);
-        }
-        row(&format!("N = {n}"), &sum, Some(&one));
+        row(&format!("N = {n}"), &best[c + 1].unwrap(), Some(&one));
+        let parts: Vec<PathBuf> = (0..n)
+            .map(|index| Shard { index, count: n }.part_path(&out))
+            .collect();
+        let t = Instant::now();
         if let shard::Merged::Ptm(ptm, fit, _) = shard::merge(&parts)? {
             let save = SaveOptions {
                 half: false,
@@ -187,6 +227,16 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             };
             ptm.save(&out, &save)?;
         }
+        let t_merge = t.elapsed().as_secs_f64();
+        let bytes: u64 = parts
+            .iter()
+            .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
+            .sum();
+        println!(
+            "          merge of the {n} PTM parts: {t_merge:.3} s ({:.0} MB of parts, {:.0} MB/s of f32 channels)",
+            bytes as f64 / 1e6,
+            (res * res * 8 * 4) as f64 / 1e6 / t_merge
+        );
         assert!(
             std::fs::read(&out)? == std::fs::read(&whole)?,
             "merged N = {n} differs from the one-shot PTM"

@@ -809,6 +809,62 @@ mod tests {
         assert!(Shard { index: 0, count: 3 }.rows(8).is_err());
     }
 
+    fn stack_part(dir: &Path, s: Shard, software: &str) -> PathBuf {
+        let (w, h) = (5, 8);
+        let rows = s.rows(h).unwrap();
+        let n = w * rows.len();
+        let stack = SampleStack {
+            width: w,
+            height: rows.len(),
+            tile: [1.0, 1.0],
+            lights: LightSet::from_dirs([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]]),
+            k: (0..2)
+                .map(|l| {
+                    (0..n)
+                        .map(|t| ((t + rows.start * w + l) % 5) as f32 / 4.0)
+                        .collect()
+                })
+                .collect(),
+            coverage: vec![1.0; n],
+            uv: None,
+        };
+        let meta = PartMeta {
+            shard: s,
+            rows,
+            width: w,
+            height: h,
+            settings: "res=5x8".into(),
+            swatch: "0123".into(),
+            software: software.into(),
+        };
+        let p = s.part_path(&dir.join("s.exr"));
+        write_stack_part(&p, &meta, stack).unwrap();
+        p
+    }
+
+    #[test]
+    fn parts_of_another_version_are_refused_with_both_versions() {
+        let dir = std::env::temp_dir().join(format!("ptm-shard-test-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let a = stack_part(&dir, Shard { index: 0, count: 2 }, "ptm 0.1.0");
+        let b = stack_part(&dir, Shard { index: 1, count: 2 }, "ptm 0.2.0");
+        let e = merge(&[a.clone(), b.clone()]).err().unwrap().to_string();
+        assert!(
+            e.contains("software version") && e.contains("ptm 0.1.0") && e.contains("ptm 0.2.0"),
+            "{e}"
+        );
+        let b = stack_part(&dir, Shard { index: 1, count: 2 }, "ptm 0.1.0");
+        let Merged::Stack(s) = merge(&[b, a]).unwrap() else {
+            panic!("a stack")
+        };
+        assert_eq!(s.height, 8);
+        assert!(s.k[1]
+            .iter()
+            .enumerate()
+            .all(|(t, &k)| k == ((t + 1) % 5) as f32 / 4.0));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
     #[test]
     fn part_names() {
         let s = Shard { index: 2, count: 4 };
