@@ -705,12 +705,19 @@ fn error_stats(values: &[f32], mask: &[bool]) -> ErrorStats {
 /// Merges a complete set of parts (see [`check_set`]) into the whole stack or PTM.
 pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
     let set = check_set(paths)?;
+    // Texels of the whole image: the first part's planes are grown to it once, not by doubling.
+    let full = set[0].1.width * set[0].1.height;
+    let grow = |v: &mut Vec<f32>| v.reserve_exact(full.saturating_sub(v.len()));
     let mut out: Option<Merged> = None;
     let mut coverage: Vec<f32> = Vec::new();
     for (path, _) in &set {
         let part = read_part(path)?;
         match (part.data, &mut out) {
-            (PartData::Stack(s), None) => out = Some(Merged::Stack(s)),
+            (PartData::Stack(mut s), None) => {
+                s.k.iter_mut().for_each(grow);
+                grow(&mut s.coverage);
+                out = Some(Merged::Stack(s));
+            }
             (PartData::Stack(s), Some(Merged::Stack(all))) => {
                 if s.lights != all.lights
                     || s.tile != all.tile
@@ -730,7 +737,10 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
                 all.height += s.height;
             }
             (PartData::Ptm(p), None) => {
-                let p = *p;
+                let mut p = *p;
+                p.ptm.planes.iter_mut().for_each(grow);
+                grow(&mut p.fit.rms_map);
+                grow(&mut p.coverage);
                 coverage = p.coverage;
                 out = Some(Merged::Ptm(p.ptm, Box::new(p.fit), p.lights));
             }
