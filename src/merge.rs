@@ -4,8 +4,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_fit::shard::{self, Merged};
-use ptm_fit::SaveOptions;
+use ptm_fit::shard;
 use serde_json::{json, Value};
 
 #[derive(clap::Args)]
@@ -46,32 +45,10 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         .filter_map(|p| std::fs::metadata(p).ok())
         .map(|m| m.len())
         .sum();
-    let merged = shard::merge(&files)?;
-    let t_read = t0.elapsed().as_secs_f64();
+    let merged = shard::merge_into(&files, &args.output)
+        .with_context(|| format!("merging into {}", args.output.display()))?;
+    let (lights, width, height, kind) = (&merged.lights, merged.width, merged.height, &merged.kind);
     let t1 = Instant::now();
-    let lights = merged.lights().clone();
-    let (width, height) = match &merged {
-        Merged::Stack(s) => (s.width, s.height),
-        Merged::Ptm(p, ..) => (p.width, p.height),
-    };
-    let kind = match merged {
-        Merged::Stack(stack) => {
-            stack
-                .write_into(&args.output)
-                .with_context(|| format!("writing {}", args.output.display()))?;
-            "stack"
-        }
-        Merged::Ptm(ptm, fit, _) => {
-            let save = SaveOptions {
-                half: false,
-                report: Some(&fit),
-                error_map: false,
-            };
-            ptm.save(&args.output, &save)
-                .with_context(|| format!("writing {}", args.output.display()))?;
-            "ptm"
-        }
-    };
     let lp = crate::bake::lp_path(&args.output);
     lights.write_lp(&lp)?;
     let t_write = t1.elapsed().as_secs_f64();
@@ -98,6 +75,6 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "bytes_in": bytes,
         "bytes_out": out_bytes,
         "mb_per_s": bytes as f64 / 1e6 / total.max(1e-9),
-        "seconds": { "read": t_read, "write": t_write, "total": total },
+        "seconds": { "merge": total - t_write, "lp": t_write, "total": total },
     }))
 }

@@ -74,22 +74,22 @@ pub fn meta(
     })
 }
 
-/// True when the part at `path` exists, decodes, passes its checksum and belongs to this very
+/// True when the part at `path` exists, is whole, passes its checksum and belongs to this very
 /// bake: a resubmitted farm job then skips it. A damaged or foreign part is reported and baked
 /// again.
 pub fn is_complete(path: &Path, want: &PartMeta) -> bool {
     if !path.exists() {
         return false;
     }
-    match shard::read_part(path) {
-        Ok(p) if p.meta == *want => true,
+    match shard::check_part(path) {
+        Ok(meta) if meta == *want => true,
         Ok(p) => {
             eprintln!(
                 "ptm bake: {} is a part of another bake (settings {:?}, software {:?}); baking \
                  it again",
                 path.display(),
-                p.meta.settings,
-                p.meta.software
+                p.settings,
+                p.software
             );
             false
         }

@@ -77,7 +77,7 @@ fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) {
 }
 
 const BAKE: &[&str] = &[
-    "--res", "40,36", "--dirs", "12", "--spp", "4", "--seed", "3",
+    "--res", "40,60", "--dirs", "12", "--spp", "4", "--seed", "3",
 ];
 
 #[test]
@@ -120,7 +120,7 @@ fn sharded_bakes_with_holes_and_point_lights_are_byte_identical() {
     std::fs::write(&obj, HALF_FLOOR_OBJ).unwrap();
     let obj = obj.to_str().unwrap();
     let holes = [
-        "--swatch", obj, "--tile", "1,1", "--res", "32,30", "--dirs", "8", "--spp", "5",
+        "--swatch", obj, "--tile", "1,1", "--res", "32,60", "--dirs", "8", "--spp", "5",
     ];
     sharded_equals_whole(
         &[&holes[..], &["--fit", "ptm6"]].concat(),
@@ -152,15 +152,15 @@ fn bad_shards_are_refused_clearly() {
         assert!(e.contains(says), "--shard {bad}: {e}");
     }
     let e = refused(
-        &["bake", "--res", "8", "-o", "s.exr", "--shard", "0/3"],
+        &["bake", "--res", "40", "-o", "s.exr", "--shard", "0/4"],
         dir.path(),
     );
-    assert!(e.contains("at most 2 shards"), "{e}");
+    assert!(e.contains("at most 3 shards"), "{e}");
     let e = refused(
         &[
             "bake",
             "--res",
-            "8",
+            "32",
             "--fit",
             "ptm6",
             "--light-distance",
@@ -184,7 +184,7 @@ fn bad_shards_are_refused_clearly() {
 fn merge_refuses_incomplete_mixed_and_damaged_sets() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let bake = ["bake", "--res", "16", "--dirs", "6", "--spp", "1"];
+    let bake = ["bake", "--res", "48", "--dirs", "6", "--spp", "1"];
     for i in 0..3 {
         ok(
             &[&bake[..], &["-o", "a.exr", "--shard", &format!("{i}/3")]].concat(),
@@ -246,7 +246,7 @@ fn complete_parts_are_skipped_and_damaged_ones_rebaked() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let bake = [
-        "--json", "bake", "--res", "16", "--dirs", "6", "-o", "a.exr", "--shard", "1/2",
+        "--json", "bake", "--res", "32", "--dirs", "6", "-o", "a.exr", "--shard", "1/2",
     ];
     ok(&bake, d);
     let j: serde_json::Value = serde_json::from_str(&ok(&bake, d)).unwrap();
@@ -265,7 +265,7 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
     let d = dir.path();
     std::fs::write(
         d.join("jobs.toml"),
-        "[defaults]\nres = 24\ndirs = 8\nspp = 2\nshards = 3\n\n\
+        "[defaults]\nres = 48\ndirs = 8\nspp = 2\nshards = 3\n\n\
          [[bake]]\nswatch = \"builtin:plain-weave\"\noutput = \"out/a.exr\"\n\n\
          [[bake]]\nswatch = \"builtin:jersey\"\nfit = \"ptm6\"\noutput = \"out/b.ptm.exr\"\nshards = 2\n",
     )
@@ -273,7 +273,7 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
     ok(&["batch", "jobs.toml"], d);
     ok(
         &[
-            "bake", "--res", "24", "--dirs", "8", "--spp", "2", "-o", "a.exr",
+            "bake", "--res", "48", "--dirs", "8", "--spp", "2", "-o", "a.exr",
         ],
         d,
     );

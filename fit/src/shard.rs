@@ -24,11 +24,14 @@ use crate::ptm::channel_name;
 use crate::stack::k_channel;
 use crate::{Basis, Error, ErrorStats, FitReport, LightSet, Ptm, Result, SampleStack};
 
+mod chunks;
+
 /// Value of `part:version`.
 pub const PART_VERSION: &str = "ptm-part/1";
 
-/// Shards start at multiples of this many rows (the tracer's texel blocks are 4×4).
-pub const ROW_BLOCK: usize = 4;
+/// Shards start at multiples of this many rows: the 16 scanlines of an OpenEXR ZIP chunk (so
+/// a stack merges by copying compressed chunks), a multiple of the tracer's 4×4 texel blocks.
+pub const ROW_BLOCK: usize = 16;
 
 /// Shard `index` of `count` (0-based), as `--shard I/N` names it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -160,19 +163,14 @@ pub struct Part {
     pub data: PartData,
 }
 
-/// The merged result, ready to write with [`SampleStack::write_into`] or [`Ptm::save`].
-pub enum Merged {
-    Stack(SampleStack),
-    Ptm(Ptm, Box<FitReport>, LightSet),
-}
-
-impl Merged {
-    pub fn lights(&self) -> &LightSet {
-        match self {
-            Merged::Stack(s) => &s.lights,
-            Merged::Ptm(_, _, l) => l,
-        }
-    }
+/// What [`merge_into`] wrote.
+#[derive(Clone, Debug)]
+pub struct Merged {
+    /// `"stack"` or `"ptm"`.
+    pub kind: String,
+    pub width: usize,
+    pub height: usize,
+    pub lights: LightSet,
 }
 
 fn light_attrs(lights: &LightSet) -> [(&'static str, Attr); 2] {
@@ -187,62 +185,71 @@ fn light_attrs(lights: &LightSet) -> [(&'static str, Attr); 2] {
     ]
 }
 
-/// CRC-32 over every `part:*` attribute but the checksum (name-sorted, values in a fixed
-/// binary form) and every channel (name-sorted, f32 little-endian bits).
-fn checksum<'a>(
-    attrs: impl IntoIterator<Item = (&'a str, &'a Attr)>,
-    channels: impl IntoIterator<Item = (&'a str, &'a Samples)>,
-) -> String {
-    let mut h = crc32fast::Hasher::new();
-    let mut attrs: Vec<_> = attrs
-        .into_iter()
-        .filter(|(n, _)| n.starts_with("part:") && *n != "part:checksum")
-        .collect();
-    attrs.sort_by_key(|a| a.0);
-    for (name, a) in attrs {
-        h.update(name.as_bytes());
-        h.update(&[0]);
-        match a {
-            Attr::Text(s) => h.update(s.as_bytes()),
-            Attr::Texts(v) => v.iter().for_each(|s| {
-                h.update(s.as_bytes());
-                h.update(&[0]);
-            }),
-            Attr::F64(x) => h.update(&x.to_le_bytes()),
-            Attr::I32(x) => h.update(&x.to_le_bytes()),
-        }
-        h.update(&[0]);
-    }
-    let mut channels: Vec<_> = channels.into_iter().collect();
-    channels.sort_by_key(|c| c.0);
-    for (name, s) in channels {
-        h.update(name.as_bytes());
-        h.update(&[0]);
-        if let Samples::F32(v) = s {
-            h.update(bytemuck_f32(v));
-        }
-    }
-    format!("crc32:{:08x}", h.finalize())
-}
+/// Stands in for the checksum while the part is encoded (the same length as the real one).
+const UNSEALED: &str = "crc32:00000000";
 
-fn sealed(
+/// Writes a part atomically: encodes it with a placeholder checksum beside `path`, then writes
+/// the bytes with the CRC-32 of everything but the checksum's own value filled in.
+fn write_sealed(
+    path: &Path,
+    width: usize,
+    rows: usize,
+    channels: Vec<(String, Samples)>,
     mut attrs: Vec<(&'static str, Attr)>,
-    channels: &[(String, Samples)],
-) -> Vec<(&'static str, Attr)> {
-    let sum = checksum(
-        attrs.iter().map(|(n, a)| (*n, a)),
-        channels.iter().map(|(n, s)| (n.as_str(), s)),
-    );
-    attrs.push(("part:checksum", Attr::Text(sum)));
-    attrs
+) -> Result<()> {
+    attrs.push(("part:checksum", Attr::Text(UNSEALED.into())));
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let stage = path.with_file_name(format!("{name}.{}.stage", std::process::id()));
+    let result = (|| {
+        exrio::write(&stage, width, rows, channels, attrs)?;
+        let mut bytes = std::fs::read(&stage).map_err(|e| Error::Io {
+            path: stage.display().to_string(),
+            source: e,
+        })?;
+        let unexpected = || err(path, "writing part: unexpected EXR layout");
+        let layout = chunks::Layout::parse(&bytes).ok_or_else(unexpected)?;
+        let crc = chunks::crc_without(&bytes, &layout, "part:checksum").ok_or_else(unexpected)?;
+        let at = layout.value("part:checksum").ok_or_else(unexpected)?;
+        bytes[at].copy_from_slice(format!("crc32:{crc:08x}").as_bytes());
+        crate::atomic::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))
+    })();
+    let _ = std::fs::remove_file(&stage);
+    result
 }
 
-/// The bytes of an f32 slice (little-endian on every target this crate builds for).
-fn bytemuck_f32(v: &[f32]) -> &[u8] {
-    #[cfg(target_endian = "big")]
-    compile_error!("part checksums assume a little-endian target");
-    // SAFETY: f32 has no padding and every bit pattern is a valid u8 sequence.
-    unsafe { std::slice::from_raw_parts(v.as_ptr().cast::<u8>(), std::mem::size_of_val(v)) }
+/// Reads a part's bytes and checks them: its header and chunk table lie inside the file and
+/// the checksum matches. Errors name the file and say what to do.
+fn verify(path: &Path) -> Result<(Vec<u8>, chunks::Layout)> {
+    let bytes = std::fs::read(path).map_err(|e| Error::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
+    let layout = chunks::Layout::parse(&bytes).ok_or_else(|| {
+        err(path, "truncated or damaged (its header or chunk table is cut short): delete it and rerun its shard")
+    })?;
+    let stored = layout
+        .value("part:checksum")
+        .map(|v| String::from_utf8_lossy(&bytes[v]).into_owned())
+        .ok_or_else(|| err(path, "not a sealed ptm part (no `part:checksum`)"))?;
+    let found = chunks::crc_without(&bytes, &layout, "part:checksum")
+        .map(|c| format!("crc32:{c:08x}"))
+        .unwrap_or_default();
+    if found != stored {
+        return Err(err(
+            path,
+            format!(
+                "checksum mismatch (stored {stored}, content {found}): the part is damaged or \
+                 incomplete; delete it and rerun its shard"
+            ),
+        ));
+    }
+    Ok((bytes, layout))
+}
+
+/// Checks a part without decoding its pixels (layout and checksum) and returns its identity.
+pub fn check_part(path: &Path) -> Result<PartMeta> {
+    verify(path)?;
+    Ok(read_meta(path)?.0)
 }
 
 fn meta_attrs(m: &PartMeta, kind: &str) -> Vec<(&'static str, Attr)> {
@@ -272,14 +279,19 @@ fn check_rows(meta: &PartMeta, width: usize, rows: usize) -> Result<()> {
 }
 
 /// Writes the rows of a sample stack as part `path`, atomically.
-pub fn write_stack_part(path: &Path, meta: &PartMeta, stack: SampleStack) -> Result<()> {
+pub fn write_stack_part(path: &Path, meta: &PartMeta, mut stack: SampleStack) -> Result<()> {
     stack.validate()?;
     check_rows(meta, stack.width, stack.height)?;
+    // The stack's own attributes too: the merge copies them into the whole stack's header.
+    let mut attrs = stack.header_attrs();
+    attrs.extend(meta_attrs(meta, "stack"));
+    attrs.extend(light_attrs(&stack.lights));
     let mut channels = Vec::with_capacity(stack.k.len() * 3 + 1);
-    for (i, plane) in stack.k.into_iter().enumerate() {
+    for (i, plane) in std::mem::take(&mut stack.k).into_iter().enumerate() {
         channels.push((k_channel(i), Samples::F32(plane)));
     }
-    channels.push(("coverage".to_string(), Samples::F32(stack.coverage)));
+    let coverage = std::mem::take(&mut stack.coverage);
+    channels.push(("coverage".to_string(), Samples::F32(coverage)));
     if let Some(uv) = &stack.uv {
         for (i, plane) in uv.iter().enumerate() {
             channels.push((
@@ -292,8 +304,6 @@ pub fn write_stack_part(path: &Path, meta: &PartMeta, stack: SampleStack) -> Res
             ));
         }
     }
-    let mut attrs = meta_attrs(meta, "stack");
-    attrs.extend(light_attrs(&stack.lights));
     attrs.push(("part:tileW", Attr::F64(stack.tile[0])));
     attrs.push(("part:tileH", Attr::F64(stack.tile[1])));
     attrs.push((
@@ -307,8 +317,7 @@ pub fn write_stack_part(path: &Path, meta: &PartMeta, stack: SampleStack) -> Res
             .into(),
         ),
     ));
-    let attrs = sealed(attrs, &channels);
-    exrio::write(path, stack.width, stack.height, channels, attrs)
+    write_sealed(path, stack.width, stack.height, channels, attrs)
 }
 
 /// Writes the rows of a fitted PTM as part `path`, atomically: coefficients, the per-texel RMS
@@ -350,8 +359,7 @@ pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()
     if !fit.warnings.is_empty() {
         attrs.push(("part:warnings", Attr::Texts(fit.warnings.clone())));
     }
-    let attrs = sealed(attrs, &channels);
-    exrio::write(path, ptm.width, ptm.height, channels, attrs)
+    write_sealed(path, ptm.width, ptm.height, channels, attrs)
 }
 
 fn err(path: &Path, reason: impl Into<String>) -> Error {
@@ -446,6 +454,7 @@ pub fn read_meta(path: &Path) -> Result<(PartMeta, String)> {
 
 /// Reads and checks a whole part: every channel decodes and the checksum matches.
 pub fn read_part(path: &Path) -> Result<Part> {
+    verify(path)?;
     let mut c = exrio::read(path)?;
     let attrs: BTreeMap<String, Attr> = c.attrs.clone().into_iter().collect();
     let (meta, kind) = meta_from(path, &attrs)?;
@@ -454,18 +463,6 @@ pub fn read_part(path: &Path) -> Result<Part> {
         return Err(c.error(format!(
             "holds {}×{} texels but names rows {}..{} of a {}-wide image",
             c.width, c.height, meta.rows.start, meta.rows.end, meta.width
-        )));
-    }
-    let stored = c.text("part:checksum", WHAT)?;
-    let found = checksum(
-        c.attrs.iter().map(|(n, a)| (n.as_str(), a)),
-        c.channels.iter().map(|(n, s)| (n.as_str(), s)),
-    );
-    if found != stored {
-        return Err(c.error(format!(
-            "checksum mismatch (stored {stored}, content {found}): the part is damaged; delete it \
-             and rerun shard {}",
-            meta.shard
         )));
     }
     let dir_text = c.texts("part:lightDirs", WHAT)?;
@@ -702,49 +699,159 @@ fn error_stats(values: &[f32], mask: &[bool]) -> ErrorStats {
     }
 }
 
-/// Merges a complete set of parts (see [`check_set`]) into the whole stack or PTM.
-pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
+/// Merges a complete set of parts (see [`check_set`]) into the whole stack or PTM at `out`,
+/// written atomically, byte for byte what one machine writes. A stack merges by copying the
+/// parts' compressed chunks under the whole image's header; a PTM is decoded, concatenated,
+/// its file-level facts recomputed ([`finish_fit`]) and saved.
+pub fn merge_into(paths: &[PathBuf], out: &Path) -> Result<Merged> {
     let set = check_set(paths)?;
+    let (_, kind) = read_meta(&set[0].0)?;
+    let (width, height) = (set[0].1.width, set[0].1.height);
+    let lights = match kind.as_str() {
+        "stack" => merge_stack(&set, out)?,
+        "ptm" => {
+            let (ptm, fit, lights) = merge_ptm(&set)?;
+            let save = crate::SaveOptions {
+                half: false,
+                report: Some(&fit),
+                error_map: false,
+            };
+            ptm.save(out, &save)?;
+            lights
+        }
+        other => return Err(err(&set[0].0, format!("unknown part kind {other:?}"))),
+    };
+    Ok(Merged {
+        kind,
+        width,
+        height,
+        lights,
+    })
+}
+
+/// The light set recorded in a part's header.
+fn lights_of(path: &Path, attrs: &BTreeMap<String, Attr>) -> Result<LightSet> {
+    let (Some(Attr::Texts(dirs)), Some(Attr::Texts(names))) =
+        (attrs.get("part:lightDirs"), attrs.get("part:lightNames"))
+    else {
+        return Err(err(
+            path,
+            "part lacks `part:lightDirs` or `part:lightNames`",
+        ));
+    };
+    let mut out = Vec::with_capacity(dirs.len());
+    for s in dirs {
+        let v: Vec<f64> = s
+            .split_whitespace()
+            .filter_map(|t| t.parse().ok())
+            .collect();
+        if v.len() != 3 || names.len() != dirs.len() {
+            return Err(err(path, format!("light direction {s:?} is not `x y z`")));
+        }
+        out.push([v[0], v[1], v[2]]);
+    }
+    Ok(LightSet {
+        names: names.clone(),
+        dirs: out,
+    })
+}
+
+/// Whether a header record depends on the part rather than on the whole stack.
+fn per_part(name: &str) -> bool {
+    name.starts_with("part:") || matches!(name, "dataWindow" | "displayWindow" | "chunkCount")
+}
+
+/// The stack merge: every part checked (layout, checksum, chunks of its rows, the same
+/// channels and stack attributes), then the first part's header records without `part:*`,
+/// sized for the whole image, and every part's chunks at their rows' y.
+fn merge_stack(set: &[(PathBuf, PartMeta)], out: &Path) -> Result<LightSet> {
+    let (width, height) = (set[0].1.width, set[0].1.height);
+    let mut parts = Vec::with_capacity(set.len());
+    for (path, meta) in set {
+        let (bytes, layout) = verify(path)?;
+        if meta.rows.start % ROW_BLOCK != 0 || layout.chunks.len() != meta.rows.len().div_ceil(16) {
+            return Err(err(
+                path,
+                format!(
+                    "{} chunks for rows {}..{}: not a part of 16-row ZIP chunks",
+                    layout.chunks.len(),
+                    meta.rows.start,
+                    meta.rows.end
+                ),
+            ));
+        }
+        parts.push((path, meta, bytes, layout));
+    }
+    let shared = |bytes: &[u8], layout: &chunks::Layout| -> Vec<Vec<u8>> {
+        layout
+            .records
+            .iter()
+            .filter(|r| !per_part(&r.name))
+            .map(|r| bytes[r.span.clone()].to_vec())
+            .collect()
+    };
+    let (_, _, bytes0, layout0) = &parts[0];
+    let want = shared(bytes0, layout0);
+    for (path, _, bytes, layout) in &parts[1..] {
+        if shared(bytes, layout) != want || bytes[..8] != bytes0[..8] {
+            return Err(err(
+                path,
+                "its channels or stack attributes differ from the first part's",
+            ));
+        }
+    }
+    let (w1, h1) = (width as i32 - 1, height as i32 - 1);
+    let n_chunks = height.div_ceil(16) as i32;
+    let records: Vec<Vec<u8>> = layout0
+        .records
+        .iter()
+        .filter(|r| !r.name.starts_with("part:"))
+        .map(|r| {
+            let mut raw = bytes0[r.span.clone()].to_vec();
+            let at = r.value.start - r.span.start;
+            match r.name.as_str() {
+                "dataWindow" | "displayWindow" => {
+                    raw[at..at + 16].copy_from_slice(&chunks::box2i(w1, h1))
+                }
+                "chunkCount" => raw[at..at + 4].copy_from_slice(&n_chunks.to_le_bytes()),
+                _ => {}
+            }
+            raw
+        })
+        .collect();
+    let mut list = Vec::with_capacity(n_chunks as usize);
+    for (_, meta, bytes, layout) in &parts {
+        for (y, span) in &layout.chunks {
+            list.push((y + meta.rows.start as i32, &bytes[span.start + 8..span.end]));
+        }
+    }
+    let file = chunks::assemble(&bytes0[..8], &records, &list);
+    crate::atomic::write_atomic(out, |w| std::io::Write::write_all(w, &file))?;
+    lights_of(&set[0].0, &read_header(&set[0].0)?)
+}
+
+/// The PTM merge: decodes every part, concatenates the rows, recomputes the file-level facts.
+fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> {
     // Texels of the whole image: the first part's planes are grown to it once, not by doubling.
     let full = set[0].1.width * set[0].1.height;
     let grow = |v: &mut Vec<f32>| v.reserve_exact(full.saturating_sub(v.len()));
-    let mut out: Option<Merged> = None;
+    let mut out: Option<(Ptm, FitReport, LightSet)> = None;
     let mut coverage: Vec<f32> = Vec::new();
-    for (path, _) in &set {
+    for (path, _) in set {
         let part = read_part(path)?;
-        match (part.data, &mut out) {
-            (PartData::Stack(mut s), None) => {
-                s.k.iter_mut().for_each(grow);
-                grow(&mut s.coverage);
-                out = Some(Merged::Stack(s));
-            }
-            (PartData::Stack(s), Some(Merged::Stack(all))) => {
-                if s.lights != all.lights
-                    || s.tile != all.tile
-                    || s.uv.is_some() != all.uv.is_some()
-                {
-                    return Err(err(path, "lights or tile differ from the first part's"));
-                }
-                for (a, b) in all.k.iter_mut().zip(s.k) {
-                    a.extend(b);
-                }
-                all.coverage.extend(s.coverage);
-                if let (Some(a), Some(b)) = (all.uv.as_mut(), s.uv) {
-                    for (a, b) in a.iter_mut().zip(b) {
-                        a.extend(b);
-                    }
-                }
-                all.height += s.height;
-            }
-            (PartData::Ptm(p), None) => {
-                let mut p = *p;
+        let PartData::Ptm(p) = part.data else {
+            return Err(err(path, "part kinds differ"));
+        };
+        let mut p = *p;
+        match &mut out {
+            None => {
                 p.ptm.planes.iter_mut().for_each(grow);
                 grow(&mut p.fit.rms_map);
                 grow(&mut p.coverage);
                 coverage = p.coverage;
-                out = Some(Merged::Ptm(p.ptm, Box::new(p.fit), p.lights));
+                out = Some((p.ptm, p.fit, p.lights));
             }
-            (PartData::Ptm(p), Some(Merged::Ptm(ptm, fit, lights))) => {
+            Some((ptm, fit, lights)) => {
                 let same = p.ptm.basis == ptm.basis
                     && p.ptm.tile == ptm.tile
                     && p.lights == *lights
@@ -754,7 +861,10 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
                     && p.fit.cond.to_bits() == fit.cond.to_bits()
                     && p.fit.warnings == fit.warnings;
                 if !same {
-                    return Err(err(path, "its fit (basis, lights, solver, rank, warnings) differs from the first part's"));
+                    return Err(err(
+                        path,
+                        "its fit (basis, link, lights, solver, rank, warnings) differs from the first part's",
+                    ));
                 }
                 for (a, b) in ptm.planes.iter_mut().zip(p.ptm.planes) {
                     a.extend(b);
@@ -763,14 +873,11 @@ pub fn merge(paths: &[PathBuf]) -> Result<Merged> {
                 fit.rms_map.extend(p.fit.rms_map);
                 coverage.extend(p.coverage);
             }
-            _ => return Err(err(path, "part kinds differ")),
         }
     }
-    let mut out = out.expect("check_set refuses an empty set");
-    if let Merged::Ptm(ptm, fit, _) = &mut out {
-        finish_fit(ptm, fit, coverage);
-    }
-    Ok(out)
+    let (ptm, mut fit, lights) = out.expect("check_set refuses an empty set");
+    finish_fit(&ptm, &mut fit, coverage);
+    Ok((ptm, fit, lights))
 }
 
 /// Recomputes the file-level statistics of a merged fit from its per-texel maps, as
@@ -820,7 +927,7 @@ mod tests {
     }
 
     fn stack_part(dir: &Path, s: Shard, software: &str) -> PathBuf {
-        let (w, h) = (5, 8);
+        let (w, h) = (5, 40);
         let rows = s.rows(h).unwrap();
         let n = w * rows.len();
         let stack = SampleStack {
@@ -858,16 +965,19 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let a = stack_part(&dir, Shard { index: 0, count: 2 }, "ptm 0.1.0");
         let b = stack_part(&dir, Shard { index: 1, count: 2 }, "ptm 0.2.0");
-        let e = merge(&[a.clone(), b.clone()]).err().unwrap().to_string();
+        let out = dir.join("m.exr");
+        let e = merge_into(&[a.clone(), b.clone()], &out)
+            .err()
+            .unwrap()
+            .to_string();
         assert!(
             e.contains("software version") && e.contains("ptm 0.1.0") && e.contains("ptm 0.2.0"),
             "{e}"
         );
         let b = stack_part(&dir, Shard { index: 1, count: 2 }, "ptm 0.1.0");
-        let Merged::Stack(s) = merge(&[b, a]).unwrap() else {
-            panic!("a stack")
-        };
-        assert_eq!(s.height, 8);
+        assert_eq!(merge_into(&[b, a], &out).unwrap().kind, "stack");
+        let s = SampleStack::read(&out).unwrap();
+        assert_eq!(s.height, 40);
         assert!(s.k[1]
             .iter()
             .enumerate()
