@@ -107,11 +107,12 @@ output = "out/samples.exr"
 
 [[bake]]
 fit = "ptm6"
+link = "identity"
 output = "out/twill.ptm.exr"
 TOML
 mkdir -p one
 "$PTM" bake --swatch builtin:twill --res 64 --dirs 24 --spp 4 -o one/samples.exr 2>/dev/null
-"$PTM" bake --swatch builtin:twill --res 64 --dirs 24 --spp 4 --fit ptm6 -o one/twill.ptm.exr 2>/dev/null
+"$PTM" bake --swatch builtin:twill --res 64 --dirs 24 --spp 4 --fit ptm6 --link identity -o one/twill.ptm.exr 2>/dev/null
 
 # Runs job/submit.sh and waits for both jobs; prints "BAKE_JOB MERGE_JOB".
 submit() {

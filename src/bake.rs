@@ -52,6 +52,11 @@ pub struct Args {
     /// Fit a PTM while baking (streaming; -o is then the .ptm.exr).
     #[arg(long, value_enum)]
     pub fit: Option<FitArg>,
+    #[command(flatten)]
+    pub model: crate::fit::ModelArgs,
+    /// With --fit: ridge λ relative to the mean eigenvalue (see `ptm fit --regularize`).
+    #[arg(long, value_name = "LAMBDA", requires = "fit")]
+    pub regularize: Option<f64>,
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -151,13 +156,32 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         packets: !args.single_rays,
         threads: args.threads,
     };
+    let mut shard_mips = false;
     let mut accumulator = match args.fit {
         Some(f) => {
             let basis = match f {
                 FitArg::Ptm6 => Basis::Ptm6,
                 FitArg::Ptm11 => Basis::Ptm11,
             };
-            let acc = Accumulator::new(&lights, res[0], rows.len(), &FitOptions::new(basis))?;
+            let mut opts = FitOptions {
+                regularize: args.regularize,
+                ..FitOptions::new(basis)
+            };
+            args.model.apply(&mut opts);
+            if args.shard.is_some() {
+                if opts.link != ptm_fit::Link::Identity {
+                    bail!(
+                        "--shard with --fit needs --link identity (the logistic fit's MIP levels \
+                         and iteration statistics span all texels): add --link identity, or bake \
+                         the sample stack in shards, merge, then `ptm fit`"
+                    );
+                }
+                // The merge computes the MIP levels of the whole image.
+                shard_mips = opts.mips;
+                opts.mips = false;
+            }
+            let mut acc = Accumulator::new(&lights, res[0], rows.len(), &opts)?;
+            acc.set_spp(args.spp)?;
             for w in acc.warnings() {
                 eprintln!("ptm bake: fit warning: {w}");
             }
@@ -242,22 +266,35 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             for w in &fit.warnings {
                 eprintln!("ptm bake: fit warning: {w}");
             }
+            crate::fit::print_logistic("ptm bake", &fit);
             let save = SaveOptions {
                 half: false,
                 report: Some(&fit),
                 error_map: false,
             };
             match &part {
-                Some((meta, path)) => {
-                    crate::shard::write_ptm(path, meta, ptm, fit.clone(), coverage.clone(), &lights)
-                        .with_context(|| format!("writing {}", path.display()))?
-                }
+                Some((meta, path)) => crate::shard::write_ptm(
+                    path,
+                    meta,
+                    ptm.clone(),
+                    fit.clone(),
+                    coverage.clone(),
+                    &lights,
+                    shard_mips,
+                )
+                .with_context(|| format!("writing {}", path.display()))?,
                 None => ptm
                     .save(&args.output, &save)
                     .with_context(|| format!("writing {}", args.output.display()))?,
             }
             json!({
                 "basis": fit.basis.map(|b| b.name()),
+                "link": ptm.link.name(),
+                "uv": ptm.uv.name(),
+                "mip_levels": fit.mip_levels,
+                "logistic": crate::fit::logistic_json(&fit),
+                "solver": fit.solver,
+                "fit_seconds": fit.seconds.iter().map(|(k, v)| ((*k).to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
                 "rank": fit.rank,
                 "condition_number": finite(fit.cond),
                 "rms_error_mean": fit.rms.mean,
@@ -373,7 +410,16 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
             } else {
                 0.0
             };
-            (texels * (m + gram + 2.0) * 8.0, "the streaming fit's sums")
+            let link: ptm_fit::Link = args.model.link.into();
+            let counts = Accumulator::count_bytes(link, args.spp) as f64;
+            (
+                texels * (m + gram + 2.0) * 8.0 + texels * lights as f64 * counts + texels * 6.0,
+                if counts > 0.0 {
+                    "the streaming fit's sums and the logistic link's exact sample counts"
+                } else {
+                    "the streaming fit's sums"
+                },
+            )
         }
         // K per light (handed to the EXR writer, not copied); for point lights also (u, v) per
         // light and its split into u and v channels.

@@ -24,6 +24,94 @@ impl From<BasisArg> for Basis {
     }
 }
 
+/// `--link`: K = p(u, v) or K = σ(p(u, v)).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LinkArg {
+    /// K = p(u, v): the patent's PTM, least squares.
+    Identity,
+    /// K = 1/(1 + e^−p(u, v)), maximum likelihood: follows cloth's step-like shadows.
+    Logistic,
+}
+
+impl From<LinkArg> for ptm_fit::Link {
+    fn from(l: LinkArg) -> Self {
+        match l {
+            LinkArg::Identity => ptm_fit::Link::Identity,
+            LinkArg::Logistic => ptm_fit::Link::Logistic,
+        }
+    }
+}
+
+/// `--uv`: where a light direction lands in the polynomial's (u, v) plane.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum UvArg {
+    /// (u, v) = (l·T, l·B), the patent's and HP's projection.
+    Projected,
+    /// (u, v) = (θ/(π/2))·(cos φ, sin φ): equal steps of elevation are equal steps of (u, v).
+    Hemispherical,
+}
+
+impl From<UvArg> for ptm_fit::UvMap {
+    fn from(u: UvArg) -> Self {
+        match u {
+            UvArg::Projected => ptm_fit::UvMap::Projected,
+            UvArg::Hemispherical => ptm_fit::UvMap::Hemispherical,
+        }
+    }
+}
+
+/// The model and solver flags shared by `ptm fit` and `ptm bake --fit`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ModelArgs {
+    /// Link from polynomial to K. The default measured best on every built-in swatch
+    /// (README, "What accuracy costs"); `--link identity --uv projected` is the patent's PTM.
+    #[arg(long, value_enum, default_value = "logistic")]
+    pub link: LinkArg,
+    /// Map from light direction to (u, v).
+    #[arg(long, value_enum, default_value = "hemispherical")]
+    pub uv: UvArg,
+    /// Logistic link: Newton stops when the decrement falls below TOL per unit light weight.
+    #[arg(long, value_name = "TOL", default_value_t = ptm_fit::logistic::DEFAULT_TOLERANCE)]
+    pub tolerance: f64,
+    /// Logistic link: at most N Newton iterations per texel (texels that hit it are counted).
+    #[arg(long, value_name = "N", default_value_t = ptm_fit::logistic::DEFAULT_MAX_ITERATIONS)]
+    pub max_iterations: u32,
+    /// Write no MIP levels (a plain scanline file; renderers then average coefficients, which
+    /// is exact only for the identity link).
+    #[arg(long)]
+    pub no_mips: bool,
+}
+
+impl ModelArgs {
+    /// Fills the model fields of `opts`.
+    pub fn apply(&self, opts: &mut FitOptions) {
+        opts.link = self.link.into();
+        opts.uv = self.uv.into();
+        opts.tolerance = self.tolerance;
+        opts.max_iterations = self.max_iterations;
+        opts.mips = !self.no_mips;
+    }
+}
+
+/// The `--json` object of a logistic fit's statistics (null for the identity link).
+pub fn logistic_json(r: &FitReport) -> Value {
+    match &r.logistic {
+        None => Value::Null,
+        Some(s) => json!({
+            "iterations_mean": s.iterations_mean,
+            "iterations_max": s.iterations_max,
+            "not_converged_texels": s.not_converged,
+            "separable_texels": s.separable,
+            "constant_texels": s.constant,
+            "lambda": s.lambda,
+            "ridge_absolute": s.ridge,
+            "tolerance": s.tolerance,
+            "max_iterations": s.max_iterations,
+            "kernel": s.kernel,
+        }),
+    }
+}
+
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum WeightArg {
     /// Every light counts the same.
@@ -42,10 +130,14 @@ pub struct Args {
     /// Polynomial basis: ptm6 (u², u, uv, v, v², 1) or ptm11 (cubic + u²v²).
     #[arg(long, value_enum, default_value = "ptm6")]
     pub basis: BasisArg,
+    #[command(flatten)]
+    pub model: ModelArgs,
     /// Weight of each light's squared error.
     #[arg(long, value_enum, default_value = "uniform")]
     pub weight: WeightArg,
-    /// Ridge regularisation λ, relative to the mean eigenvalue of AᵀWA (instead of truncation).
+    /// Ridge regularisation λ, relative to the mean eigenvalue of AᵀWA. Identity link: instead
+    /// of truncation (default: none). Logistic link: default 1e-5, which keeps separable texels
+    /// (always lit, always occluded, a clean step) finite.
     #[arg(long, value_name = "LAMBDA")]
     pub regularize: Option<f64>,
     /// Singular values below RCOND·σmax count as zero (their basis directions are undetermined).
@@ -100,6 +192,16 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     if args.export_hp.is_some() && basis != Basis::Ptm6 {
         bail!("--export-hp: HP's .ptm format holds only the 6-term biquadratic; fit with --basis ptm6 to export it");
     }
+    if args.export_hp.is_some()
+        && (args.model.link != LinkArg::Identity || args.model.uv != UvArg::Projected)
+    {
+        bail!(
+            "--export-hp: HP's .ptm format is a polynomial in the projected (u, v) = (l·T, l·B); \
+             a {} PTM with {} (u, v) cannot be written in it. Fit with --link identity --uv projected to export",
+            ptm_fit::Link::from(args.model.link).name(),
+            ptm_fit::UvMap::from(args.model.uv).name()
+        );
+    }
     let t0 = Instant::now();
     let (stack, source) = match (&args.input, &args.images) {
         (Some(_), Some(_)) => bail!("give either a sample stack or --images, not both"),
@@ -136,7 +238,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             ""
         }
     );
-    let opts = FitOptions {
+    let mut opts = FitOptions {
         basis,
         weight: match args.weight {
             WeightArg::Uniform => Weight::Uniform,
@@ -147,7 +249,9 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         strict: args.strict,
         skip_bad: args.skip_bad,
         holdout: args.holdout,
+        ..FitOptions::new(basis)
     };
+    args.model.apply(&mut opts);
     let (ptm, report) = fit_stack(&stack, &opts)?;
     drop(stack);
     for w in &report.warnings {
@@ -190,6 +294,10 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "input": source,
         "output": args.output,
         "basis": basis.name(),
+        "link": ptm.link.name(),
+        "uv": ptm.uv.name(),
+        "mip_levels": report.mip_levels,
+        "logistic": logistic_json(&report),
         "width": ptm.width,
         "height": ptm.height,
         "texels": report.texels,
@@ -219,6 +327,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
 }
 
 fn print_summary(r: &FitReport, args: &Args, half_bound: Option<f64>) {
+    print_logistic("ptm fit", r);
     eprintln!(
         "ptm fit: {} rank {}/{}, condition number {:.3}, {}",
         r.basis.map_or("?", |b| b.name()),
@@ -248,4 +357,14 @@ fn print_summary(r: &FitReport, args: &Args, half_bound: Option<f64>) {
         eprintln!("ptm fit: half floats change K by at most {b:.2e} anywhere on the unit disk");
     }
     eprintln!("ptm fit: wrote {}", args.output.display());
+}
+
+/// One line on what the logistic fit did (nothing for the identity link).
+pub fn print_logistic(who: &str, r: &FitReport) {
+    if let Some(s) = &r.logistic {
+        eprintln!(
+            "{who}: logistic Newton: {:.1} iterations per texel on average (max {}), {} texels at the cap; {} separable and {} constant texels held finite by the ridge (lambda {:e})",
+            s.iterations_mean, s.iterations_max, s.not_converged, s.separable, s.constant, s.lambda
+        );
+    }
 }

@@ -175,6 +175,9 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                     basis: ptm_fit::Basis::Ptm6,
                     width: 1,
                     height: 1,
+                    link: ptm_fit::Link::Identity,
+                    uv: ptm_fit::UvMap::Projected,
+                    mips: Vec::new(),
                     tile: [1.0, 1.0],
                     planes: vec![vec![0.0]; 6],
                 },
@@ -277,6 +280,10 @@ fn timings_json(t: &ptm_runtime::Timings) -> Value {
 fn run_window(args: &Args) -> anyhow::Result<Value> {
     use ptm_runtime::window::{self, WindowOptions};
     let scene = build_scene(args)?;
+    // The window prepares every frame; the opening view's warnings are told once, here.
+    for w in &scene.prepare()?.warnings {
+        eprintln!("ptm preview: {w}");
+    }
     let report = window::run(
         scene,
         WindowOptions {
@@ -354,6 +361,14 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         );
     }
     report["nonfinite_coeffs"] = json!(prepared.nonfinite_coeffs);
+    for w in &prepared.warnings {
+        eprintln!("ptm preview: {w}");
+    }
+    report["warnings"] = json!(prepared
+        .warnings
+        .iter()
+        .map(|w| w.to_string())
+        .collect::<Vec<_>>());
     for (i, l) in scene.lights.iter().enumerate() {
         if l.position[2] <= 0.0 {
             eprintln!(

@@ -25,9 +25,19 @@ pub fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet)
         .collect();
     let names = lights.names.join("\n");
     let light_hash = shard::fingerprint([&dirs[..], names.as_bytes()]);
+    let m = &args.model;
     let fit = match args.fit {
         None => "stack".to_string(),
-        Some(f) => format!("{f:?}").to_lowercase(),
+        Some(f) => format!(
+            "{} link={} uv={} mips={} regularize={:?} tolerance={:e} max-iterations={}",
+            format!("{f:?}").to_lowercase(),
+            ptm_fit::Link::from(m.link).name(),
+            ptm_fit::UvMap::from(m.uv).name(),
+            !m.no_mips,
+            args.regularize,
+            m.tolerance,
+            m.max_iterations
+        ),
     };
     let distance = match args.light_distance {
         None => "distant".to_string(),
@@ -113,12 +123,14 @@ pub fn write_ptm(
     fit: FitReport,
     coverage: Vec<f32>,
     lights: &LightSet,
+    mips: bool,
 ) -> anyhow::Result<()> {
     let part = PtmPart {
         ptm,
         fit,
         coverage,
         lights: lights.clone(),
+        mips,
     };
     Ok(shard::write_ptm_part(path, meta, &part)?)
 }

@@ -85,22 +85,29 @@ fn sharded_stack_is_byte_identical() {
     sharded_equals_whole(BAKE, "samples.exr", &[1, 3, 4]);
 }
 
+/// Identity link, hemispherical (u, v), MIP levels (computed by the merge from the whole image).
 #[test]
 fn sharded_ptm6_is_byte_identical() {
     sharded_equals_whole(
-        &[BAKE, &["--fit", "ptm6"]].concat(),
+        &[BAKE, &["--fit", "ptm6", "--link", "identity"]].concat(),
         "w.ptm.exr",
         &[1, 3, 4],
     );
 }
 
+/// Identity link, projected (u, v), no MIP levels: the patent's PTM.
 #[test]
 fn sharded_ptm11_is_byte_identical() {
-    sharded_equals_whole(
-        &[BAKE, &["--fit", "ptm11"]].concat(),
-        "w.ptm.exr",
-        &[1, 3, 4],
-    );
+    let fit = [
+        "--fit",
+        "ptm11",
+        "--link",
+        "identity",
+        "--uv",
+        "projected",
+        "--no-mips",
+    ];
+    sharded_equals_whole(&[BAKE, &fit].concat(), "w.ptm.exr", &[1, 3, 4]);
 }
 
 /// A floor over the lower 60 % of a 1×1 tile with a box on it: rows near y = H see no swatch
@@ -123,7 +130,7 @@ fn sharded_bakes_with_holes_and_point_lights_are_byte_identical() {
         "--swatch", obj, "--tile", "1,1", "--res", "32,60", "--dirs", "8", "--spp", "5",
     ];
     sharded_equals_whole(
-        &[&holes[..], &["--fit", "ptm6"]].concat(),
+        &[&holes[..], &["--fit", "ptm6", "--link", "identity"]].concat(),
         "h.ptm.exr",
         &[3],
     );
@@ -173,6 +180,24 @@ fn bad_shards_are_refused_clearly() {
         dir.path(),
     );
     assert!(e.contains("not supported"), "{e}");
+    let e = refused(
+        &[
+            "bake",
+            "--res",
+            "32",
+            "--fit",
+            "ptm6",
+            "-o",
+            "s.ptm.exr",
+            "--shard",
+            "0/2",
+        ],
+        dir.path(),
+    );
+    assert!(
+        e.contains("needs --link identity"),
+        "the logistic link is not sharded yet: {e}"
+    );
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),
         0,
@@ -267,7 +292,7 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
         d.join("jobs.toml"),
         "[defaults]\nres = 48\ndirs = 8\nspp = 2\nshards = 3\n\n\
          [[bake]]\nswatch = \"builtin:plain-weave\"\noutput = \"out/a.exr\"\n\n\
-         [[bake]]\nswatch = \"builtin:jersey\"\nfit = \"ptm6\"\noutput = \"out/b.ptm.exr\"\nshards = 2\n",
+         [[bake]]\nswatch = \"builtin:jersey\"\nfit = \"ptm6\"\nlink = \"identity\"\noutput = \"out/b.ptm.exr\"\nshards = 2\n",
     )
     .unwrap();
     ok(&["batch", "jobs.toml"], d);

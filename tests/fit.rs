@@ -70,8 +70,17 @@ fn stack(lights: &LightSet, w: usize, h: usize, noise: bool) -> (SampleStack, Ve
     (s, coeffs)
 }
 
+/// The patent's plain PTM (identity link, projected (u, v)): what these tests check; the
+/// logistic link has its own tests (tests/logistic.rs, fit/tests/logistic.rs).
+const PLAIN: [&str; 4] = ["--link", "identity", "--uv", "projected"];
+
 fn run_json(args: &[&str]) -> serde_json::Value {
-    let out = ptm().args(args).arg("--json").output().unwrap();
+    let mut cmd = ptm();
+    cmd.args(args);
+    if args.first() == Some(&"fit") {
+        cmd.args(PLAIN);
+    }
+    let out = cmd.arg("--json").output().unwrap();
     assert!(
         out.status.success(),
         "ptm {args:?} failed: {}",

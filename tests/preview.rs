@@ -24,6 +24,9 @@ fn write_ptm(dir: &Path) -> PathBuf {
         basis: Basis::Ptm6,
         width: w,
         height: h,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [1.0, 1.0],
         planes,
     };

@@ -126,6 +126,7 @@ fn bake(
                 fit,
                 coverage,
                 lights: job.lights.clone(),
+                mips: false,
             };
             shard::write_ptm_part(&path, &meta, &part)?;
             path

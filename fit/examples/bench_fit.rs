@@ -1,12 +1,14 @@
 //! Fit throughput: texel·lights per second for the streaming accumulator and for refitting a
 //! stored stack, beside a plain f32 matrix product of the same shape (matrixmultiply's sgemm,
-//! terms × lights times lights × texels) in the same run.
+//! terms × lights times lights × texels) in the same run; then the logistic link's maximum-
+//! likelihood fit of the same stack (ptm6, ptm11; level 0 alone and with its MIP levels) and
+//! its ratio to the identity refit.
 //!
 //! `cargo run --release -p ptm-fit --example bench_fit [-- RES LIGHTS]` (default 1024 256).
 use std::time::Instant;
 
 use ptm_fit::solve::{fit_stack, Accumulator, FitOptions};
-use ptm_fit::{Basis, LightSet, SampleStack};
+use ptm_fit::{Basis, LightSet, Link, SampleStack};
 
 fn dome(n: usize) -> LightSet {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
@@ -42,19 +44,36 @@ fn main() {
         "building a {res}² × {n}-light stack ({:.2} GiB)…",
         (t * n * 4) as f64 / (1u64 << 30) as f64
     );
-    // Occlusion-like data: a smooth field plus hash noise, deterministic.
-    let k: Vec<Vec<f32>> = (0..n)
-        .map(|l| {
-            (0..t)
-                .map(|i| {
-                    let h = (i as u32)
-                        .wrapping_mul(2654435761)
-                        .wrapping_add(l as u32 * 40503);
-                    ((h >> 8) & 0xffff) as f32 / 65535.0
+    // Occlusion-like data, deterministic: per texel a tilted horizon (hashed height and tilt),
+    // K = the fraction of 8 samples below it, so most texels step from lit to occluded.
+    let hash = |i: u64| {
+        let mut z = i.wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        ((z ^ (z >> 27)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let horizon: Vec<[f64; 3]> = (0..t as u64)
+        .map(|i| {
+            [
+                0.1 + 0.6 * hash(3 * i),
+                hash(3 * i + 1) - 0.5,
+                hash(3 * i + 2) - 0.5,
+            ]
+        })
+        .collect();
+    let k: Vec<Vec<f32>> = lights
+        .dirs
+        .iter()
+        .map(|d| {
+            horizon
+                .iter()
+                .map(|h| {
+                    let s = 8.0 * (h[0] - d[2] + 0.4 * (h[1] * d[0] + h[2] * d[1])) + 4.0;
+                    (s.round().clamp(0.0, 8.0) / 8.0) as f32
                 })
                 .collect()
         })
         .collect();
+    drop(horizon);
     let stack = SampleStack {
         width: res,
         height: res,
@@ -138,5 +157,45 @@ fn main() {
             .map(|(k, v)| format!("{k} {v:.3} s"))
             .collect();
         println!("       refit stages (last run): {}", stages.join(", "));
+    }
+    // The logistic link on the same stack, against the identity refit measured here too.
+    let identity = best(3, || {
+        std::hint::black_box(fit_stack(&stack, &FitOptions::new(Basis::Ptm6)).unwrap());
+    });
+    for basis in Basis::ALL {
+        let id = best(3, || {
+            std::hint::black_box(fit_stack(&stack, &FitOptions::new(basis)).unwrap());
+        });
+        for mips in [false, true] {
+            let opts = FitOptions {
+                link: Link::Logistic,
+                mips,
+                ..FitOptions::new(basis)
+            };
+            let mut report = None;
+            let lg = best(1, || {
+                let (ptm, r) = fit_stack(&stack, &opts).unwrap();
+                std::hint::black_box(ptm);
+                report = Some(r);
+            });
+            let r = report.unwrap();
+            let s = r.logistic.unwrap();
+            println!(
+                "{:6} logistic{} {:.3} s = {:.2}x the {} identity refit ({:.3} s; ptm6 identity {:.3} s) | {:.1} Newton iterations per texel (max {}), {} at the cap, {} separable, {} constant, {} kernel",
+                basis.name(),
+                if mips { " + MIP levels" } else { "" },
+                lg,
+                lg / id,
+                basis.name(),
+                id,
+                identity,
+                s.iterations_mean,
+                s.iterations_max,
+                s.not_converged,
+                s.separable,
+                s.constant,
+                s.kernel
+            );
+        }
     }
 }

@@ -1,7 +1,13 @@
-//! Polynomial bases of an occlusion PTM, table-driven: a basis is a list of monomials u^a v^b.
+//! What a PTM's numbers mean, table-driven: the polynomial basis (a list of monomials u^a v^b),
+//! the link from polynomial to K, and the map from a light direction to (u, v).
 //!
 //! Orders follow the Pixar patent: ptm6 = A1..A6 (u², u, uv, v, v², 1); ptm11 = the claims' set
 //! (u³, v³, u²v², u²v, uv², u², v², uv, u, v, 1). Channel names are the monomials' names.
+//!
+//! K = link(p(u, v)), p = Σ cᵢ·mᵢ(u, v): [`Link::Identity`] (the patent's PTM, K = p) or
+//! [`Link::Logistic`] (K = σ(p) = 1/(1 + e^−p), which follows a texel's step-like shadow).
+//! (u, v) = [`UvMap::Projected`] (l·T, l·B), the patent's and HP's, or [`UvMap::Hemispherical`]
+//! (θ/(π/2))·(cos φ, sin φ), azimuthal equidistant, which spreads grazing lights apart.
 
 /// A monomial u^a · v^b with its channel name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -91,6 +97,160 @@ impl Basis {
     }
 }
 
+/// How K follows from the polynomial p(u, v).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Link {
+    /// K = p(u, v): the patent's PTM, linear in the coefficients (filtering coefficients filters K).
+    Identity,
+    /// K = σ(p(u, v)) = 1 / (1 + e^−p): fitted by maximum likelihood; a sharp edge along p = 0.
+    Logistic,
+}
+
+impl Link {
+    pub const ALL: [Link; 2] = [Link::Identity, Link::Logistic];
+
+    /// `"identity"` or `"logistic"`: the name on the command line and in `ptm:link`.
+    pub fn name(self) -> &'static str {
+        match self {
+            Link::Identity => "identity",
+            Link::Logistic => "logistic",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Link> {
+        Link::ALL.into_iter().find(|l| l.name() == name)
+    }
+
+    /// K from the polynomial's value p (unclamped for the identity link).
+    #[inline]
+    pub fn apply(self, p: f32) -> f32 {
+        match self {
+            Link::Identity => p,
+            Link::Logistic => sigmoid(p),
+        }
+    }
+}
+
+/// σ(z) = 1 / (1 + e^−z), accurate in both tails.
+#[inline]
+pub fn sigmoid(z: f32) -> f32 {
+    if z >= 0.0 {
+        1.0 / (1.0 + (-z).exp())
+    } else {
+        let e = z.exp();
+        e / (1.0 + e)
+    }
+}
+
+/// σ in f64.
+#[inline]
+pub fn sigmoid64(z: f64) -> f64 {
+    if z >= 0.0 {
+        1.0 / (1.0 + (-z).exp())
+    } else {
+        let e = z.exp();
+        e / (1.0 + e)
+    }
+}
+
+/// Where a unit light direction l lands in the (u, v) plane of the polynomial.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum UvMap {
+    /// (u, v) = (l·T, l·B): orthographic projection on the tangent plane (patent, HP PTM).
+    Projected,
+    /// (u, v) = (θ / (π/2))·(cos φ, sin φ), θ = angle of l from the normal, φ its azimuth:
+    /// azimuthal equidistant, so equal steps of elevation are equal steps of (u, v).
+    Hemispherical,
+}
+
+impl UvMap {
+    pub const ALL: [UvMap; 2] = [UvMap::Projected, UvMap::Hemispherical];
+
+    /// `"projected"` or `"hemispherical"`: the name on the command line and in `ptm:uv`.
+    pub fn name(self) -> &'static str {
+        match self {
+            UvMap::Projected => "projected",
+            UvMap::Hemispherical => "hemispherical",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<UvMap> {
+        UvMap::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// The formula in words (the `ptm:uvFormula` attribute).
+    pub fn formula(self) -> &'static str {
+        match self {
+            UvMap::Projected => "u = dot(l, T), v = dot(l, B), l = unit vector towards the light",
+            UvMap::Hemispherical => {
+                "u = (theta / (pi/2)) * cos(phi), v = (theta / (pi/2)) * sin(phi); theta = acos(dot(l, N)), phi = atan2(dot(l, B), dot(l, T)), l = unit vector towards the light"
+            }
+        }
+    }
+
+    /// (u, v) of a unit direction l in the tangent frame (T, B, N) = (+X, +Y, +Z).
+    pub fn of_dir(self, l: [f64; 3]) -> (f64, f64) {
+        match self {
+            UvMap::Projected => (l[0], l[1]),
+            UvMap::Hemispherical => {
+                let r = (l[0] * l[0] + l[1] * l[1]).sqrt();
+                let theta = r.atan2(l[2]);
+                let s = if r > 1e-12 {
+                    theta / (std::f64::consts::FRAC_PI_2 * r)
+                } else {
+                    // θ ≈ r near the zenith: the factor tends to 1/(π/2).
+                    1.0 / std::f64::consts::FRAC_PI_2
+                };
+                (l[0] * s, l[1] * s)
+            }
+        }
+    }
+
+    /// (u, v) of the light whose projected coordinates are (pu, pv) = (l·T, l·B), taking l in the
+    /// upper hemisphere (l·N = √(1 − pu² − pv²) ≥ 0, the only lights a PTM describes).
+    #[inline]
+    pub fn of_projected(self, pu: f32, pv: f32) -> (f32, f32) {
+        match self {
+            UvMap::Projected => (pu, pv),
+            UvMap::Hemispherical => {
+                let r2 = pu * pu + pv * pv;
+                let r = r2.sqrt().min(1.0);
+                // θ = asin(r) on the upper hemisphere; factor θ / ((π/2)·r), → 2/π at r = 0.
+                let s = if r > 1e-4 {
+                    r.asin() / (std::f32::consts::FRAC_PI_2 * r)
+                } else {
+                    (1.0 + r2 / 6.0) / std::f32::consts::FRAC_PI_2
+                };
+                (pu * s, pv * s)
+            }
+        }
+    }
+}
+
+/// Distinct monomials of the products mᵢ·mⱼ of a basis (the terms of its normal matrix), and for
+/// each packed upper-triangle entry (i ≤ j, row-major) the index of its product among them.
+/// ptm6 has 21 entries over 15 products, ptm11 66 over 33: a Hessian Σₙ wₙ·aₙaₙᵀ costs only
+/// the distinct products per light.
+pub fn products(basis: Basis) -> (Vec<(u8, u8)>, Vec<usize>) {
+    let ms = basis.monomials();
+    let mut distinct: Vec<(u8, u8)> = Vec::new();
+    let mut index = Vec::new();
+    for i in 0..ms.len() {
+        for j in i..ms.len() {
+            let p = (ms[i].pu + ms[j].pu, ms[i].pv + ms[j].pv);
+            let k = match distinct.iter().position(|&d| d == p) {
+                Some(k) => k,
+                None => {
+                    distinct.push(p);
+                    distinct.len() - 1
+                }
+            };
+            index.push(k);
+        }
+    }
+    (distinct, index)
+}
+
 /// Minimal float abstraction so the same table serves f32 evaluation and f64 fitting.
 pub mod num_like {
     pub trait Float:
@@ -139,6 +299,51 @@ mod tests {
         }
         assert_eq!(Basis::Ptm6.len(), 6);
         assert_eq!(Basis::Ptm11.len(), 11);
+    }
+
+    #[test]
+    fn product_tables_are_complete() {
+        let (d6, i6) = products(Basis::Ptm6);
+        let (d11, i11) = products(Basis::Ptm11);
+        assert_eq!((d6.len(), i6.len()), (15, 21));
+        assert_eq!((d11.len(), i11.len()), (33, 66));
+        // Every packed entry's product monomial is the sum of its two exponents.
+        let ms = Basis::Ptm11.monomials();
+        let mut q = 0;
+        for i in 0..ms.len() {
+            for j in i..ms.len() {
+                assert_eq!(d11[i11[q]], (ms[i].pu + ms[j].pu, ms[i].pv + ms[j].pv));
+                q += 1;
+            }
+        }
+    }
+
+    #[test]
+    fn hemispherical_map_is_equidistant_and_agrees_with_directions() {
+        for (el, az) in [
+            (90.0f64, 0.0f64),
+            (60.0, 0.3),
+            (30.0, 2.0),
+            (5.0, -1.0),
+            (0.0, 0.7),
+        ] {
+            let (e, a) = (el.to_radians(), az.to_radians());
+            let l = [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()];
+            let (u, v) = UvMap::Hemispherical.of_dir(l);
+            let r = (u * u + v * v).sqrt();
+            assert!((r - (90.0 - el) / 90.0).abs() < 1e-12, "el {el}: r {r}");
+            let (fu, fv) = UvMap::Hemispherical.of_projected(l[0] as f32, l[1] as f32);
+            assert!((fu as f64 - u).abs() < 2e-4 && (fv as f64 - v).abs() < 2e-4);
+            assert_eq!(UvMap::Projected.of_dir(l), (l[0], l[1]));
+        }
+        assert_eq!(Link::from_name("logistic"), Some(Link::Logistic));
+        assert_eq!(
+            UvMap::from_name("hemispherical"),
+            Some(UvMap::Hemispherical)
+        );
+        assert!(
+            (sigmoid(0.0) - 0.5).abs() < 1e-7 && sigmoid(-200.0) == 0.0 && sigmoid(200.0) == 1.0
+        );
     }
 
     #[test]

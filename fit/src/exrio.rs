@@ -4,6 +4,7 @@
 use std::collections::HashMap;
 use std::path::Path;
 
+use exr::math::RoundingMode;
 use exr::meta::attribute::AttributeValue;
 use exr::prelude::*;
 
@@ -46,12 +47,41 @@ pub(crate) fn write(
     channels: Vec<(String, Samples)>,
     attrs: Vec<(&str, Attr)>,
 ) -> Result<()> {
-    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+    let levels = channels.into_iter().map(|(n, s)| (n, vec![s])).collect();
+    write_levels(path, width, height, levels, attrs)
+}
+
+/// Tile size of MIP-mapped files (as `maketx` writes them).
+pub(crate) const TILE: usize = 64;
+
+fn flat(s: Samples) -> FlatSamples {
+    match s {
+        Samples::F32(v) => FlatSamples::F32(v),
+        Samples::F16(v) => FlatSamples::F16(v),
+    }
+}
+
+/// Writes a single-part EXR whose channels carry one entry per resolution level: one level is
+/// a plain scanline file (as [`write`]); more make a tiled (64×64, ZIP) `MIPMAP_LEVELS` file with
+/// `ROUND_DOWN` sizes, levels 0, 1, … down to 1×1 — the form texture systems read.
+pub(crate) fn write_levels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Vec<Samples>)>,
+    attrs: Vec<(&str, Attr)>,
+) -> Result<()> {
+    let mipped = channels.first().is_some_and(|(_, l)| l.len() > 1);
+    let list: SmallVec<[AnyChannel<Levels<FlatSamples>>; 4]> = channels
         .into_iter()
-        .map(|(name, s)| {
-            let data = match s {
-                Samples::F32(v) => FlatSamples::F32(v),
-                Samples::F16(v) => FlatSamples::F16(v),
+        .map(|(name, levels)| {
+            let data = if mipped {
+                Levels::Mip {
+                    rounding_mode: RoundingMode::Down,
+                    level_data: levels.into_iter().map(flat).collect(),
+                }
+            } else {
+                Levels::Singular(flat(levels.into_iter().next().expect("one level")))
             };
             AnyChannel::new(text(&name), data)
         })
@@ -66,12 +96,16 @@ pub(crate) fn write(
         };
         la.other.insert(text(name), value);
     }
-    let layer = Layer::new(
-        (width, height),
-        la,
-        Encoding::SMALL_LOSSLESS,
-        AnyChannels::sort(list),
-    );
+    let encoding = if mipped {
+        Encoding {
+            compression: Compression::ZIP16,
+            blocks: Blocks::Tiles(Vec2(TILE, TILE)),
+            line_order: LineOrder::Increasing,
+        }
+    } else {
+        Encoding::SMALL_LOSSLESS
+    };
+    let layer = Layer::new((width, height), la, encoding, AnyChannels::sort(list));
     let tmp = crate::atomic::tmp_path(path);
     let written = Image::from_layer(layer)
         .write()
@@ -157,6 +191,10 @@ pub(crate) struct Contents {
     pub width: usize,
     pub height: usize,
     pub channels: HashMap<String, Samples>,
+    /// Coarser resolution levels 1, 2, … of each channel of a MIP-mapped file (else empty).
+    pub levels: HashMap<String, Vec<Samples>>,
+    /// Sizes of those levels.
+    pub level_sizes: Vec<(usize, usize)>,
     pub attrs: HashMap<String, Attr>,
 }
 
@@ -171,7 +209,7 @@ pub(crate) fn read(path: &Path) -> Result<Contents> {
     }
     let image = exr::prelude::read()
         .no_deep_data()
-        .largest_resolution_level()
+        .all_resolution_levels()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
@@ -183,14 +221,32 @@ pub(crate) fn read(path: &Path) -> Result<Contents> {
         })?;
     let layer = image.layer_data;
     let size = layer.size;
+    let samples = |s: FlatSamples| match s {
+        FlatSamples::F32(v) => Samples::F32(v),
+        FlatSamples::F16(v) => Samples::F16(v),
+        FlatSamples::U32(v) => Samples::F32(v.into_iter().map(|x| x as f32).collect()),
+    };
     let mut channels = HashMap::new();
+    let mut levels = HashMap::new();
+    let mut level_sizes = Vec::new();
     for ch in layer.channel_data.list {
-        let s = match ch.sample_data {
-            FlatSamples::F32(v) => Samples::F32(v),
-            FlatSamples::F16(v) => Samples::F16(v),
-            FlatSamples::U32(v) => Samples::F32(v.into_iter().map(|x| x as f32).collect()),
+        let name = string(&ch.name);
+        let list: Vec<FlatSamples> = match ch.sample_data {
+            Levels::Singular(s) => vec![s],
+            Levels::Mip { level_data, .. } => level_data,
+            // A rip map's diagonal is not a MIP chain; take its full-resolution level only.
+            Levels::Rip { level_data, .. } => level_data.map_data.into_iter().take(1).collect(),
         };
-        channels.insert(string(&ch.name), s);
+        let mut it = list.into_iter();
+        let Some(first) = it.next() else { continue };
+        channels.insert(name.clone(), samples(first));
+        let rest: Vec<Samples> = it.map(samples).collect();
+        if !rest.is_empty() {
+            levels.insert(name, rest);
+        }
+    }
+    if !levels.is_empty() {
+        level_sizes = crate::ptm::mip_sizes(size.0, size.1);
     }
     let mut attrs = HashMap::new();
     for (name, value) in layer.attributes.other.iter().chain(&image.attributes.other) {
@@ -209,6 +265,8 @@ pub(crate) fn read(path: &Path) -> Result<Contents> {
         width: size.0,
         height: size.1,
         channels,
+        levels,
+        level_sizes,
         attrs,
     })
 }
@@ -230,6 +288,20 @@ impl Contents {
                 "{what} lacks channel `{name}` (the file is truncated in content or was written by another tool)"
             ))),
         }
+    }
+
+    /// Removes and returns the coarser levels of channel `name` as f32 (empty when the file has
+    /// no MIP levels).
+    pub fn take_levels_f32(&mut self, name: &str) -> Vec<Vec<f32>> {
+        self.levels
+            .remove(name)
+            .unwrap_or_default()
+            .into_iter()
+            .map(|s| match s {
+                Samples::F32(v) => v,
+                Samples::F16(v) => v.into_iter().map(f16::to_f32).collect(),
+            })
+            .collect()
     }
 
     pub fn text(&self, name: &str, what: &str) -> Result<String> {

@@ -32,14 +32,16 @@ mod exrio;
 pub mod hp;
 pub mod images;
 pub mod lights;
+pub mod logistic;
 pub mod ptm;
 pub mod shard;
+mod simd;
 pub mod solve;
 pub mod stack;
 
-pub use basis::{Basis, Monomial};
+pub use basis::{Basis, Link, Monomial, UvMap};
 pub use lights::LightSet;
-pub use ptm::{Ptm, PtmInfo, SaveOptions};
+pub use ptm::{Level, Ptm, PtmInfo, SaveOptions};
 pub use solve::{fit_stack, Accumulator, ErrorStats, FitOptions, FitReport, Weight};
 pub use stack::SampleStack;
 

@@ -23,15 +23,33 @@ use std::path::Path;
 use half::f16;
 
 use crate::exrio::{self, Attr, Samples};
-use crate::{Basis, Error, FitReport, Result};
+use crate::{Basis, Error, FitReport, Link, Result, UvMap};
 
-/// Value of `ptm:version`.
+/// Value of `ptm:version` for a plain PTM (identity link, projected (u, v)): every reader of
+/// version 1 evaluates it correctly.
 pub const PTM_VERSION: &str = "occlusion-ptm/1";
 
-/// An occlusion PTM: per texel, the coefficients of K(u, v) in `basis`.
+/// Value of `ptm:version` for a PTM whose `ptm:link` or `ptm:uv` is not the plain one, so that a
+/// version-1 reader refuses it instead of evaluating it as a polynomial.
+pub const PTM_VERSION_2: &str = "occlusion-ptm/2";
+
+/// One coarser MIP level of a PTM: coefficients fitted to the box-filtered K of its footprint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Level {
+    pub width: usize,
+    pub height: usize,
+    /// Coefficient planes in basis order, row-major.
+    pub planes: Vec<Vec<f32>>,
+}
+
+/// An occlusion PTM: per texel, the coefficients of K = link(p(u, v)) in `basis`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Ptm {
     pub basis: Basis,
+    /// K = p (identity) or K = σ(p) (logistic).
+    pub link: Link,
+    /// How a light direction maps to (u, v).
+    pub uv: UvMap,
     /// Texels per row.
     pub width: usize,
     /// Rows; row 0 is the far edge y = H of the tile.
@@ -40,6 +58,11 @@ pub struct Ptm {
     pub tile: [f64; 2],
     /// `planes[i]` holds coefficient i (basis order) for every texel, row-major.
     pub planes: Vec<Vec<f32>>,
+    /// MIP levels 1, 2, … down to 1×1 (sizes halved, rounded down, as OpenEXR's
+    /// `ROUND_DOWN`), each fitted to the box-filtered K of its footprint; empty when the file
+    /// stores none (a renderer may then average coefficients, which is exact only for the
+    /// identity link).
+    pub mips: Vec<Level>,
 }
 
 /// How [`Ptm::save`] writes the file.
@@ -75,27 +98,91 @@ pub fn channel_name(monomial: &str) -> String {
     format!("ptm.{monomial}")
 }
 
+/// Sizes of MIP levels 1, 2, … of a width × height image down to 1×1, halving and rounding
+/// down (never below 1), as OpenEXR's `MIPMAP_LEVELS` with `ROUND_DOWN`.
+pub fn mip_sizes(width: usize, height: usize) -> Vec<(usize, usize)> {
+    let mut out = Vec::new();
+    let (mut w, mut h) = (width, height);
+    while w > 1 || h > 1 {
+        w = (w / 2).max(1);
+        h = (h / 2).max(1);
+        out.push((w, h));
+    }
+    out
+}
+
 impl Ptm {
+    /// A plain PTM (identity link, projected (u, v), no MIP levels) from its planes.
+    pub fn new(
+        basis: Basis,
+        width: usize,
+        height: usize,
+        tile: [f64; 2],
+        planes: Vec<Vec<f32>>,
+    ) -> Ptm {
+        Ptm {
+            basis,
+            link: Link::Identity,
+            uv: UvMap::Projected,
+            width,
+            height,
+            tile,
+            planes,
+            mips: Vec::new(),
+        }
+    }
+
     /// Coefficients of texel (x, y) in basis order.
     pub fn coeffs(&self, x: usize, y: usize) -> Vec<f32> {
         let i = y * self.width + x;
         self.planes.iter().map(|p| p[i]).collect()
     }
 
-    /// Unclamped K at texel (x, y) for light projection (u, v).
+    /// The link's K before the clamp at texel (x, y) for a light whose projection on the
+    /// tangent plane is (l·X, l·Y) = (u, v) (mapped by `self.uv` first). For the identity link this
+    /// is the raw polynomial, which may leave [0, 1]; σ never does.
     pub fn eval_unclamped(&self, x: usize, y: usize, u: f32, v: f32) -> f32 {
         let i = y * self.width + x;
         let mut c = [0f32; 16];
         for (k, p) in self.planes.iter().enumerate() {
             c[k] = p[i];
         }
-        self.basis.eval(&c[..self.basis.len()], u, v)
+        let (mu, mv) = self.uv.of_projected(u, v);
+        self.link
+            .apply(self.basis.eval(&c[..self.basis.len()], mu, mv))
     }
 
-    /// K at texel (x, y) (column x, row y; row 0 at y = H) for light projection
-    /// (u, v) = (l·X, l·Y), clamped to [0, 1].
+    /// K at texel (x, y) (column x, row y; row 0 at y = H) for a light in the upper hemisphere
+    /// whose projection is (u, v) = (l·X, l·Y), clamped to [0, 1]. The file's `uv` map and `link`
+    /// are applied here: callers always pass the projected components.
     pub fn eval(&self, x: usize, y: usize, u: f32, v: f32) -> f32 {
         self.eval_unclamped(x, y, u, v).clamp(0.0, 1.0)
+    }
+
+    /// K at texel (x, y) for the unit direction l towards the light (swatch frame), clamped.
+    /// Lights at or below the horizon are fully occluded (K = 1).
+    pub fn eval_dir(&self, x: usize, y: usize, l: [f64; 3]) -> f32 {
+        if l[2] <= 0.0 {
+            return 1.0;
+        }
+        let i = y * self.width + x;
+        let mut c = [0f32; 16];
+        for (k, p) in self.planes.iter().enumerate() {
+            c[k] = p[i];
+        }
+        let (u, v) = self.uv.of_dir(l);
+        self.link
+            .apply(self.basis.eval(&c[..self.basis.len()], u as f32, v as f32))
+            .clamp(0.0, 1.0)
+    }
+
+    /// The `ptm:version` this PTM is written with: 1 when it is a plain PTM, else 2.
+    pub fn version(&self) -> &'static str {
+        if self.link == Link::Identity && self.uv == UvMap::Projected {
+            PTM_VERSION
+        } else {
+            PTM_VERSION_2
+        }
     }
 
     /// Checks plane count and sizes.
@@ -113,30 +200,58 @@ impl Ptm {
                 self.basis.len()
             )));
         }
+        if !self.mips.is_empty() {
+            let want = mip_sizes(self.width, self.height);
+            let got: Vec<(usize, usize)> = self.mips.iter().map(|l| (l.width, l.height)).collect();
+            if got != want
+                || self.mips.iter().any(|l| {
+                    l.planes.len() != self.basis.len()
+                        || l.planes.iter().any(|p| p.len() != l.width * l.height)
+                })
+            {
+                return Err(Error::Invalid(format!(
+                    "PTM {}×{}: MIP levels {got:?} do not match the chain {want:?} (halved, rounded down, to 1×1) with {} planes each",
+                    self.width,
+                    self.height,
+                    self.basis.len()
+                )));
+            }
+        }
         Ok(())
     }
 
     /// Largest change of K anywhere on the unit disk caused by storing the coefficients as half
-    /// floats: max over texels of Σ|c − half(c)| (every term is at most 1 in magnitude there).
+    /// floats: max over texels (and MIP levels) of Σ|c − half(c)| (every term is at most 1 in
+    /// magnitude there, for either (u, v) map), times 1/4 for the logistic link (σ' ≤ 1/4).
     pub fn half_error_bound(&self) -> f64 {
-        let n = self.width * self.height;
-        (0..n)
-            .map(|i| {
-                self.planes
-                    .iter()
-                    .map(|p| (p[i] as f64 - f16::from_f32(p[i]).to_f64()).abs())
-                    .sum::<f64>()
+        let scale = match self.link {
+            Link::Identity => 1.0,
+            Link::Logistic => 0.25,
+        };
+        std::iter::once(&self.planes)
+            .chain(self.mips.iter().map(|l| &l.planes))
+            .map(|planes| {
+                let n = planes.first().map_or(0, Vec::len);
+                (0..n)
+                    .map(|i| {
+                        planes
+                            .iter()
+                            .map(|p| (p[i] as f64 - f16::from_f32(p[i]).to_f64()).abs())
+                            .sum::<f64>()
+                    })
+                    .fold(0.0, f64::max)
             })
             .fold(0.0, f64::max)
+            * scale
     }
 
     /// Writes the PTM EXR atomically.
     pub fn save(&self, path: &Path, opts: &SaveOptions) -> Result<()> {
         self.validate()?;
         if opts.half {
-            let big = self
-                .planes
-                .iter()
+            let big = std::iter::once(&self.planes)
+                .chain(self.mips.iter().map(|l| &l.planes))
+                .flatten()
                 .flatten()
                 .fold(0f32, |a, &x| a.max(x.abs()));
             if big.is_nan() || big >= 65504.0 {
@@ -146,23 +261,45 @@ impl Ptm {
                 )));
             }
         }
-        let store = |v: &Vec<f32>| {
+        let store = |v: &[f32]| {
             if opts.half {
                 Samples::F16(v.iter().map(|&x| f16::from_f32(x)).collect())
             } else {
-                Samples::F32(v.clone())
+                Samples::F32(v.to_vec())
             }
         };
-        let mut channels: Vec<(String, Samples)> = self
+        // Every channel of a MIP-mapped file has every level: coefficients carry their fitted
+        // levels, the other maps (coverage, errors) their box averages.
+        let sizes = if self.mips.is_empty() {
+            Vec::new()
+        } else {
+            mip_sizes(self.width, self.height)
+        };
+        let with_levels = |v: &[f32]| -> Vec<Samples> {
+            let mut out = vec![store(v)];
+            let mut cur = (v.to_vec(), self.width, self.height);
+            for &(w, h) in &sizes {
+                let next = box_down(&cur.0, cur.1, cur.2, w, h);
+                out.push(store(&next));
+                cur = (next, w, h);
+            }
+            out
+        };
+        let mut channels: Vec<(String, Vec<Samples>)> = self
             .basis
             .monomials()
             .iter()
-            .zip(&self.planes)
-            .map(|(m, p)| (channel_name(m.name), store(p)))
+            .enumerate()
+            .map(|(j, m)| {
+                let mut levels = vec![store(&self.planes[j])];
+                levels.extend(self.mips.iter().map(|l| store(&l.planes[j])));
+                (channel_name(m.name), levels)
+            })
             .collect();
         let mut attrs = vec![
-            ("ptm:version", Attr::Text(PTM_VERSION.into())),
+            ("ptm:version", Attr::Text(self.version().into())),
             ("ptm:basis", Attr::Text(self.basis.name().into())),
+            ("ptm:link", Attr::Text(self.link.name().into())),
             (
                 "ptm:monomials",
                 Attr::Texts(self.basis.monomials().iter().map(|m| m.name.to_string()).collect()),
@@ -170,14 +307,15 @@ impl Ptm {
             (
                 "ptm:value",
                 Attr::Text(
-                    "K = sum_i ptm.<m_i> * m_i(u, v); K = occluded fraction, 0 lit, 1 occluded; clamp to [0,1]"
-                        .into(),
+                    match self.link {
+                        Link::Identity => "K = p(u, v) = sum_i ptm.<m_i> * m_i(u, v); K = occluded fraction, 0 lit, 1 occluded; clamp to [0,1]",
+                        Link::Logistic => "K = 1 / (1 + exp(-p(u, v))), p(u, v) = sum_i ptm.<m_i> * m_i(u, v); K = occluded fraction, 0 lit, 1 occluded",
+                    }
+                    .into(),
                 ),
             ),
-            (
-                "ptm:uv",
-                Attr::Text("u = dot(l, T), v = dot(l, B), l = unit vector towards the light".into()),
-            ),
+            ("ptm:uv", Attr::Text(self.uv.name().into())),
+            ("ptm:uvFormula", Attr::Text(self.uv.formula().into())),
             (
                 "ptm:frame",
                 Attr::Text(
@@ -218,19 +356,19 @@ impl Ptm {
             }
             if r.coverage.len() == self.width * self.height {
                 // Holes in the cloth: coefficients 0 there, which reads as "lit" without this.
-                channels.push(("coverage".into(), store(&r.coverage)));
+                channels.push(("coverage".into(), with_levels(&r.coverage)));
             }
             if opts.error_map {
                 let n = self.width * self.height;
                 if r.rms_map.len() == n {
-                    channels.push(("err.rms".into(), store(&r.rms_map)));
+                    channels.push(("err.rms".into(), with_levels(&r.rms_map)));
                 }
                 if r.max_map.len() == n {
-                    channels.push(("err.max".into(), store(&r.max_map)));
+                    channels.push(("err.max".into(), with_levels(&r.max_map)));
                 }
             }
         }
-        exrio::write(path, self.width, self.height, channels, attrs)
+        exrio::write_levels(path, self.width, self.height, channels, attrs)
     }
 
     /// Loads a PTM EXR. A file that is not a PTM, lacks a coefficient channel or names an
@@ -244,10 +382,10 @@ impl Ptm {
         let mut c = exrio::read(path)?;
         const WHAT: &str = "PTM";
         match c.attrs.get("ptm:version") {
-            Some(Attr::Text(v)) if v == PTM_VERSION => {}
+            Some(Attr::Text(v)) if v == PTM_VERSION || v == PTM_VERSION_2 => {}
             Some(Attr::Text(v)) => {
                 return Err(c.error(format!(
-                    "PTM version {v:?} is not supported (expected {PTM_VERSION:?})"
+                    "PTM version {v:?} is not supported (this version reads {PTM_VERSION:?} and {PTM_VERSION_2:?})"
                 )))
             }
             _ => {
@@ -274,15 +412,60 @@ impl Ptm {
                 )));
             }
         }
+        let link = match c.attrs.get("ptm:link") {
+            None => Link::Identity,
+            Some(Attr::Text(name)) => Link::from_name(name).ok_or_else(|| {
+                c.error(format!(
+                    "unknown link {name:?} in `ptm:link` (this version reads {})",
+                    Link::ALL.map(|l| l.name()).join(", ")
+                ))
+            })?,
+            Some(_) => return Err(c.error("`ptm:link` is not a string attribute")),
+        };
+        let uv = match c.attrs.get("ptm:uv") {
+            None => UvMap::Projected,
+            // Files before the attribute named its map held the projected formula in words.
+            Some(Attr::Text(name)) if name == UvMap::Projected.formula() => UvMap::Projected,
+            Some(Attr::Text(name)) => UvMap::from_name(name).ok_or_else(|| {
+                c.error(format!(
+                    "unknown (u, v) map {name:?} in `ptm:uv` (this version reads {})",
+                    UvMap::ALL.map(|m| m.name()).join(", ")
+                ))
+            })?,
+            Some(_) => return Err(c.error("`ptm:uv` is not a string attribute")),
+        };
         let tile = [c.f64("ptm:tileW", WHAT)?, c.f64("ptm:tileH", WHAT)?];
         let storage = match c.text("ptm:storage", WHAT) {
             Ok(s) => s,
             Err(_) => "float32".into(),
         };
         let mut planes = Vec::with_capacity(basis.len());
+        let mut level_planes: Vec<Vec<Vec<f32>>> = Vec::with_capacity(basis.len());
         for m in basis.monomials() {
-            planes.push(c.take_f32(&channel_name(m.name), WHAT)?);
+            let name = channel_name(m.name);
+            planes.push(c.take_f32(&name, WHAT)?);
+            level_planes.push(c.take_levels_f32(&name));
         }
+        let sizes = c.level_sizes.clone();
+        let mips = if level_planes.iter().all(|l| l.len() == sizes.len()) {
+            sizes
+                .iter()
+                .enumerate()
+                .map(|(i, &(width, height))| Level {
+                    width,
+                    height,
+                    planes: level_planes
+                        .iter_mut()
+                        .map(|l| std::mem::take(&mut l[i]))
+                        .collect(),
+                })
+                .collect()
+        } else {
+            return Err(c.error(format!(
+                "coefficient channels have different numbers of MIP levels (expected {} each)",
+                sizes.len()
+            )));
+        };
         let info = PtmInfo {
             storage,
             lights: c.f64("ptm:nLights", WHAT).ok().map(|x| x as usize),
@@ -296,11 +479,35 @@ impl Ptm {
         };
         let ptm = Ptm {
             basis,
+            link,
+            uv,
             width: c.width,
             height: c.height,
             tile,
             planes,
+            mips,
         };
+        ptm.validate().map_err(|e| c.error(e.to_string()))?;
         Ok((ptm, info))
     }
+}
+
+/// Box average of a w × h map into the next MIP level's nw × nh (2×2 texels, or 2×1 / 1×2 where
+/// one side is already 1; an odd last row or column is dropped, as `ROUND_DOWN` sizes imply).
+pub fn box_down(v: &[f32], w: usize, h: usize, nw: usize, nh: usize) -> Vec<f32> {
+    let (fx, fy) = (if w > 1 { 2 } else { 1 }, if h > 1 { 2 } else { 1 });
+    let inv = 1.0 / (fx * fy) as f32;
+    let mut out = vec![0f32; nw * nh];
+    for y in 0..nh {
+        for x in 0..nw {
+            let mut s = 0f32;
+            for dy in 0..fy {
+                for dx in 0..fx {
+                    s += v[(y * fy + dy) * w + x * fx + dx];
+                }
+            }
+            out[y * nw + x] = s * inv;
+        }
+    }
+    out
 }

@@ -22,7 +22,7 @@ use exr::meta::attribute::AttributeValue;
 use crate::exrio::{self, Attr, Samples};
 use crate::ptm::channel_name;
 use crate::stack::k_channel;
-use crate::{Basis, Error, ErrorStats, FitReport, LightSet, Ptm, Result, SampleStack};
+use crate::{Basis, Error, ErrorStats, FitReport, LightSet, Link, Ptm, Result, SampleStack, UvMap};
 
 mod chunks;
 
@@ -146,6 +146,10 @@ pub struct PtmPart {
     /// Coverage of the part's rows (always stored, also where it is all 1).
     pub coverage: Vec<f32>,
     pub lights: LightSet,
+    /// The whole bake's PTM carries MIP levels: the merge computes them from the merged
+    /// coefficients (identity link: coverage-weighted box averages, as `Accumulator::finish`).
+    /// A part never stores levels of its own.
+    pub mips: bool,
 }
 
 /// A part's content: rows of a sample stack, or rows of a PTM with its fit facts.
@@ -324,6 +328,14 @@ pub fn write_stack_part(path: &Path, meta: &PartMeta, mut stack: SampleStack) ->
 /// residual and coverage of its rows, and the fit's texel-independent facts.
 pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()> {
     let (ptm, fit) = (&part.ptm, &part.fit);
+    if ptm.link != Link::Identity {
+        return Err(Error::Invalid(format!(
+            "part {}: only identity-link PTMs can be sharded (a {} fit's MIP levels and \
+             statistics span all texels)",
+            meta.shard,
+            ptm.link.name()
+        )));
+    }
     ptm.validate()?;
     check_rows(meta, ptm.width, ptm.height)?;
     let n = ptm.width * ptm.height;
@@ -348,6 +360,9 @@ pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()
         ("part:tileW", Attr::F64(ptm.tile[0])),
         ("part:tileH", Attr::F64(ptm.tile[1])),
         ("part:basis", Attr::Text(ptm.basis.name().into())),
+        ("part:link", Attr::Text(ptm.link.name().into())),
+        ("part:uv", Attr::Text(ptm.uv.name().into())),
+        ("part:mips", Attr::I32(part.mips as i32)),
         ("part:nLights", Attr::I32(fit.lights as i32)),
         ("part:nLightsFit", Attr::I32(fit.lights_fit as i32)),
         ("part:solver", Attr::Text(fit.solver.clone())),
@@ -531,18 +546,30 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 ..FitReport::default()
             };
             let coverage = c.take_f32("coverage", WHAT)?;
+            let link = c.text("part:link", WHAT)?;
+            let link = Link::from_name(&link)
+                .filter(|l| *l == Link::Identity)
+                .ok_or_else(|| c.error(format!("link {link:?}: only identity-link parts merge")))?;
+            let uv = c.text("part:uv", WHAT)?;
+            let uv =
+                UvMap::from_name(&uv).ok_or_else(|| c.error(format!("unknown uv map {uv:?}")))?;
+            let mips = c.f64("part:mips", WHAT)? != 0.0;
             let ptm = Ptm {
                 basis,
+                link,
+                uv,
                 width: c.width,
                 height: c.height,
                 tile,
                 planes,
+                mips: Vec::new(),
             };
             PartData::Ptm(Box::new(PtmPart {
                 ptm,
                 fit,
                 coverage,
                 lights,
+                mips,
             }))
         }
         other => return Err(c.error(format!("unknown part kind {other:?}"))),
@@ -837,6 +864,7 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
     let grow = |v: &mut Vec<f32>| v.reserve_exact(full.saturating_sub(v.len()));
     let mut out: Option<(Ptm, FitReport, LightSet)> = None;
     let mut coverage: Vec<f32> = Vec::new();
+    let mut mips = false;
     for (path, _) in set {
         let part = read_part(path)?;
         let PartData::Ptm(p) = part.data else {
@@ -849,10 +877,12 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
                 grow(&mut p.fit.rms_map);
                 grow(&mut p.coverage);
                 coverage = p.coverage;
+                mips = p.mips;
                 out = Some((p.ptm, p.fit, p.lights));
             }
             Some((ptm, fit, lights)) => {
                 let same = p.ptm.basis == ptm.basis
+                    && (p.ptm.link, p.ptm.uv, p.mips) == (ptm.link, ptm.uv, mips)
                     && p.ptm.tile == ptm.tile
                     && p.lights == *lights
                     && p.fit.solver == fit.solver
@@ -875,15 +905,20 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
             }
         }
     }
-    let (ptm, mut fit, lights) = out.expect("check_set refuses an empty set");
-    finish_fit(&ptm, &mut fit, coverage);
+    let (mut ptm, mut fit, lights) = out.expect("check_set refuses an empty set");
+    finish_fit(&mut ptm, &mut fit, coverage, mips);
     Ok((ptm, fit, lights))
 }
 
-/// Recomputes the file-level statistics of a merged fit from its per-texel maps, as
-/// `Accumulator::finish` computes them for a whole bake. The one place a new per-file figure
-/// (e.g. of a MIP chain) is to be added.
-fn finish_fit(ptm: &Ptm, fit: &mut FitReport, coverage: Vec<f32>) {
+/// Recomputes the file-level facts of a merged fit from its per-texel maps, as
+/// `Accumulator::finish` computes them for a whole bake: statistics, the coverage channel and
+/// the MIP levels. The one place a new per-file figure is to be added (a logistic link's
+/// levels would be fitted here from box-filtered K counts the parts carry).
+fn finish_fit(ptm: &mut Ptm, fit: &mut FitReport, coverage: Vec<f32>, mips: bool) {
+    if mips {
+        ptm.mips = crate::solve::identity_mips(ptm, &coverage);
+        fit.mip_levels = ptm.mips.len();
+    }
     let masked: Vec<bool> = coverage.iter().map(|&c| c <= 0.0).collect();
     fit.texels = ptm.width * ptm.height;
     fit.masked = masked.iter().filter(|&&m| m).count();

@@ -20,7 +20,8 @@ use std::time::Instant;
 use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
-use crate::{Basis, Error, LightSet, Ptm, Result, SampleStack};
+use crate::logistic::{self, Footprint, Kernel, Source, Tables, TexelFit};
+use crate::{Basis, Error, LightSet, Link, Ptm, Result, SampleStack, UvMap};
 
 /// How each light's squared error counts in the fit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -45,10 +46,23 @@ impl Weight {
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitOptions {
     pub basis: Basis,
+    /// K = p (least squares) or K = σ(p) (maximum likelihood, [`crate::logistic`]).
+    pub link: Link,
+    /// How light directions map to (u, v).
+    pub uv: UvMap,
     pub weight: Weight,
     /// Ridge λ, relative to the mean eigenvalue trace(AᵀWA)/terms: minimises
-    /// |W½(Ac − k)|² + λ·trace(AᵀWA)/terms·|c|². `None`: truncated SVD (minimum norm).
+    /// |W½(Ac − k)|² + λ·trace(AᵀWA)/terms·|c|². `None`: truncated SVD (minimum norm) for the
+    /// identity link, [`logistic::DEFAULT_RIDGE`] for the logistic link.
     pub regularize: Option<f64>,
+    /// Logistic link: Newton stops when the decrement per unit light weight is below this.
+    pub tolerance: f64,
+    /// Logistic link: at most this many Newton iterations per texel.
+    pub max_iterations: u32,
+    /// Also fit MIP levels (each to the box-filtered K of its footprint) for the file.
+    pub mips: bool,
+    /// Logistic link: force a kernel build (tests and benchmarks); `None` = the widest.
+    pub kernel: Option<Kernel>,
     /// Singular values below `rcond · σ_max` are treated as zero (their directions undetermined).
     pub rcond: f64,
     /// Any warning about the light set becomes an error.
@@ -72,8 +86,14 @@ impl FitOptions {
     pub fn new(basis: Basis) -> Self {
         FitOptions {
             basis,
+            link: Link::Identity,
+            uv: UvMap::Projected,
             weight: Weight::Uniform,
             regularize: None,
+            tolerance: logistic::DEFAULT_TOLERANCE,
+            max_iterations: logistic::DEFAULT_MAX_ITERATIONS,
+            mips: false,
+            kernel: None,
             rcond: DEFAULT_RCOND,
             strict: false,
             skip_bad: false,
@@ -118,6 +138,14 @@ impl ErrorStats {
 #[derive(Clone, Debug, Default)]
 pub struct FitReport {
     pub basis: Option<Basis>,
+    pub link: Option<Link>,
+    pub uv: Option<UvMap>,
+    /// Logistic link: Newton iterations per fitted texel (mean, max), texels stopped by the
+    /// iteration cap, texels whose samples a polynomial separates exactly (optimum at infinity
+    /// without the ridge) and texels whose samples are all 0 or all 1 (a special separable case).
+    pub logistic: Option<LogisticStats>,
+    /// MIP levels fitted beside level 0 (0 = none).
+    pub mip_levels: usize,
     /// Lights in the set, lights that entered the fit (weight > 0, not held out).
     pub lights: usize,
     pub lights_fit: usize,
@@ -158,6 +186,23 @@ pub struct FitReport {
     pub max_map: Vec<f32>,
     /// Seconds per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
+}
+
+/// What the logistic fit did, over the fitted texels of level 0.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LogisticStats {
+    pub iterations_mean: f64,
+    pub iterations_max: u32,
+    pub not_converged: usize,
+    pub separable: usize,
+    pub constant: usize,
+    /// Ridge λ (relative) and ρ (absolute, λ·mean eigenvalue of AᵀΩA).
+    pub lambda: f64,
+    pub ridge: f64,
+    pub tolerance: f64,
+    pub max_iterations: u32,
+    /// The kernel build that ran (`avx512f`, `avx2+fma`, `portable`).
+    pub kernel: &'static str,
 }
 
 /// `coverage` when some texel is not fully covered, else nothing (a file needs no channel of 1s).
@@ -376,9 +421,13 @@ fn diagnose(
         }
     }
     if f.rank < m {
-        let what = match opts.regularize {
-            Some(l) => format!("ridge solution (lambda = {l:e} x mean eigenvalue)"),
-            None => format!(
+        let what = match (opts.link, opts.regularize) {
+            (Link::Logistic, l) => format!(
+                "logistic fit whose ridge (lambda = {:e} x mean eigenvalue) holds them near 0",
+                l.unwrap_or(logistic::DEFAULT_RIDGE)
+            ),
+            (Link::Identity, Some(l)) => format!("ridge solution (lambda = {l:e} x mean eigenvalue)"),
+            (Link::Identity, None) => format!(
                 "minimum-norm solution (truncated SVD: singular values <= {:.3e} = {:e} x sigma_max dropped)",
                 f.cutoff, opts.rcond
             ),
@@ -400,12 +449,13 @@ fn diagnose(
     out
 }
 
-fn design(basis: Basis, lights: &LightSet) -> DMatrix<f64> {
+fn design(basis: Basis, uv: UvMap, lights: &LightSet) -> DMatrix<f64> {
     let m = basis.len();
     let mut a = DMatrix::zeros(lights.len(), m);
     let mut t = vec![0.0; m];
     for (i, d) in lights.dirs.iter().enumerate() {
-        basis.terms(d[0], d[1], &mut t);
+        let (u, v) = uv.of_dir(*d);
+        basis.terms(u, v, &mut t);
         for j in 0..m {
             a[(i, j)] = t[j];
         }
@@ -467,7 +517,7 @@ fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {
         )));
     }
     let (w, held) = light_weights(lights, opts)?;
-    let a = design(opts.basis, lights);
+    let a = design(opts.basis, opts.uv, lights);
     let factor = Factor::from_design(&a, &w, opts.rcond, opts.regularize);
     let warnings = diagnose(opts.basis, lights, &w, &factor, opts);
     check_strict(opts, &warnings)?;
@@ -478,6 +528,218 @@ fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {
         factor,
         warnings,
     })
+}
+
+/// The logistic fit of one image from `src` (level 0 and, with `opts.mips`, every MIP level),
+/// on a prepared distant-light design: the PTM and its report (errors, iterations, classes).
+fn fit_logistic(
+    src: &Source,
+    prep: &Prepared,
+    lights: &LightSet,
+    size: (usize, usize),
+    tile: [f64; 2],
+    masked: &[bool],
+    opts: &FitOptions,
+) -> Result<(Ptm, FitReport)> {
+    let (w, h) = size;
+    let t = w * h;
+    let m = opts.basis.len();
+    let n = lights.len();
+    let t0 = Instant::now();
+    let kernel = opts.kernel.unwrap_or_else(Kernel::detect);
+    if !kernel.supported() {
+        return Err(Error::Invalid(format!(
+            "the {} logistic kernel does not run on this CPU",
+            kernel.name()
+        )));
+    }
+    if opts.tolerance.is_nan() || opts.tolerance < 0.0 || opts.max_iterations == 0 {
+        return Err(Error::Invalid(format!(
+            "logistic tolerance {} must be ≥ 0 and the iteration cap {} at least 1",
+            opts.tolerance, opts.max_iterations
+        )));
+    }
+    let lambda = opts.regularize.unwrap_or(logistic::DEFAULT_RIDGE);
+    // Warm start operator: the identity fit's P = S·AᵀW, rows per light.
+    let f = &prep.factor;
+    let rows: Vec<Vec<f64>> = (0..n)
+        .map(|i| (0..m).map(|j| prep.a[(i, j)]).collect())
+        .collect();
+    let p: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            (0..m)
+                .map(|j| {
+                    let x: f64 = (0..m).map(|q| f.s[(j, q)] * prep.a[(i, q)]).sum();
+                    x * prep.w[i]
+                })
+                .collect()
+        })
+        .collect();
+    let tables = Tables::new(
+        opts.basis,
+        &rows,
+        &prep.w,
+        &prep.held,
+        &p,
+        lambda,
+        opts.tolerance,
+        opts.max_iterations,
+    );
+    let t_factor = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    let chain = Footprint::chain(w, h);
+    let fits = logistic::fit_level(&tables, src, chain[0], w, &|ti| !masked[ti], kernel);
+    let t_level0 = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let mut mips = Vec::new();
+    if opts.mips {
+        for fp in &chain[1..] {
+            // A coarse texel is fitted when any of its footprint is covered (the kernel leaves
+            // out texels whose every sample is missing).
+            let level = logistic::fit_level(&tables, src, *fp, w, &|_| true, kernel);
+            mips.push(crate::Level {
+                width: fp.width,
+                height: fp.height,
+                planes: (0..m)
+                    .map(|j| level.iter().map(|x| x.c[j]).collect())
+                    .collect(),
+            });
+        }
+    }
+    let t_mips = t2.elapsed().as_secs_f64();
+    let planes: Vec<Vec<f32>> = (0..m)
+        .map(|j| fits.iter().map(|x| x.c[j]).collect())
+        .collect();
+    let rms_map: Vec<f32> = fits.iter().map(|x| x.rms).collect();
+    let max_map: Vec<f32> = fits.iter().map(|x| x.max).collect();
+    let hold_map: Vec<f32> = fits.iter().map(|x| x.holdout).collect();
+    let fitted: Vec<&TexelFit> = fits
+        .iter()
+        .zip(masked)
+        .filter(|(_, &mk)| !mk)
+        .map(|(x, _)| x)
+        .collect();
+    let stats = LogisticStats {
+        iterations_mean: fitted.iter().map(|x| x.iterations as f64).sum::<f64>()
+            / fitted.len().max(1) as f64,
+        iterations_max: fitted.iter().map(|x| x.iterations).max().unwrap_or(0),
+        not_converged: fitted.iter().filter(|x| !x.converged).count(),
+        separable: fitted.iter().filter(|x| x.separable).count(),
+        constant: fitted.iter().filter(|x| x.constant).count(),
+        lambda,
+        ridge: tables.ridge,
+        tolerance: opts.tolerance,
+        max_iterations: opts.max_iterations,
+        kernel: kernel.name(),
+    };
+    let mut warnings = prep.warnings.clone();
+    if stats.not_converged > 0 {
+        warnings.push(format!(
+            "{} texels stopped at the logistic iteration cap ({}) before the tolerance {:e}: raise --max-iterations, or the ridge (--regularize)",
+            stats.not_converged, opts.max_iterations, opts.tolerance
+        ));
+    }
+    if lambda == 0.0 && stats.separable + stats.constant > 0 {
+        warnings.push(format!(
+            "{} texels are separable (K is 0 or 1 and a polynomial boundary splits them exactly) and the ridge is 0: their maximum-likelihood coefficients are infinite, so they stopped where the iteration cap left them; give --regularize > 0",
+            stats.separable + stats.constant
+        ));
+    }
+    check_strict(opts, &warnings)?;
+    let mask_vec = masked.to_vec();
+    let mut report = FitReport {
+        basis: Some(opts.basis),
+        link: Some(Link::Logistic),
+        uv: Some(opts.uv),
+        logistic: Some(stats),
+        mip_levels: mips.len(),
+        lights: n,
+        lights_fit: tables.nfit,
+        holdout_lights: prep.held.clone(),
+        texels: t,
+        masked: masked.iter().filter(|&&x| x).count(),
+        coefficients: m,
+        rank: f.rank,
+        cond: f.cond,
+        cutoff: f.cutoff,
+        rcond: opts.rcond,
+        singular_values: f.sigma.clone(),
+        solver: format!(
+            "logistic maximum likelihood (binomial deviance), Newton per texel from the least-squares logit fit, ridge lambda={lambda:e} x mean eigenvalue (rho={:.3e}), tolerance {:e} per unit weight, at most {} iterations, weight={}, {} kernel",
+            tables.ridge,
+            opts.tolerance,
+            opts.max_iterations,
+            opts.weight.name(),
+            kernel.name()
+        ),
+        warnings,
+        ..FitReport::default()
+    };
+    report.rms = ErrorStats::of(&rms_map, &mask_vec);
+    report.max = Some(ErrorStats::of(&max_map, &mask_vec));
+    if !prep.held.is_empty() {
+        report.holdout = Some(ErrorStats::of(&hold_map, &mask_vec));
+    }
+    report.rms_map = rms_map;
+    report.max_map = max_map;
+    report.seconds = vec![("factor", t_factor), ("newton", t_level0)];
+    if opts.mips {
+        report.seconds.push(("mip levels", t_mips));
+    }
+    let ptm = Ptm {
+        basis: opts.basis,
+        link: Link::Logistic,
+        uv: opts.uv,
+        width: w,
+        height: h,
+        tile,
+        planes,
+        mips,
+    };
+    Ok((ptm, report))
+}
+
+/// MIP levels of an identity-link PTM: the least-squares fit of box-filtered K equals the
+/// coverage-weighted box average of the coefficients (K is linear in them and every texel
+/// shares the design), so no refit is needed.
+pub(crate) fn identity_mips(ptm: &Ptm, coverage: &[f32]) -> Vec<crate::Level> {
+    let m = ptm.basis.len();
+    let chain = Footprint::chain(ptm.width, ptm.height);
+    let w0 = ptm.width;
+    chain[1..]
+        .iter()
+        .map(|fp| {
+            let mut planes = vec![vec![0f32; fp.width * fp.height]; m];
+            for y in 0..fp.height {
+                for x in 0..fp.width {
+                    let mut num = [0f64; 16];
+                    let mut den = 0f64;
+                    for yy in y * fp.fy..(y + 1) * fp.fy {
+                        for xx in x * fp.fx..(x + 1) * fp.fx {
+                            let t = yy * w0 + xx;
+                            let c = coverage.get(t).copied().unwrap_or(1.0) as f64;
+                            if c > 0.0 {
+                                den += c;
+                                for j in 0..m {
+                                    num[j] += c * ptm.planes[j][t] as f64;
+                                }
+                            }
+                        }
+                    }
+                    if den > 0.0 {
+                        for j in 0..m {
+                            planes[j][y * fp.width + x] = (num[j] / den) as f32;
+                        }
+                    }
+                }
+            }
+            crate::Level {
+                width: fp.width,
+                height: fp.height,
+                planes,
+            }
+        })
+        .collect()
 }
 
 /// Streaming accumulator used by `ptm bake --fit`: samples are added light by light, memory is
@@ -508,6 +770,14 @@ pub struct Accumulator {
     bad: BTreeMap<usize, Vec<usize>>,
     skipped: usize,
     started: Instant,
+    /// Logistic link: footprint samples per texel (the bake's spp), covered samples per texel,
+    /// and the occluded counts of every light (u8 while spp ≤ 255, else u16): exact, and
+    /// texels × lights bytes where a stored f32 stack would take four times that.
+    spp: Option<u32>,
+    cov: Vec<u16>,
+    occ8: Vec<Vec<u8>>,
+    occ16: Vec<Vec<u16>>,
+    full_coverage: Vec<f32>,
 }
 
 const CHUNK: usize = 4096;
@@ -522,9 +792,21 @@ impl Accumulator {
         if width * height == 0 {
             return Err(Error::Invalid(format!("empty image {width}×{height}")));
         }
-        let prep = prepare(lights, opts)?;
+        let prep = if opts.link == Link::Logistic {
+            let mut prep = prepare(lights, &warm_start_options(opts))?;
+            prep.warnings = diagnose(opts.basis, lights, &prep.w, &prep.factor, opts);
+            check_strict(opts, &prep.warnings)?;
+            prep
+        } else {
+            prepare(lights, opts)?
+        };
         let t = width * height;
         Ok(Accumulator {
+            spp: None,
+            cov: Vec::new(),
+            occ8: Vec::new(),
+            occ16: Vec::new(),
+            full_coverage: Vec::new(),
             opts: opts.clone(),
             lights: lights.clone(),
             width,
@@ -565,6 +847,78 @@ impl Accumulator {
             *m = c <= 0.0;
         }
         self.coverage = partial_coverage(coverage);
+        self.full_coverage = coverage.to_vec();
+        Ok(())
+    }
+
+    /// The footprint samples per texel of the bake (needed by the logistic link, which holds
+    /// exact counts: K·covered samples). Call before adding lights.
+    pub fn set_spp(&mut self, spp: u32) -> Result<()> {
+        if spp == 0 || spp > u16::MAX as u32 {
+            return Err(Error::Invalid(format!(
+                "samples per texel {spp} must lie in 1..=65535"
+            )));
+        }
+        self.spp = Some(spp);
+        Ok(())
+    }
+
+    /// Bytes the logistic link holds per texel and light (0 for the identity link).
+    pub fn count_bytes(link: Link, spp: u32) -> usize {
+        match link {
+            Link::Identity => 0,
+            Link::Logistic if spp <= u8::MAX as u32 => 1,
+            Link::Logistic => 2,
+        }
+    }
+
+    /// Logistic link: stores light `index`'s K plane as exact occluded counts.
+    fn add_counts(&mut self, index: usize, k: &[f32]) -> Result<()> {
+        let spp = self.spp.ok_or_else(|| {
+            Error::Invalid(
+                "the logistic link's streaming fit needs the samples per texel (Accumulator::set_spp) to hold exact counts"
+                    .into(),
+            )
+        })?;
+        let t = self.width * self.height;
+        if self.cov.is_empty() {
+            self.cov = (0..t)
+                .map(|ti| {
+                    let c = self.full_coverage.get(ti).copied().unwrap_or(1.0);
+                    (c as f64 * spp as f64).round() as u16
+                })
+                .collect();
+            if spp <= u8::MAX as u32 {
+                self.occ8 = vec![Vec::new(); self.lights.len()];
+            } else {
+                self.occ16 = vec![Vec::new(); self.lights.len()];
+            }
+        }
+        let (cov, masked, width) = (&self.cov, &self.masked, self.width);
+        let count = |ti: usize| -> Result<u16> {
+            if masked[ti] || cov[ti] == 0 {
+                return Ok(0);
+            }
+            let x = k[ti] as f64 * cov[ti] as f64;
+            let n = x.round();
+            if !k[ti].is_finite() || (x - n).abs() > 1e-2 || !(0.0..=cov[ti] as f64).contains(&n) {
+                return Err(Error::Invalid(format!(
+                    "light {index}: K = {} at texel (column {}, row {}) is not a fraction of its {} covered samples (spp {spp}): the logistic streaming fit needs the bake's exact sample counts",
+                    k[ti],
+                    ti % width,
+                    ti / width,
+                    cov[ti]
+                )));
+            }
+            Ok(n as u16)
+        };
+        if spp <= u8::MAX as u32 {
+            let plane: Result<Vec<u8>> = (0..t).map(|ti| count(ti).map(|n| n as u8)).collect();
+            self.occ8[index] = plane?;
+        } else {
+            let plane: Result<Vec<u16>> = (0..t).map(count).collect();
+            self.occ16[index] = plane?;
+        }
         Ok(())
     }
 
@@ -585,6 +939,8 @@ impl Accumulator {
             )));
         }
         match self.mode {
+            // The logistic link keeps counts (add_counts), not sums.
+            None if self.opts.link == Link::Logistic => self.mode = Some(per_texel),
             None => {
                 self.mode = Some(per_texel);
                 if per_texel {
@@ -631,6 +987,9 @@ impl Accumulator {
     /// Adds the K plane (row-major, one value per texel) of distant light `index`.
     pub fn add_light(&mut self, index: usize, k: &[f32]) -> Result<()> {
         self.begin(index, k.len(), false)?;
+        if self.opts.link == Link::Logistic {
+            return self.add_counts(index, k);
+        }
         self.scan_bad(index, k, None)?;
         if self.prep.held.contains(&index) {
             self.held.insert(index, (k.to_vec(), None));
@@ -661,6 +1020,9 @@ impl Accumulator {
 
     /// Adds light `index` with per-texel (u, v) (finite-distance lights).
     pub fn add_light_uv(&mut self, index: usize, k: &[f32], uv: &[[f32; 2]]) -> Result<()> {
+        if self.opts.link == Link::Logistic {
+            return Err(refuse_per_texel_logistic());
+        }
         self.begin(index, k.len(), true)?;
         if uv.len() != k.len() {
             return Err(Error::Invalid(format!(
@@ -678,7 +1040,7 @@ impl Accumulator {
         if w == 0.0 {
             return Ok(());
         }
-        let (m, basis) = (self.m, self.opts.basis);
+        let (m, basis, uv_map) = (self.m, self.opts.basis, self.opts.uv);
         let np = m * (m + 1) / 2;
         let masked = &self.masked;
         self.gram
@@ -695,7 +1057,8 @@ impl Accumulator {
                     if masked[t0 + b] || !kb.is_finite() || !p[0].is_finite() || !p[1].is_finite() {
                         continue;
                     }
-                    basis.terms(p[0] as f64, p[1] as f64, &mut a[..m]);
+                    let (u, v) = uv_map.of_projected(p[0], p[1]);
+                    basis.terms(u as f64, v as f64, &mut a[..m]);
                     let kb = kb as f64;
                     let grb = &mut gr[b * np..(b + 1) * np];
                     let mut q = 0;
@@ -722,6 +1085,23 @@ impl Accumulator {
             )));
         }
         let t_acc = self.started.elapsed().as_secs_f64();
+        if self.opts.link == Link::Logistic {
+            return self.finish_logistic(tile, t_acc);
+        }
+        let (mips, coverage) = (self.opts.mips, self.full_coverage.clone());
+        let (mut ptm, mut report) = self.finish_identity(tile, t_acc)?;
+        if mips {
+            let t0 = Instant::now();
+            ptm.mips = identity_mips(&ptm, &coverage);
+            report.mip_levels = ptm.mips.len();
+            report
+                .seconds
+                .push(("mip levels", t0.elapsed().as_secs_f64()));
+        }
+        Ok((ptm, report))
+    }
+
+    fn finish_identity(self, tile: [f64; 2], t_acc: f64) -> Result<(Ptm, FitReport)> {
         let t0 = Instant::now();
         let per_texel = self.mode == Some(true);
         let (m, t) = (self.m, self.width * self.height);
@@ -876,6 +1256,9 @@ impl Accumulator {
             basis,
             width: self.width,
             height: self.height,
+            link: Link::Identity,
+            uv: self.opts.uv,
+            mips: Vec::new(),
             tile,
             planes,
         };
@@ -922,6 +1305,32 @@ impl Accumulator {
         Ok((ptm, report))
     }
 
+    fn finish_logistic(self, tile: [f64; 2], t_acc: f64) -> Result<(Ptm, FitReport)> {
+        let src = if self.occ16.is_empty() {
+            Source::Counts8 {
+                occ: &self.occ8,
+                cov: &self.cov,
+            }
+        } else {
+            Source::Counts16 {
+                occ: &self.occ16,
+                cov: &self.cov,
+            }
+        };
+        let (ptm, mut report) = fit_logistic(
+            &src,
+            &self.prep,
+            &self.lights,
+            (self.width, self.height),
+            tile,
+            &self.masked,
+            &self.opts,
+        )?;
+        report.coverage = self.coverage.clone();
+        report.seconds.insert(0, ("accumulate", t_acc));
+        Ok((ptm, report))
+    }
+
     fn gram_distant(&self) -> DMatrix<f64> {
         let a = &self.prep.a;
         let m = self.m;
@@ -939,6 +1348,8 @@ impl Accumulator {
         let f = &self.prep.factor;
         FitReport {
             basis: Some(self.opts.basis),
+            link: Some(Link::Identity),
+            uv: Some(self.opts.uv),
             lights: self.lights.len(),
             lights_fit: self.prep.w.iter().filter(|&&w| w > 0.0).count(),
             holdout_lights: self.prep.held.clone(),
@@ -1055,6 +1466,90 @@ const BLOCK: usize = 256;
 /// clamped K over held-out lights). Per-texel directions go through the [`Accumulator`].
 pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitReport)> {
     stack.validate()?;
+    if opts.link == Link::Logistic {
+        return fit_stack_logistic(stack, opts);
+    }
+    let (mut ptm, mut report) = fit_stack_identity(stack, opts)?;
+    if opts.mips {
+        let t0 = Instant::now();
+        ptm.mips = identity_mips(&ptm, &stack.coverage);
+        report.mip_levels = ptm.mips.len();
+        report
+            .seconds
+            .push(("mip levels", t0.elapsed().as_secs_f64()));
+    }
+    Ok((ptm, report))
+}
+
+/// The logistic link refuses per-texel light directions (finite-distance lights): its Newton
+/// solve shares one design per fit.
+fn refuse_per_texel_logistic() -> Error {
+    Error::Invalid(
+        "the logistic link fits distant lights only; this stack has per-texel light directions (a bake with --light-distance): fit it with the identity link".into(),
+    )
+}
+
+/// Options for the identity factorisation a logistic fit uses for its diagnostics and warm start.
+fn warm_start_options(opts: &FitOptions) -> FitOptions {
+    FitOptions {
+        regularize: None,
+        ..opts.clone()
+    }
+}
+
+fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitReport)> {
+    if stack.uv.is_some() {
+        return Err(refuse_per_texel_logistic());
+    }
+    let t0 = Instant::now();
+    let mut prep = prepare(&stack.lights, &warm_start_options(opts))?;
+    prep.warnings = diagnose(opts.basis, &stack.lights, &prep.w, &prep.factor, opts);
+    let mask = masked(stack);
+    let mut skipped = 0usize;
+    let mut bad_texels = std::collections::BTreeSet::new();
+    for (l, k) in stack.k.iter().enumerate() {
+        for (ti, &x) in k.iter().enumerate() {
+            if !mask[ti] && !x.is_finite() {
+                if !opts.skip_bad {
+                    return Err(bad_sample(ti, stack.width, l, x));
+                }
+                skipped += 1;
+                bad_texels.insert(ti);
+            }
+        }
+    }
+    let src = Source::Planes {
+        k: &stack.k,
+        coverage: &stack.coverage,
+    };
+    let (ptm, mut report) = fit_logistic(
+        &src,
+        &prep,
+        &stack.lights,
+        (stack.width, stack.height),
+        stack.tile,
+        &mask,
+        opts,
+    )?;
+    report.coverage = partial_coverage(&stack.coverage);
+    report.skipped_samples = skipped;
+    if skipped > 0 {
+        report.warnings.push(format!(
+            "{skipped} non-finite samples in {} texels were dropped (--skip-bad)",
+            bad_texels.len()
+        ));
+    }
+    report.seconds.insert(
+        0,
+        (
+            "scan",
+            t0.elapsed().as_secs_f64() - report.seconds.iter().map(|s| s.1).sum::<f64>(),
+        ),
+    );
+    Ok((ptm, report))
+}
+
+fn fit_stack_identity(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitReport)> {
     let (w, h, t) = (stack.width, stack.height, stack.texels());
     if let Some(uv) = &stack.uv {
         let mut acc = Accumulator::new(&stack.lights, w, h, opts)?;
@@ -1159,6 +1654,8 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
     }
     let mut report = FitReport {
         basis: Some(opts.basis),
+        link: Some(Link::Identity),
+        uv: Some(opts.uv),
         lights: n,
         lights_fit: fit.len(),
         holdout_lights: prep.held.clone(),
@@ -1224,6 +1721,9 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
         basis: opts.basis,
         width: w,
         height: h,
+        link: Link::Identity,
+        uv: opts.uv,
+        mips: Vec::new(),
         tile: stack.tile,
         planes,
     };
@@ -1590,7 +2090,8 @@ fn residual_max_per_texel(stack: &SampleStack, ptm: &Ptm, opts: &FitOptions) -> 
                 let k = stack.k[l][ti];
                 let p = uv[l][ti];
                 if w[l] > 0.0 && k.is_finite() && p[0].is_finite() && p[1].is_finite() {
-                    mx = mx.max((k - opts.basis.eval(&c, p[0], p[1])).abs());
+                    let (u, v) = opts.uv.of_projected(p[0], p[1]);
+                    mx = mx.max((k - opts.basis.eval(&c, u, v)).abs());
                 }
             }
             mx

@@ -23,6 +23,9 @@ fn sample_ptm(basis: Basis) -> Ptm {
         basis,
         width: w,
         height: h,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [1.5, 0.75],
         planes,
     }
@@ -237,4 +240,43 @@ fn foreign_truncated_and_unknown_files_are_named_errors() {
     let e = Ptm::load(&p).unwrap_err().to_string();
     assert!(e.contains("ptm.uv"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A logistic, hemispherical PTM with a MIP chain round-trips exactly through the tiled,
+/// MIP-mapped file, which announces itself as version 2 with its link and map.
+#[test]
+fn logistic_hemispherical_mip_chain_round_trips() {
+    let dir = tmpdir("mip");
+    for basis in Basis::ALL {
+        let mut ptm = sample_ptm(basis);
+        ptm.link = ptm_fit::Link::Logistic;
+        ptm.uv = ptm_fit::UvMap::Hemispherical;
+        ptm.mips = ptm_fit::ptm::mip_sizes(ptm.width, ptm.height)
+            .into_iter()
+            .enumerate()
+            .map(|(l, (width, height))| ptm_fit::Level {
+                width,
+                height,
+                planes: (0..basis.len())
+                    .map(|j| {
+                        (0..width * height)
+                            .map(|t| (t + j + l) as f32 * 0.01)
+                            .collect()
+                    })
+                    .collect(),
+            })
+            .collect();
+        assert_eq!(ptm.mips.len(), 3); // 13×7 → 6×3 → 3×1 → 1×1
+        let p = dir.join(format!("{}.ptm.exr", basis.name()));
+        ptm.save(&p, &SaveOptions::default()).unwrap();
+        let back = Ptm::load(&p).unwrap();
+        assert_eq!(back, ptm);
+        assert_eq!(back.version(), ptm_fit::ptm::PTM_VERSION_2);
+        // σ of the polynomial at the hemispherical coordinates.
+        let c = ptm.coeffs(3, 2);
+        let (pu, pv) = (0.4f32, -0.3f32);
+        let (u, v) = ptm_fit::UvMap::Hemispherical.of_projected(pu, pv);
+        let want = ptm_fit::basis::sigmoid(basis.eval(&c, u, v));
+        assert!((back.eval(3, 2, pu, pv) - want).abs() < 1e-6);
+    }
 }

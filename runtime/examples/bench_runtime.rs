@@ -26,6 +26,9 @@ fn ptm11(n: usize) -> Ptm {
         basis: Basis::Ptm11,
         width: n,
         height: n,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [1.0, 1.0],
         planes,
     }

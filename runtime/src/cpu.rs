@@ -3,8 +3,10 @@
 
 use rayon::prelude::*;
 
+use ptm_fit::{Link, UvMap};
+
 use crate::output::Image;
-use crate::scene::{Blur, Frame, LightGpu, Prepared};
+use crate::scene::{Blur, Frame, LightGpu, Prepared, PtmLevel};
 use crate::{mip, penumbra, sat, separable};
 
 /// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
@@ -132,6 +134,79 @@ pub fn tile_bilinear(f: &Frame, p: [f32; 2], n: [u32; 2]) -> ([usize; 4], [f32; 
     )
 }
 
+/// One axis of [`level_bilinear`]: texel indices (x0, x1) and the weight of x1, as `level_axis`
+/// in WGSL (the gap between the last texel and the next tile's first spans period − n + 1).
+pub fn level_axis(c: f32, n: u32, period: f32) -> (usize, usize, f32) {
+    let c0 = c.floor();
+    let a = c - c0;
+    let x0 = c0 as i32;
+    let last = n as i32 - 1;
+    if x0 >= 0 && x0 < last {
+        return (x0 as usize, x0 as usize + 1, a);
+    }
+    let offset = (x0 - last) as f32 + if x0 < 0 { period } else { 0.0 };
+    let gap = period - n as f32 + 1.0;
+    (last as usize, 0, (a + offset) / gap)
+}
+
+/// Texel indices and bilinear weights in a MIP level, as `level_bilinear` in WGSL (indices are
+/// relative to the level's first texel).
+pub fn level_bilinear(f: &Frame, p: [f32; 2], lv: &PtmLevel) -> ([usize; 4], [f32; 4]) {
+    let s = [p[0] / f.screen[2], p[1] / f.screen[3]];
+    let fr = [s[0] - s[0].floor(), 1.0 - (s[1] - s[1].floor())];
+    let c = [fr[0] * lv.period[0] - 0.5, fr[1] * lv.period[1] - 0.5];
+    let (x0, x1, ax) = level_axis(c[0], lv.width, lv.period[0]);
+    let (y0, y1, ay) = level_axis(c[1], lv.height, lv.period[1]);
+    let w = lv.width as usize;
+    (
+        [y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1],
+        [
+            (1.0 - ax) * (1.0 - ay),
+            ax * (1.0 - ay),
+            (1.0 - ax) * ay,
+            ax * ay,
+        ],
+    )
+}
+
+/// Hemispherical (u, v) of the unit light direction l (l.z > 0), as `ptm_hemispherical` in
+/// WGSL: l.xy · θ/((π/2)·r), θ = atan2(r, l.z), r = |l.xy|.
+pub fn ptm_hemispherical(l: [f32; 3]) -> [f32; 2] {
+    let r = (l[0] * l[0] + l[1] * l[1]).sqrt();
+    let s = if r > 1e-6 { r.atan2(l[2]) / r } else { 1.0 };
+    let s = s / std::f32::consts::FRAC_PI_2;
+    [l[0] * s, l[1] * s]
+}
+
+/// σ(p) from e^−|p| (no overflow), as `ptm_sigmoid` in WGSL.
+pub fn ptm_sigmoid(p: f32) -> f32 {
+    let e = (-p.abs()).exp();
+    if p >= 0.0 {
+        1.0 / (1.0 + e)
+    } else {
+        e / (1.0 + e)
+    }
+}
+
+/// K of `link` and `uv` before the clamp for the unit light direction l: what `ptm_k` clamps.
+pub fn ptm_k_unclamped(
+    basis: ptm_fit::Basis,
+    link: Link,
+    uv: UvMap,
+    c: &[f32],
+    l: [f32; 3],
+) -> f32 {
+    let [u, v] = match uv {
+        UvMap::Projected => [l[0], l[1]],
+        UvMap::Hemispherical => ptm_hemispherical(l),
+    };
+    let p = basis.eval(&c[..basis.len()], u, v);
+    match link {
+        Link::Identity => p,
+        Link::Logistic => ptm_sigmoid(p),
+    }
+}
+
 /// Mean of `n` values per texel at the four bilinear taps.
 fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4])) -> [f32; N] {
     let mut out = [0f32; N];
@@ -168,9 +243,9 @@ impl Twin<'_> {
             return bilerp::<16>(&self.p.coeffs, n, &taps);
         }
         let level = |l: usize| {
-            let lv = self.p.ptm_levels[l];
-            let (mut idx, w) = tile_bilinear(f, p, [lv[1], lv[2]]);
-            idx = idx.map(|i| i + lv[0] as usize);
+            let lv = &self.p.ptm_levels[l];
+            let (mut idx, w) = level_bilinear(f, p, lv);
+            idx = idx.map(|i| i + lv.offset as usize);
             bilerp::<16>(&self.p.coeffs, n, &(idx, w))
         };
         let l0 = lod.floor();
@@ -185,10 +260,11 @@ impl Twin<'_> {
         c
     }
 
-    /// K(u, v), clamped to [0, 1] after evaluation.
-    fn ptm_k(&self, c: &[f32; 16], u: f32, v: f32) -> f32 {
-        let basis = self.p.variant.basis.expect("ptm_k without a PTM");
-        basis.eval(&c[..basis.len()], u, v).clamp(0.0, 1.0)
+    /// K of the file's link and (u, v) map for the unit light direction l, clamped to [0, 1].
+    fn ptm_k(&self, c: &[f32; 16], l: [f32; 3]) -> f32 {
+        let v = &self.p.variant;
+        let basis = v.basis.expect("ptm_k without a PTM");
+        ptm_k_unclamped(basis, v.link, v.uv, c, l).clamp(0.0, 1.0)
     }
 
     fn albedo_at(&self, p: [f32; 2]) -> [f32; 3] {
@@ -321,7 +397,7 @@ impl Twin<'_> {
             let l = to_light.map(|x| x / d);
             let mut visible = [1f32; 3];
             if let Some(c) = &c {
-                let k = self.ptm_k(c, l[0], l[1]);
+                let k = self.ptm_k(c, l);
                 visible = visible.map(|v| v * (1.0 - k));
             }
             if self.p.variant.caster.is_some() {
@@ -393,7 +469,8 @@ pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
                     if d[2] <= 0.0 || len <= 0.0 {
                         continue;
                     }
-                    let k = basis.eval(&c[..basis.len()], d[0] / len, d[1] / len);
+                    let l = d.map(|x| x / len);
+                    let k = ptm_k_unclamped(basis, p.variant.link, p.variant.uv, &c, l);
                     lo = lo.min(k);
                     hi = hi.max(k);
                     out += u64::from(!(0.0..=1.0).contains(&k));
@@ -414,4 +491,93 @@ pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
         clamped_fraction: out as f64 / n as f64,
         evaluations: n,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ptm_fit::{Basis, Ptm};
+
+    #[test]
+    fn twin_k_equals_the_fit_crates_eval_dir_for_every_link_and_map() {
+        // The runtime and ptm-fit must agree on what a file means (ptm_hemispherical uses
+        // atan2 where UvMap::of_dir does too, in f64).
+        for basis in [Basis::Ptm6, Basis::Ptm11] {
+            let n = basis.len();
+            let planes: Vec<Vec<f32>> = (0..n).map(|k| vec![0.9 - 0.37 * k as f32]).collect();
+            for link in Link::ALL {
+                for uv in UvMap::ALL {
+                    let mut ptm = Ptm::new(basis, 1, 1, [1.0, 1.0], planes.clone());
+                    ptm.link = link;
+                    ptm.uv = uv;
+                    let c: Vec<f32> = planes.iter().map(|p| p[0]).collect();
+                    for i in 0..200 {
+                        // Elevations from the zenith down to 0.5° above the horizon.
+                        let el = (90.0 - 89.5 * i as f64 / 199.0).to_radians();
+                        let az = 2.399 * i as f64;
+                        let l = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+                        let want = ptm.eval_dir(0, 0, l);
+                        let lf = l.map(|x| x as f32);
+                        let got = ptm_k_unclamped(basis, link, uv, &c, lf).clamp(0.0, 1.0);
+                        assert!(
+                            (got - want).abs() < 2e-5,
+                            "{} {link:?} {uv:?} elevation {:.2}°: twin {got} vs eval_dir {want}",
+                            basis.name(),
+                            el.to_degrees()
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sigmoid_is_finite_and_saturates_for_large_arguments() {
+        assert_eq!(ptm_sigmoid(1e30), 1.0);
+        assert_eq!(ptm_sigmoid(-1e30), 0.0);
+        assert_eq!(ptm_sigmoid(0.0), 0.5);
+        for p in [-30.0f32, -3.0, -0.1, 0.1, 3.0, 30.0] {
+            assert!((ptm_sigmoid(p) - ptm_fit::basis::sigmoid(p)).abs() < 1e-7);
+        }
+    }
+
+    #[test]
+    fn a_level_that_tiles_exactly_is_looked_up_as_tile_bilinear_bit_for_bit() {
+        let mut f: Frame = bytemuck::Zeroable::zeroed();
+        f.screen = [64.0, 64.0, 1.3, 0.7];
+        let lv = PtmLevel::exact(0, 5, 3);
+        for i in 0..997 {
+            let p = [-2.0 + 0.0113 * i as f32, 1.5 - 0.0071 * i as f32];
+            assert_eq!(
+                level_bilinear(&f, p, &lv),
+                tile_bilinear(&f, p, [5, 3]),
+                "at {p:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_rounded_down_level_puts_texels_on_their_footprints_and_bridges_the_gap() {
+        // 13 level-0 texels → 6 at level 1: texel i covers level-0 texels 2i, 2i + 1, centred at
+        // (2i + 1)/13 of the tile; the tile spans 6.5 level texels, the gap from texel 5 to the
+        // next tile's texel 0 is 1.5 of them.
+        let (n, period) = (6, 6.5);
+        for i in 0..6 {
+            let c = (2 * i + 1) as f32 / 13.0 * period - 0.5;
+            let (x0, _, a) = level_axis(c, n, period);
+            assert!(x0 == i && a.abs() < 1e-6, "texel {i}: {x0} {a}");
+        }
+        // The gap runs from texel 5's centre (level-0 position 11) to the next tile's texel 0
+        // (13 + 1): at 12.5 halfway, at 13.5 (0.5 into the next tile) 5/6 of the way.
+        for (x, want) in [(12.5f32, 0.5f32), (0.5, 2.5 / 3.0)] {
+            let (x0, x1, a) = level_axis(x / 13.0 * period - 0.5, n, period);
+            assert_eq!((x0, x1), (5, 0));
+            assert!((a - want).abs() < 1e-6, "at {x}: {a} vs {want}");
+        }
+        // One texel: itself everywhere.
+        for c in [-0.5, 0.0, 0.3] {
+            assert_eq!(level_axis(c, 1, 1.0).0, 0);
+            assert_eq!(level_axis(c, 1, 1.0).1, 0);
+        }
+    }
 }

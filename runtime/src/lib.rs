@@ -28,7 +28,7 @@ pub mod window;
 
 pub use gpu::{Gpu, Timings};
 pub use output::Image;
-pub use scene::{Blur, Caster, Light, Prepared, Scene};
+pub use scene::{Blur, Caster, Light, Prepared, Scene, Warning};
 
 /// Errors of the runtime crate. Messages name the input and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]

@@ -4,7 +4,7 @@
 //! World space is the swatch frame: the acceptor is the plane z = 0, tangent +X, bitangent +Y,
 //! normal +Z. Lengths are swatch units (the PTM tile is `ptm.tile` = [W, H] of them).
 
-use ptm_fit::Ptm;
+use ptm_fit::{Link, Ptm, UvMap};
 
 use crate::{Error, Result};
 
@@ -216,9 +216,11 @@ impl Scene {
         frame.counts[3] = MAX_EXPLICIT_SAMPLES;
 
         let mut coeffs = Vec::new();
-        let mut ptm_levels: Vec<[u32; 4]> = Vec::new();
+        let mut ptm_levels: Vec<PtmLevel> = Vec::new();
         let mut nonfinite_coeffs = 0;
+        let mut warnings = Vec::new();
         let mut basis = None;
+        let (mut link, mut uv) = (Link::Identity, UvMap::Projected);
         if let Some(ptm) = &self.ptm {
             let n = ptm.basis.len();
             if ptm.width == 0 || ptm.height == 0 || ptm.planes.len() != n {
@@ -229,6 +231,11 @@ impl Scene {
                     ptm.planes.len(),
                     ptm.basis.name()
                 )));
+            }
+            if !ptm.mips.is_empty() {
+                // Stored levels must be the round-down chain with every plane: the lookup
+                // trusts their sizes.
+                ptm.validate()?;
             }
             if !(ptm.tile[0] > 0.0 && ptm.tile[1] > 0.0) {
                 return Err(Error::Scene(format!(
@@ -253,6 +260,8 @@ impl Scene {
             frame.sizes[0] = ptm.width as u32;
             frame.sizes[1] = ptm.height as u32;
             basis = Some(ptm.basis);
+            link = ptm.link;
+            uv = ptm.uv;
             // PTM texels under one pixel: everywhere for the orthographic view, at unit depth
             // along the view direction for a perspective one (see `ptm_lod`). A view that never
             // shows more than one texel per pixel reads level 0 only: no chain, no binding.
@@ -266,10 +275,24 @@ impl Scene {
             };
             frame.cam_up[3] = pixel * texels_per_unit;
             if self.perspective.is_some() || frame.cam_up[3] > 1.0 {
-                let levels = crate::mip::build_ptm_chain(&mut coeffs, n, ptm.width, ptm.height);
+                let levels = if ptm.mips.is_empty() {
+                    // Averaged coefficients average K only for the identity link.
+                    let levels = crate::mip::build_ptm_chain(&mut coeffs, n, ptm.width, ptm.height);
+                    levels
+                        .iter()
+                        .map(|l| PtmLevel::exact(l[0], l[1], l[2]))
+                        .collect()
+                } else {
+                    stored_levels(ptm, &mut coeffs, &mut nonfinite_coeffs)
+                };
                 // Odd sides give no level beyond 0: then there is no chain at all.
                 if levels.len() > 1 {
                     frame.cam_forward[3] = levels.len() as f32;
+                    if ptm.mips.is_empty() && ptm.link == Link::Logistic {
+                        warnings.push(Warning::LogisticMipsDerived {
+                            levels: levels.len(),
+                        });
+                    }
                     ptm_levels = levels;
                 }
             }
@@ -376,6 +399,8 @@ impl Scene {
             caster: self.caster.as_ref().map(|_| self.blur),
             colored: self.caster.is_some() && self.colored_shadow,
             ptm_mip: !ptm_levels.is_empty(),
+            link,
+            uv,
         };
         Ok(Prepared {
             frame,
@@ -390,7 +415,101 @@ impl Scene {
             variant,
             caster_downsample,
             nonfinite_coeffs,
+            warnings,
         })
+    }
+}
+
+/// Appends a PTM's stored MIP levels (sizes halved and rounded down, to 1×1) to its texel-major
+/// coefficients, zeroing non-finite ones as for level 0; returns every level, level 0 first.
+/// Texel i of level k covers level-0 texels 2^k·i … 2^k·(i + 1) (an odd last row or column of
+/// the level above is left out), so the tile spans w/2^k of its texels (`PtmLevel::period`).
+fn stored_levels(ptm: &Ptm, coeffs: &mut Vec<f32>, nonfinite: &mut usize) -> Vec<PtmLevel> {
+    let n = ptm.basis.len();
+    let mut levels = vec![PtmLevel::exact(0, ptm.width as u32, ptm.height as u32)];
+    for (k, level) in ptm.mips.iter().enumerate() {
+        let offset = coeffs.len() / n;
+        let start = coeffs.len();
+        for t in 0..level.width * level.height {
+            coeffs.extend(level.planes.iter().map(|p| p[t]));
+        }
+        for c in coeffs[start..].iter_mut().filter(|c| !c.is_finite()) {
+            *c = 0.0;
+            *nonfinite += 1;
+        }
+        let scale = (1u64 << (k + 1)) as f32;
+        // An axis of one texel reads that texel everywhere: its period does not matter.
+        let period = |size: usize, texels: usize| {
+            if texels == 1 {
+                1.0
+            } else {
+                size as f32 / scale
+            }
+        };
+        levels.push(PtmLevel {
+            offset: offset as u32,
+            width: level.width as u32,
+            height: level.height as u32,
+            pad: 0,
+            period: [
+                period(ptm.width, level.width),
+                period(ptm.height, level.height),
+            ],
+            pad2: [0.0; 2],
+        });
+    }
+    levels
+}
+
+/// One level of the PTM's MIP chain as the shader reads it, field for field with `struct
+/// PtmLevel` in `shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PtmLevel {
+    /// First texel of the level in `Prepared::coeffs` (texels, not floats).
+    pub offset: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: u32,
+    /// The tile's extent in this level's texels (x, y): (width, height) when the level tiles
+    /// exactly; w/2^k, h/2^k (up to one texel more) for a stored level of an odd side.
+    pub period: [f32; 2],
+    pub pad2: [f32; 2],
+}
+
+impl PtmLevel {
+    /// A level that tiles exactly (its period is its size).
+    pub fn exact(offset: u32, width: u32, height: u32) -> PtmLevel {
+        PtmLevel {
+            offset,
+            width,
+            height,
+            pad: 0,
+            period: [width as f32, height as f32],
+            pad2: [0.0; 2],
+        }
+    }
+}
+
+/// Data-dependent trouble found while preparing a scene, reported beside it (never an error).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Warning {
+    /// The view minifies a logistic PTM whose file stores no MIP levels: the `levels`-level
+    /// chain averages coefficients, which does not average K (σ is not linear).
+    LogisticMipsDerived { levels: usize },
+}
+
+impl std::fmt::Display for Warning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Warning::LogisticMipsDerived { levels } => write!(
+                f,
+                "the view minifies a logistic PTM that stores no MIP levels, so its {levels}-level \
+                 chain averages coefficients, which does not average K (σ is not linear) and \
+                 misrenders distant cloth; minified logistic PTMs need stored levels: refit with \
+                 `ptm fit`, which writes them"
+            ),
+        }
     }
 }
 
@@ -406,6 +525,10 @@ pub struct Variant {
     pub colored: bool,
     /// The PTM is minified somewhere in the view: trilinear lookups in its MIP chain.
     pub ptm_mip: bool,
+    /// The PTM's link (identity without a PTM): only its code is compiled.
+    pub link: Link,
+    /// The PTM's (u, v) map (projected without a PTM): only its code is compiled.
+    pub uv: UvMap,
 }
 
 impl Variant {
@@ -417,24 +540,33 @@ impl Variant {
             Some(ptm_fit::Basis::Ptm6),
             Some(ptm_fit::Basis::Ptm11),
         ] {
+            // Link, map and MIP chain exist only with a PTM.
+            let mut ptm_kinds = vec![(Link::Identity, UvMap::Projected, false)];
+            if basis.is_some() {
+                ptm_kinds.clear();
+                for link in Link::ALL {
+                    for uv in UvMap::ALL {
+                        for ptm_mip in [false, true] {
+                            ptm_kinds.push((link, uv, ptm_mip));
+                        }
+                    }
+                }
+            }
             for albedo_texture in [false, true] {
                 for caster in std::iter::once(None).chain(Blur::ALL.map(Some)) {
                     for colored in [false, true] {
                         if caster.is_none() && colored {
                             continue;
                         }
-                        let mips: &[bool] = if basis.is_some() {
-                            &[false, true]
-                        } else {
-                            &[false]
-                        };
-                        for &ptm_mip in mips {
+                        for &(link, uv, ptm_mip) in &ptm_kinds {
                             out.push(Variant {
                                 basis,
                                 albedo_texture,
                                 caster,
                                 colored,
                                 ptm_mip,
+                                link,
+                                uv,
                             });
                         }
                     }
@@ -447,6 +579,12 @@ impl Variant {
     /// Short name, e.g. `ptm11+albedo+sat+colored`.
     pub fn name(&self) -> String {
         let mut parts = vec![self.basis.map_or("nok", |b| b.name()).to_string()];
+        if self.link != Link::Identity {
+            parts.push(self.link.name().into());
+        }
+        if self.uv != UvMap::Projected {
+            parts.push(self.uv.name().into());
+        }
         if self.ptm_mip {
             parts.push("ptm-mip".into());
         }
@@ -561,9 +699,10 @@ pub struct Prepared {
     pub lights: Vec<LightGpu>,
     /// PTM coefficients, texel-major: `coeffs[(row·nx + col)·n + k]`.
     pub coeffs: Vec<f32>,
-    /// PTM MIP chain (levels appended to `coeffs`): texel offset, width, height, 0 per level;
-    /// empty when the view never minifies the PTM.
-    pub ptm_levels: Vec<[u32; 4]>,
+    /// PTM MIP chain (levels appended to `coeffs`), level 0 first: the file's stored levels,
+    /// or else coefficients averaged 2×2 ([`crate::mip::build_ptm_chain`]); empty when the view
+    /// never minifies the PTM.
+    pub ptm_levels: Vec<PtmLevel>,
     /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
     pub albedo: Vec<[f32; 4]>,
     /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three
@@ -580,6 +719,8 @@ pub struct Prepared {
     pub caster_downsample: usize,
     /// PTM coefficients that were NaN or infinite in the input (replaced by 0).
     pub nonfinite_coeffs: usize,
+    /// What the caller should tell the user about this scene (each at most once).
+    pub warnings: Vec<Warning>,
 }
 
 /// Box-downsamples a caster whose larger side exceeds [`MAX_CASTER_SIDE`] by the smallest

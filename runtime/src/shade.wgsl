@@ -47,7 +47,20 @@ struct Light {
 @group(0) @binding(8) var<storage, read> sep_map: array<f32>; // [light][row][col][channel]
 //#endif
 //#if PTM_MIP
-@group(0) @binding(9) var<storage, read> ptm_levels: array<vec4<u32>>; // offset, w, h, 0
+// One level of the PTM's MIP chain (scene.rs `PtmLevel`): its texels start at `offset` in
+// `coeffs`; `period` is the tile's extent in this level's texels, = (width, height) when the level
+// tiles exactly (a derived chain) and up to one texel more for a stored level of an odd side
+// (sizes rounded down: texel i covers level-0 texels 2^k·i … 2^k·(i + 1), the rest is a gap).
+struct PtmLevel {
+    offset: u32,
+    width: u32,
+    height: u32,
+    pad: u32,
+    period: vec2<f32>,
+    pad2: vec2<f32>,
+}
+
+@group(0) @binding(9) var<storage, read> ptm_levels: array<PtmLevel>;
 //#endif
 
 // Full-screen triangle: vertices (−1, −1), (3, −1), (−1, 3).
@@ -132,11 +145,46 @@ fn ptm_lod(frag: vec2<f32>) -> f32 {
     return clamp(log2(max(texels, 1.0)), 0.0, frame.cam_forward.w - 1.0);
 }
 
+// One axis of `level_bilinear`: texel indices (x0, x1) and the weight of x1 at level-texel
+// coordinate c ∈ [−0.5, period − 0.5) of a tiled axis of n texels. Between the last texel and
+// the first of the next tile the gap spans period − n + 1 texel steps (1 when the level tiles
+// exactly, then this is tile_bilinear's arithmetic bit for bit).
+fn level_axis(c: f32, n: u32, period: f32) -> vec3<f32> {
+    let c0 = floor(c);
+    let a = c - c0;
+    let x0 = i32(c0);
+    let last = i32(n) - 1;
+    if (x0 >= 0 && x0 < last) {
+        return vec3<f32>(f32(x0), f32(x0 + 1), a);
+    }
+    let offset = f32(x0 - last) + select(0.0, period, x0 < 0);
+    let gap = period - f32(n) + 1.0;
+    return vec3<f32>(f32(last), 0.0, (a + offset) / gap);
+}
+
+// As tile_bilinear, for a MIP level whose tile spans `period` texels (see PtmLevel).
+fn level_bilinear(p: vec2<f32>, lv: PtmLevel) -> Bilinear {
+    let s = p / frame.screen.zw;
+    let f = vec2<f32>(s.x - floor(s.x), 1.0 - (s.y - floor(s.y)));
+    let c = f * lv.period - 0.5;
+    let ax = level_axis(c.x, lv.width, lv.period.x);
+    let ay = level_axis(c.y, lv.height, lv.period.y);
+    let x0 = u32(ax.x);
+    let x1 = u32(ax.y);
+    let y0 = u32(ay.x);
+    let y1 = u32(ay.y);
+    let a = vec2<f32>(ax.z, ay.z);
+    var b: Bilinear;
+    b.index = vec4<u32>(y0 * lv.width + x0, y0 * lv.width + x1, y1 * lv.width + x0, y1 * lv.width + x1);
+    b.weight = vec4<f32>((1.0 - a.x) * (1.0 - a.y), a.x * (1.0 - a.y), (1.0 - a.x) * a.y, a.x * a.y);
+    return b;
+}
+
 // Bilinearly filtered coefficients of MIP level `level` at p.
 fn ptm_level(p: vec2<f32>, level: u32) -> array<f32, {{NC}}> {
     let lv = ptm_levels[level];
-    let b = tile_bilinear(p, lv.yz);
-    let i = (b.index + vec4<u32>(lv.x)) * NC;
+    let b = level_bilinear(p, lv);
+    let i = (b.index + vec4<u32>(lv.offset)) * NC;
     var c: array<f32, {{NC}}>;
     for (var k = 0u; k < NC; k++) {
         c[k] = b.weight.x * coeffs[i.x + k] + b.weight.y * coeffs[i.y + k]
@@ -172,9 +220,40 @@ fn ptm_coeffs(p: vec2<f32>, lod: f32) -> array<f32, {{NC}}> {
 }
 //#endif
 
-// K(u, v) of the basis, clamped to [0, 1] after evaluation (fits overshoot at grazing angles).
-fn ptm_k(c: array<f32, {{NC}}>, u: f32, v: f32) -> f32 {
+//#if PTM_HEMISPHERICAL
+// Hemispherical (u, v) of the unit light direction l (l.z > 0): (θ/(π/2))·(cos φ, sin φ), θ the
+// angle from the normal, so (u, v) = l.xy · θ/((π/2)·r) with r = |l.xy|. atan2(r, l.z) is well
+// conditioned up to the horizon (asin(r) is not); θ/r → 1 at the zenith.
+fn ptm_hemispherical(l: vec3<f32>) -> vec2<f32> {
+    let r = length(l.xy);
+    let s = select(1.0, atan2(r, l.z) / r, r > 1e-6);
+    return l.xy * (s / 1.5707963267948966);
+}
+//#endif
+
+//#if PTM_LOGISTIC
+// σ(p) = 1/(1 + e^−p) from e^−|p| ≤ 1, so exp never overflows for large |p|.
+fn ptm_sigmoid(p: f32) -> f32 {
+    let e = exp(-abs(p));
+    return select(e / (1.0 + e), 1.0 / (1.0 + e), p >= 0.0);
+}
+//#endif
+
+// K of the file's link and (u, v) map for the unit direction l towards the light, clamped to
+// [0, 1] after evaluation (polynomial fits overshoot at grazing angles).
+fn ptm_k(c: array<f32, {{NC}}>, l: vec3<f32>) -> f32 {
+//#if PTM_HEMISPHERICAL
+    let uv = ptm_hemispherical(l);
+//#else
+    let uv = l.xy;
+//#endif
+    let u = uv.x;
+    let v = uv.y;
+//#if PTM_LOGISTIC
+    let k = ptm_sigmoid({{PTM_EVAL}});
+//#else
     let k = {{PTM_EVAL}};
+//#endif
     return clamp(k, 0.0, 1.0);
 }
 //#endif
@@ -429,7 +508,7 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
         let l = to_light / sqrt(d2);
         var visible = vec3<f32>(1.0);
 //#if PTM
-        visible *= 1.0 - ptm_k(c, l.x, l.y);
+        visible *= 1.0 - ptm_k(c, l);
 //#endif
 //#if CASTER
         // Clamped: f32 texel coordinates make box weights sum to 1 ± ulp(t)/(2w).

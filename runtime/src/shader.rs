@@ -5,7 +5,7 @@
 //! `{{NC}}`, `{{PTM_EVAL}}`, `{{SAT_CHANNELS}}`. The PTM polynomial is generated from the fit
 //! crate's monomial table, so the shader and `Basis::eval` cannot disagree on the order.
 
-use ptm_fit::Basis;
+use ptm_fit::{Basis, Link, UvMap};
 
 use crate::scene::{Blur, Variant};
 use crate::{Error, Result};
@@ -21,6 +21,12 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     }
     if v.basis.is_some() && v.ptm_mip {
         d.push("PTM_MIP");
+    }
+    if v.basis.is_some() && v.link == Link::Logistic {
+        d.push("PTM_LOGISTIC");
+    }
+    if v.basis.is_some() && v.uv == UvMap::Hemispherical {
+        d.push("PTM_HEMISPHERICAL");
     }
     if v.albedo_texture {
         d.push("ALBEDO_TEX");
@@ -134,8 +140,9 @@ mod tests {
     #[test]
     fn every_shade_variant_validates_with_naga() {
         let all = Variant::all();
-        // No PTM, or ptm6 or ptm11 each with and without a MIP chain; × albedo × caster.
-        assert_eq!(all.len(), (1 + 2 * 2) * 2 * 9);
+        // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain;
+        // × albedo × caster.
+        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2) * 2 * 9);
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -164,6 +171,8 @@ mod tests {
             caster: None,
             colored: false,
             ptm_mip: false,
+            link: Link::Identity,
+            uv: UvMap::Projected,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -179,6 +188,65 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");
+    }
+
+    #[test]
+    fn only_the_files_link_and_uv_map_are_compiled() {
+        // Names and intrinsics that exist only for the logistic link or the hemispherical map.
+        let logistic = ["ptm_sigmoid", "exp("];
+        let hemispherical = ["ptm_hemispherical", "atan2"];
+        let all = Variant::all();
+        assert!(all.iter().any(|v| v.link == Link::Logistic));
+        assert!(all.iter().any(|v| v.uv == UvMap::Hemispherical));
+        for v in all {
+            let src = shade_source(&v).unwrap();
+            let ptm = v.basis.is_some();
+            for name in logistic {
+                let want = ptm && v.link == Link::Logistic;
+                assert_eq!(src.contains(name), want, "{}: {name}", v.name());
+            }
+            for name in hemispherical {
+                let want = ptm && v.uv == UvMap::Hemispherical;
+                assert_eq!(src.contains(name), want, "{}: {name}", v.name());
+            }
+        }
+    }
+
+    #[test]
+    fn ptm_level_layout_matches_the_wgsl_struct() {
+        use crate::scene::PtmLevel;
+        use core::mem::offset_of;
+        let v = Variant::all()
+            .into_iter()
+            .find(|v| v.ptm_mip)
+            .expect("a MIP variant");
+        let module = validate(&v.name(), &shade_source(&v).unwrap()).unwrap();
+        let (members, span) = module
+            .types
+            .iter()
+            .find_map(|(_, t)| match &t.inner {
+                naga::TypeInner::Struct { members, span }
+                    if t.name.as_deref() == Some("PtmLevel") =>
+                {
+                    Some((members.clone(), *span))
+                }
+                _ => None,
+            })
+            .expect("struct PtmLevel in shade.wgsl");
+        let want = [
+            ("offset", offset_of!(PtmLevel, offset)),
+            ("width", offset_of!(PtmLevel, width)),
+            ("height", offset_of!(PtmLevel, height)),
+            ("pad", offset_of!(PtmLevel, pad)),
+            ("period", offset_of!(PtmLevel, period)),
+            ("pad2", offset_of!(PtmLevel, pad2)),
+        ];
+        let got: Vec<(&str, usize)> = members
+            .iter()
+            .map(|m| (m.name.as_deref().unwrap_or("?"), m.offset as usize))
+            .collect();
+        assert_eq!(got, want);
+        assert_eq!(span as usize, std::mem::size_of::<PtmLevel>());
     }
 
     #[test]

@@ -751,6 +751,9 @@ mod tests {
             basis: Basis::Ptm6,
             width: 4,
             height: 4,
+            link: ptm_fit::Link::Identity,
+            uv: ptm_fit::UvMap::Projected,
+            mips: Vec::new(),
             tile: [1.0, 1.0],
             // K = 0.3 everywhere: the PTM darkens by 30 %.
             planes: (0..6)

@@ -144,6 +144,9 @@ fn checker_ptm() -> ptm_fit::Ptm {
         basis: Basis::Ptm6,
         width: n,
         height: n,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [1.0, 1.0],
         planes,
     }
@@ -190,4 +193,170 @@ fn perspective_over_a_mip_mapped_ptm_matches_twin() {
         "32×16 … 2×1, 1×1"
     );
     check(&s, "perspective, ptm11 MIP chain");
+}
+
+/// `random_ptm` with `link` and `uv`; logistic coefficients are scaled ×6 so σ has sharp edges,
+/// and every 7th texel's constant term is ±200 (σ saturates: a naive exp(−p) overflows f32).
+fn link_ptm(basis: Basis, link: ptm_fit::Link, uv: ptm_fit::UvMap) -> ptm_fit::Ptm {
+    let mut ptm = random_ptm(basis, 13, 9, 5);
+    ptm.link = link;
+    ptm.uv = uv;
+    if link == ptm_fit::Link::Logistic {
+        let one = basis.len() - 1;
+        for (k, plane) in ptm.planes.iter_mut().enumerate() {
+            for (t, c) in plane.iter_mut().enumerate() {
+                *c = if k == one && t % 7 == 0 {
+                    if t % 14 == 0 {
+                        200.0
+                    } else {
+                        -200.0
+                    }
+                } else {
+                    6.0 * *c
+                };
+            }
+        }
+    }
+    ptm
+}
+
+#[test]
+fn gpu_matches_twin_for_every_link_and_uv_map() {
+    use ptm_fit::{Link, UvMap};
+    for basis in [Basis::Ptm6, Basis::Ptm11] {
+        for link in Link::ALL {
+            for uv in UvMap::ALL {
+                let mut s = scene(Some(basis), [70, 50]);
+                s.ptm = Some(link_ptm(basis, link, uv));
+                // A grazing light (elevation ≈ 5°) tests the map near the horizon.
+                s.lights.push(light([12.0, 1.5, 1.0], 0.1, 80.0));
+                let p = s.prepare().unwrap();
+                assert_eq!((p.variant.link, p.variant.uv), (link, uv));
+                check(
+                    &s,
+                    &format!("{} {} {}", basis.name(), link.name(), uv.name()),
+                );
+            }
+        }
+    }
+}
+
+/// A 64² logistic ptm6 whose constant term is a texel checkerboard of p = ±20 (K ≈ 0 and 1),
+/// with stored levels of p = ln(1/3) (K = 1/4) that averaged coefficients (p = 0, K = 1/2)
+/// would not give.
+fn logistic_checker(stored: bool) -> ptm_fit::Ptm {
+    let mut ptm = checker_ptm();
+    ptm.link = ptm_fit::Link::Logistic;
+    for c in &mut ptm.planes[5] {
+        *c = 40.0 * *c - 20.0;
+    }
+    if stored {
+        ptm.mips = ptm_fit::ptm::mip_sizes(64, 64)
+            .into_iter()
+            .map(|(w, h)| {
+                let mut planes = vec![vec![0.0f32; w * h]; 6];
+                planes[5].fill((1.0f32 / 3.0).ln());
+                ptm_fit::ptm::Level {
+                    width: w,
+                    height: h,
+                    planes,
+                }
+            })
+            .collect();
+    }
+    ptm
+}
+
+#[test]
+fn minified_logistic_ptm_renders_from_its_stored_levels() {
+    // 8 tiles across 64 px: level 3 everywhere. Stored levels: K = 1/4, (1 − K) = 3/4 of the
+    // unoccluded image; the derived chain (no stored levels) gives σ(0) = 1/2 and a warning.
+    use ptm_runtime::scene::Warning;
+    let mut free = Scene::over_ptm(checker_ptm(), 8, [64, 64]);
+    free.lights = vec![light([4.0, 4.0, 50.0], 0.0, 2500.0)];
+    free.ptm = None;
+    let (open, _) = gpu::render(&gpu(), &free.prepare().unwrap()).unwrap();
+    for (stored, want) in [(true, 0.75f32), (false, 0.5)] {
+        // Through a file, as `ptm preview` reads it: the levels survive the EXR.
+        let path = std::path::PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("logistic_checker_{stored}.ptm.exr"));
+        logistic_checker(stored)
+            .save(&path, &Default::default())
+            .unwrap();
+        let ptm = ptm_fit::Ptm::load(&path).unwrap();
+        assert_eq!(ptm, logistic_checker(stored));
+        let mut s = free.clone();
+        s.ptm = Some(ptm);
+        let p = s.prepare().unwrap();
+        assert!(p.variant.ptm_mip && p.ptm_levels.len() == 7);
+        let warned = p.warnings == [Warning::LogisticMipsDerived { levels: 7 }];
+        assert_eq!(warned, !stored, "{:?}", p.warnings);
+        for w in &p.warnings {
+            let text = w.to_string();
+            assert!(!text.contains("  ") && text.contains("`ptm fit`"), "{text}");
+        }
+        let (img, _) = gpu::render(&gpu(), &p).unwrap();
+        let twin = cpu::render(&p);
+        let d = img.max_abs_diff(&twin).unwrap();
+        eprintln!("logistic checker, stored levels {stored}: max |gpu − cpu| = {d:.2e}");
+        assert!(d < 1e-3, "stored {stored}: GPU and twin differ by {d}");
+        for (a, b) in img.pixels.iter().zip(&open.pixels) {
+            assert!(
+                (a[0] / b[0] - want).abs() < 1e-4,
+                "stored {stored}: {} vs {}",
+                a[0],
+                b[0]
+            );
+        }
+    }
+    // An identity file without levels gets no warning (minified_ptm_is_mip_mapped_and_averages_k).
+    let mut s = free.clone();
+    s.ptm = Some(checker_ptm());
+    assert!(s.prepare().unwrap().warnings.is_empty());
+}
+
+#[test]
+fn stored_levels_of_odd_sizes_match_twin_under_perspective() {
+    // 13×9 has no derived chain (odd sides) but stores 6×4, 3×2, 1×1 (rounded down): the
+    // lookup bridges the gap the dropped row and column leave at the tile seam.
+    let mut s = scene(Some(Basis::Ptm11), [96, 64]);
+    let mut ptm = link_ptm(
+        Basis::Ptm11,
+        ptm_fit::Link::Logistic,
+        ptm_fit::UvMap::Hemispherical,
+    );
+    ptm.mips = ptm_fit::ptm::mip_sizes(13, 9)
+        .into_iter()
+        .enumerate()
+        .map(|(k, (w, h))| {
+            let level = random_ptm(Basis::Ptm11, w, h, 100 + k as u64);
+            ptm_fit::ptm::Level {
+                width: w,
+                height: h,
+                planes: level.planes,
+            }
+        })
+        .collect();
+    s.ptm = Some(ptm);
+    s.perspective = Some(ptm_runtime::scene::Perspective {
+        eye: [-2.0, 0.5, 0.8],
+        target: [3.0, 1.5, 0.0],
+        fov_y_deg: 60.0,
+    });
+    let p = s.prepare().unwrap();
+    let sizes: Vec<(u32, u32, [f32; 2])> = p
+        .ptm_levels
+        .iter()
+        .map(|l| (l.width, l.height, l.period))
+        .collect();
+    assert_eq!(
+        sizes,
+        [
+            (13, 9, [13.0, 9.0]),
+            (6, 4, [6.5, 4.5]),
+            (3, 2, [3.25, 2.25]),
+            (1, 1, [1.0, 1.0])
+        ]
+    );
+    check(&s, "perspective, stored odd-size levels");
 }

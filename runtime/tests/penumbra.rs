@@ -233,6 +233,9 @@ fn constant_ptm(k: f32) -> Ptm {
         basis: Basis::Ptm6,
         width: 2,
         height: 2,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [0.5, 0.5],
         planes,
     }

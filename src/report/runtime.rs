@@ -41,6 +41,9 @@ fn cloth(n: usize) -> Ptm {
         basis: Basis::Ptm11,
         width: n,
         height: n,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [0.5, 0.5],
         planes,
     }

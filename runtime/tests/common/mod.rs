@@ -37,6 +37,9 @@ pub fn random_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
         basis,
         width,
         height,
+        link: ptm_fit::Link::Identity,
+        uv: ptm_fit::UvMap::Projected,
+        mips: Vec::new(),
         tile: [1.0, 1.0],
         planes,
     }
