@@ -26,3 +26,6 @@ cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warning
 
 echo "== cargo test" >&2
 cargo test --workspace
+
+echo "== farm bake on a real single-node Slurm (scripts/test-slurm.sh)" >&2
+bash scripts/test-slurm.sh

@@ -66,10 +66,14 @@ pub struct Args {
     /// Output: samples.exr, or NAME.ptm.exr with --fit. The dome is written beside it (.lp).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
+    /// Farm bake: trace only shard I of N (0-based; a block of texel rows) and write the part
+    /// file OUTPUT-stem.part-IIII-of-NNNN.exr for `ptm merge`; a complete, valid part is kept.
+    #[arg(long, value_name = "I/N", allow_hyphen_values = true)]
+    pub shard: Option<ptm_fit::shard::Shard>,
 }
 
 /// `samples.exr` → `samples.lp`, `weave.ptm.exr` → `weave.lp`.
-fn lp_path(out: &Path) -> PathBuf {
+pub fn lp_path(out: &Path) -> PathBuf {
     let name = out
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
@@ -107,19 +111,43 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         [w, h] => [w, h],
         _ => bail!("--res takes N or W,H"),
     };
+    // A shard traces and holds only its rows.
+    let rows = match args.shard {
+        Some(s) => s.rows(res[1])?,
+        None => 0..res[1],
+    };
+    if args.shard.is_some() && args.fit.is_some() && args.light_distance.is_some() {
+        bail!(
+            "--shard with --fit and --light-distance is not supported (the per-texel fit's rank \
+             diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
+        );
+    }
+    let mem_res = [res[0], rows.len()];
     let lights: LightSet = match (&args.lights, &args.dome) {
         (Some(p), _) => LightSet::read_lp(p)?,
         (None, Some(spec)) => dome::parse(spec, args.min_elevation)?,
         (None, None) => {
             // Checked before the dome exists: --dirs 100000000 must not exhaust memory first.
             let n = args.dirs.unwrap_or(32);
-            check_memory(args, res, n)?;
+            check_memory(args, mem_res, n)?;
             dome::fibonacci(n, args.min_elevation)?
         }
     };
     if args.lights.is_some() || args.dome.is_some() {
-        check_memory(args, res, lights.len())?;
+        check_memory(args, mem_res, lights.len())?;
     }
+    let part = match args.shard {
+        Some(s) => {
+            let meta = crate::shard::meta(args, s, res, &swatch, &lights)?;
+            let path = s.part_path(&args.output);
+            if crate::shard::is_complete(&path, &meta) {
+                eprintln!("ptm bake: {} is complete; skipped", path.display());
+                return Ok(json!({ "part": path, "skipped": true }));
+            }
+            Some((meta, path))
+        }
+        None => None,
+    };
     let cfg = BakeConfig {
         res,
         spp: args.spp,
@@ -128,6 +156,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         packets: !args.single_rays,
         threads: args.threads,
     };
+    let mut shard_mips = false;
     let mut accumulator = match args.fit {
         Some(f) => {
             let basis = match f {
@@ -139,7 +168,19 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 ..FitOptions::new(basis)
             };
             args.model.apply(&mut opts);
-            let mut acc = Accumulator::new(&lights, res[0], res[1], &opts)?;
+            if args.shard.is_some() {
+                if opts.link != ptm_fit::Link::Identity {
+                    bail!(
+                        "--shard with --fit needs --link identity (the logistic fit's MIP levels \
+                         and iteration statistics span all texels): add --link identity, or bake \
+                         the sample stack in shards, merge, then `ptm fit`"
+                    );
+                }
+                // The merge computes the MIP levels of the whole image.
+                shard_mips = opts.mips;
+                opts.mips = false;
+            }
+            let mut acc = Accumulator::new(&lights, res[0], rows.len(), &opts)?;
             acc.set_spp(args.spp)?;
             for w in acc.warnings() {
                 eprintln!("ptm bake: fit warning: {w}");
@@ -164,7 +205,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         lights.len()
     );
 
-    let mut baker = Baker::new(&swatch, &cfg)?;
+    let mut baker = Baker::new_rows(&swatch, &cfg, rows.clone())?;
     let coverage = baker.coverage().to_vec();
     if let Some(acc) = accumulator.as_mut() {
         acc.set_coverage(&coverage)?;
@@ -204,7 +245,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         eprintln!(
             "ptm bake: {} of {} texels see no swatch (coverage 0, masked)",
             report.uncovered_texels,
-            res[0] * res[1]
+            res[0] * rows.len()
         );
     }
 
@@ -233,8 +274,21 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 report: Some(&fit),
                 error_map: false,
             };
-            ptm.save(&args.output, &save)
-                .with_context(|| format!("writing {}", args.output.display()))?;
+            match &part {
+                Some((meta, path)) => crate::shard::write_ptm(
+                    path,
+                    meta,
+                    ptm.clone(),
+                    fit.clone(),
+                    coverage.clone(),
+                    &lights,
+                    shard_mips,
+                )
+                .with_context(|| format!("writing {}", path.display()))?,
+                None => ptm
+                    .save(&args.output, &save)
+                    .with_context(|| format!("writing {}", args.output.display()))?,
+            }
             json!({
                 "basis": fit.basis.map(|b| b.name()),
                 "link": ptm.link.name(),
@@ -253,21 +307,31 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         None => {
             let stack = SampleStack {
                 width: res[0],
-                height: res[1],
+                height: rows.len(),
                 tile: swatch.tile,
                 lights: lights.clone(),
                 k: planes.k,
                 coverage: coverage.clone(),
                 uv: planes.uv,
             };
-            stack
-                .write_into(&args.output)
-                .with_context(|| format!("writing {}", args.output.display()))?;
+            match &part {
+                Some((meta, path)) => crate::shard::write_stack(path, meta, stack)
+                    .with_context(|| format!("writing {}", path.display()))?,
+                None => stack
+                    .write_into(&args.output)
+                    .with_context(|| format!("writing {}", args.output.display()))?,
+            }
             Value::Null
         }
     };
-    let lp = lp_path(&args.output);
-    lights.write_lp(&lp)?;
+    // A part carries its lights; `ptm merge` writes the .lp beside the merged output.
+    let (output, lp) = match &part {
+        Some((_, path)) => (path.clone(), None),
+        None => (args.output.clone(), Some(lp_path(&args.output))),
+    };
+    if let Some(lp) = &lp {
+        lights.write_lp(lp)?;
+    }
     let t_write = t1.elapsed().as_secs_f64();
     let rays = report.primary_rays + report.shadow_rays;
     let t_trace = report.seconds_primary + report.seconds_shadow;
@@ -281,14 +345,15 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         2 * max_rings + 1,
         2 * max_rings + 1
     );
-    eprintln!(
-        "ptm bake: wrote {} and {}",
-        args.output.display(),
-        lp.display()
-    );
+    match &lp {
+        Some(lp) => eprintln!("ptm bake: wrote {} and {}", output.display(), lp.display()),
+        None => eprintln!("ptm bake: wrote part {}", output.display()),
+    }
     Ok(json!({
         "swatch": swatch.origin,
-        "output": args.output,
+        "output": output,
+        "shard": args.shard.map(|s| s.to_string()),
+        "rows": [rows.start, rows.end],
         "lights_file": lp,
         "triangles": swatch.triangles.len(),
         "degenerate_triangles": swatch.degenerate,

@@ -5,9 +5,12 @@
 //! human-readable progress and messages always go to stderr.
 
 mod bake;
+mod batch;
 mod fit;
+mod merge;
 mod preview;
 mod report;
+mod shard;
 mod swatch;
 
 use std::process::ExitCode;
@@ -40,6 +43,10 @@ enum Command {
     Swatch(swatch::Args),
     /// Measured study: error of K against run time per setting, and stiff/extreme cases.
     Report(report::Args),
+    /// Assemble the parts of a farm bake (`ptm bake --shard I/N`) into the stack or PTM.
+    Merge(merge::Args),
+    /// Run a manifest of bakes locally, or write a Slurm array job for them (--slurm DIR).
+    Batch(batch::Args),
 }
 
 fn main() -> ExitCode {
@@ -59,6 +66,8 @@ fn main() -> ExitCode {
         Command::Preview(a) => preview::run(a),
         Command::Swatch(a) => swatch::run(a),
         Command::Report(a) => report::run(a),
+        Command::Merge(a) => merge::run(a),
+        Command::Batch(a) => batch::run(a),
     };
     match result {
         Ok(report) => {

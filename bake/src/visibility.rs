@@ -6,6 +6,7 @@
 //! an integer count of occluded samples over an integer count of covered samples, so the output
 //! is bit-identical for any thread count and for packets versus single rays.
 use std::collections::HashMap;
+use std::ops::Range;
 use std::time::Instant;
 
 use ptm_fit::LightSet;
@@ -78,7 +79,8 @@ pub fn baker_bytes(res: [usize; 2], spp: u32) -> f64 {
     blocks * 16.0 * spp as f64 * std::mem::size_of::<Sample>() as f64 + texels * (4.0 + 4.0 + 8.0)
 }
 
-/// Receives each light's K plane (row-major, `res[0]·res[1]` texels, uncovered texels 0) and,
+/// Receives each light's K plane (row-major, `res[0]` texels × the baker's rows, uncovered
+/// texels 0) and,
 /// for point lights, each texel's (u, v) of the mean direction to the light.
 pub type Sink<'s> = dyn FnMut(usize, &[f32], Option<&[[f32; 2]]>) -> Result<()> + 's;
 
@@ -99,6 +101,9 @@ pub struct Baker {
     tile_scene: Scene,
     device: Device,
     pool: rayon::ThreadPool,
+    /// Image rows traced (all of them, or a shard's block-aligned share: `crate::shard`).
+    rows: Range<usize>,
+    /// Blocks of 4×4 texels over the traced rows.
     blocks: [usize; 2],
     /// Block-major: `samples[(block·spp + s)·16 + lane]`, lane = 4·row + column in the block.
     samples: Vec<Sample>,
@@ -109,11 +114,26 @@ pub struct Baker {
 impl Baker {
     /// Builds the Embree scenes and traces the primary hits.
     pub fn new(swatch: &Swatch, cfg: &BakeConfig) -> Result<Self> {
+        Self::new_rows(swatch, cfg, 0..cfg.res[1])
+    }
+
+    /// As [`Baker::new`] for image rows `rows` only (a shard of a farm bake): planes handed to
+    /// the sink and [`Baker::coverage`] then hold `rows.len()` rows. Sample positions hash the
+    /// global texel index, so these rows are bit-identical to the same rows of a whole bake.
+    /// `rows.start` must be a multiple of 4 (the tracer's texel blocks).
+    pub fn new_rows(swatch: &Swatch, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
         let [nx, ny] = cfg.res;
         if nx == 0 || ny == 0 || cfg.spp == 0 {
             return Err(Error::Config(format!(
                 "resolution {nx}×{ny} and spp {} must be positive",
                 cfg.spp
+            )));
+        }
+        if !rows.start.is_multiple_of(4) || rows.is_empty() || rows.end > ny {
+            return Err(Error::Config(format!(
+                "rows {}..{} of {ny}: a shard must be a non-empty range of rows starting at a \
+                 multiple of 4",
+                rows.start, rows.end
             )));
         }
         if let Some(r) = cfg.light_distance {
@@ -161,7 +181,8 @@ impl Baker {
             tile_scene,
             shadow_scenes: HashMap::new(),
             pool,
-            blocks: [nx.div_ceil(4), ny.div_ceil(4)],
+            blocks: [nx.div_ceil(4), rows.len().div_ceil(4)],
+            rows,
             samples: Vec::new(),
             coverage: Vec::new(),
             report: BakeReport::default(),
@@ -182,6 +203,11 @@ impl Baker {
 
     pub fn config(&self) -> &BakeConfig {
         &self.cfg
+    }
+
+    /// The image rows this baker traces (all rows unless built by [`Baker::new_rows`]).
+    pub fn rows(&self) -> Range<usize> {
+        self.rows.clone()
     }
 
     pub fn report(&self) -> &BakeReport {
@@ -209,7 +235,8 @@ impl Baker {
     /// Primary pass: one `rtcIntersect1` straight down per footprint sample.
     fn primary(&mut self, copies: &[[i32; 2]]) {
         let scene = &self.shadow_scenes[copies];
-        let [nx, ny] = self.cfg.res;
+        let nx = self.cfg.res[0];
+        let (row0, ny) = (self.rows.start, self.rows.end);
         let [bx, by] = self.blocks;
         let spp = self.cfg.spp as usize;
         let (res, tile, seed, eps) = (self.cfg.res, self.tile, self.cfg.seed, self.eps);
@@ -223,7 +250,7 @@ impl Baker {
                 .for_each(|(b, out)| {
                     let (bi, bj) = (b % bx, b / bx);
                     for lane in 0..16 {
-                        let (i, j) = (bi * 4 + lane % 4, bj * 4 + lane / 4);
+                        let (i, j) = (bi * 4 + lane % 4, row0 + bj * 4 + lane / 4);
                         if i >= nx || j >= ny {
                             continue;
                         }
@@ -252,6 +279,8 @@ impl Baker {
                     }
                 });
         });
+        // Local rows from here on: row j of the planes is image row row0 + j.
+        let ny = ny - row0;
         let mut coverage = vec![0.0f32; nx * ny];
         let mut uncovered = 0;
         for j in 0..ny {
@@ -273,7 +302,7 @@ impl Baker {
     /// Traces every light of `lights` in order and hands each K plane to `sink`.
     pub fn trace(&mut self, lights: &LightSet, sink: &mut Sink) -> Result<BakeReport> {
         let t0 = Instant::now();
-        let [nx, ny] = self.cfg.res;
+        let (nx, ny) = (self.cfg.res[0], self.rows.len());
         let centre = [self.tile[0] / 2.0, self.tile[1] / 2.0, 0.0];
         let mut rep = BakeReport {
             primary_rays: self.report.primary_rays,

@@ -34,6 +34,7 @@ pub mod images;
 pub mod lights;
 pub mod logistic;
 pub mod ptm;
+pub mod shard;
 mod simd;
 pub mod solve;
 pub mod stack;

@@ -113,13 +113,20 @@ impl SampleStack {
                 channels.push((format!("v.{i:04}"), Samples::F32(v)));
             }
         }
+        let attrs = self.header_attrs();
+        exrio::write(path, self.width, self.height, channels, attrs)
+    }
+
+    /// The `stack:*` header attributes of this stack (also written into farm parts, whose
+    /// merge copies them into the whole stack's header).
+    pub(crate) fn header_attrs(&self) -> Vec<(&'static str, Attr)> {
         let dirs = self
             .lights
             .dirs
             .iter()
             .map(|d| format!("{:e} {:e} {:e}", d[0], d[1], d[2]))
             .collect();
-        let attrs = vec![
+        vec![
             ("stack:version", Attr::Text(STACK_VERSION.into())),
             ("stack:tileW", Attr::F64(self.tile[0])),
             ("stack:tileH", Attr::F64(self.tile[1])),
@@ -150,8 +157,7 @@ impl SampleStack {
                     .into(),
                 ),
             ),
-        ];
-        exrio::write(path, self.width, self.height, channels, attrs)
+        ]
     }
 
     /// Reads a stack written by [`SampleStack::write`]. A file that is not a sample stack, or

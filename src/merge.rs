@@ -1,0 +1,80 @@
+//! `ptm merge`: assemble the parts of a farm bake (`ptm bake --shard I/N`) into exactly the
+//! sample stack or PTM one machine would have written, with the `.lp` beside it.
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use ptm_fit::shard;
+use serde_json::{json, Value};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Part files, or directories holding them (every `*.part-*.exr` inside).
+    #[arg(required = true, value_name = "PARTS")]
+    pub parts: Vec<PathBuf>,
+    /// Output: the stack (samples.exr) or PTM (NAME.ptm.exr) the parts are shards of.
+    #[arg(short, long, value_name = "FILE")]
+    pub output: PathBuf,
+}
+
+/// The part files `args.parts` names, directories expanded.
+pub fn part_files(args: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in args {
+        if p.is_dir() {
+            let found = shard::parts_in(p)?;
+            if found.is_empty() {
+                bail!(
+                    "{}: no part files (*.part-*.exr) in this directory",
+                    p.display()
+                );
+            }
+            out.extend(found);
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+pub fn run(args: &Args) -> anyhow::Result<Value> {
+    let t0 = Instant::now();
+    let files = part_files(&args.parts)?;
+    let bytes: u64 = files
+        .iter()
+        .filter_map(|p| std::fs::metadata(p).ok())
+        .map(|m| m.len())
+        .sum();
+    let merged = shard::merge_into(&files, &args.output)
+        .with_context(|| format!("merging into {}", args.output.display()))?;
+    let (lights, width, height, kind) = (&merged.lights, merged.width, merged.height, &merged.kind);
+    let t1 = Instant::now();
+    let lp = crate::bake::lp_path(&args.output);
+    lights.write_lp(&lp)?;
+    let t_write = t1.elapsed().as_secs_f64();
+    let total = t0.elapsed().as_secs_f64();
+    let out_bytes = std::fs::metadata(&args.output)
+        .map(|m| m.len())
+        .unwrap_or(0);
+    eprintln!(
+        "ptm merge: {} parts ({:.1} MB) → {} ({width}×{height}, {} lights) and {} in {total:.2} s",
+        files.len(),
+        bytes as f64 / 1e6,
+        args.output.display(),
+        lights.len(),
+        lp.display()
+    );
+    Ok(json!({
+        "output": args.output,
+        "lights_file": lp,
+        "kind": kind,
+        "parts": files,
+        "width": width,
+        "height": height,
+        "lights": lights.len(),
+        "bytes_in": bytes,
+        "bytes_out": out_bytes,
+        "mb_per_s": bytes as f64 / 1e6 / total.max(1e-9),
+        "seconds": { "merge": total - t_write, "lp": t_write, "total": total },
+    }))
+}

@@ -1,0 +1,136 @@
+//! `ptm bake --shard I/N`: what identifies a farm bake (its settings in words, the swatch's
+//! content hash, the tool version) and the part file a shard writes instead of the output.
+//! The partition, the part format and the merge live in `ptm_fit::shard`.
+use std::path::Path;
+
+use ptm_bake::Swatch;
+use ptm_fit::shard::{self, PartMeta, PtmPart, Shard};
+use ptm_fit::{FitReport, LightSet, Ptm, SampleStack};
+
+use crate::bake::Args;
+
+/// Writer and version recorded in every part; parts of different versions never merge.
+pub fn software() -> String {
+    format!("ptm {}", env!("CARGO_PKG_VERSION"))
+}
+
+/// Every bake setting that changes the output, in words. Thread count and packet tracing do
+/// not (the output is bit-identical for any), nor does where the swatch file lies (its content
+/// hash is recorded separately). New output-changing flags must be added here.
+pub fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet) -> String {
+    let dirs: Vec<u8> = lights
+        .dirs
+        .iter()
+        .flat_map(|d| d.iter().flat_map(|c| c.to_le_bytes()))
+        .collect();
+    let names = lights.names.join("\n");
+    let light_hash = shard::fingerprint([&dirs[..], names.as_bytes()]);
+    let m = &args.model;
+    let fit = match args.fit {
+        None => "stack".to_string(),
+        Some(f) => format!(
+            "{} link={} uv={} mips={} regularize={:?} tolerance={:e} max-iterations={}",
+            format!("{f:?}").to_lowercase(),
+            ptm_fit::Link::from(m.link).name(),
+            ptm_fit::UvMap::from(m.uv).name(),
+            !m.no_mips,
+            args.regularize,
+            m.tolerance,
+            m.max_iterations
+        ),
+    };
+    let distance = match args.light_distance {
+        None => "distant".to_string(),
+        Some(r) => format!("{r:e}"),
+    };
+    format!(
+        "res={}x{} tile={:e}x{:e} spp={} seed={} lights={} ({light_hash}) light-distance={distance} fit={fit}",
+        res[0], res[1], tile[0], tile[1], args.spp, args.seed, lights.len()
+    )
+}
+
+/// Content hash of the swatch as baked: positions, triangles and tile.
+pub fn swatch_hash(swatch: &Swatch) -> String {
+    let pos: Vec<u8> = swatch
+        .positions
+        .iter()
+        .flat_map(|p| p.iter().flat_map(|c| c.to_le_bytes()))
+        .collect();
+    let tri: Vec<u8> = swatch
+        .triangles
+        .iter()
+        .flat_map(|t| t.iter().flat_map(|c| c.to_le_bytes()))
+        .collect();
+    let tile: Vec<u8> = swatch.tile.iter().flat_map(|c| c.to_le_bytes()).collect();
+    shard::fingerprint([&pos[..], &tri[..], &tile[..]])
+}
+
+/// The identity of shard `s` of the bake `args` describes.
+pub fn meta(
+    args: &Args,
+    s: Shard,
+    res: [usize; 2],
+    swatch: &Swatch,
+    lights: &LightSet,
+) -> anyhow::Result<PartMeta> {
+    Ok(PartMeta {
+        shard: s,
+        rows: s.rows(res[1])?,
+        width: res[0],
+        height: res[1],
+        settings: settings(args, res, swatch.tile, lights),
+        swatch: swatch_hash(swatch),
+        software: software(),
+    })
+}
+
+/// True when the part at `path` exists, is whole, passes its checksum and belongs to this very
+/// bake: a resubmitted farm job then skips it. A damaged or foreign part is reported and baked
+/// again.
+pub fn is_complete(path: &Path, want: &PartMeta) -> bool {
+    if !path.exists() {
+        return false;
+    }
+    match shard::check_part(path) {
+        Ok(meta) if meta == *want => true,
+        Ok(p) => {
+            eprintln!(
+                "ptm bake: {} is a part of another bake (settings {:?}, software {:?}); baking \
+                 it again",
+                path.display(),
+                p.settings,
+                p.software
+            );
+            false
+        }
+        Err(e) => {
+            eprintln!("ptm bake: {e}; baking it again");
+            false
+        }
+    }
+}
+
+/// Writes the stack rows of a shard as its part.
+pub fn write_stack(path: &Path, meta: &PartMeta, stack: SampleStack) -> anyhow::Result<()> {
+    Ok(shard::write_stack_part(path, meta, stack)?)
+}
+
+/// Writes the fitted rows of a shard as its part (the coverage of its rows included).
+pub fn write_ptm(
+    path: &Path,
+    meta: &PartMeta,
+    ptm: Ptm,
+    fit: FitReport,
+    coverage: Vec<f32>,
+    lights: &LightSet,
+    mips: bool,
+) -> anyhow::Result<()> {
+    let part = PtmPart {
+        ptm,
+        fit,
+        coverage,
+        lights: lights.clone(),
+        mips,
+    };
+    Ok(shard::write_ptm_part(path, meta, &part)?)
+}

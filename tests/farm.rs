@@ -1,0 +1,337 @@
+//! Integration tests of farm bakes: `ptm bake --shard I/N` parts merged by `ptm merge` are
+//! byte for byte the one-machine file (stack, ptm6, ptm11; N = 1, 3, 4; a swatch with holes),
+//! refusals of bad shards and bad part sets name the files, and `ptm batch` runs a manifest
+//! and writes a Slurm job.
+use std::path::Path;
+use std::process::Command;
+
+fn ptm(args: &[&str], dir: &Path) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_ptm"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("running ptm");
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+fn ok(args: &[&str], dir: &Path) -> String {
+    let (ok, out, err) = ptm(args, dir);
+    assert!(ok, "ptm {args:?} failed: {err}");
+    out
+}
+
+fn refused(args: &[&str], dir: &Path) -> String {
+    let (ok, _, err) = ptm(args, dir);
+    assert!(!ok, "ptm {args:?} should fail");
+    err
+}
+
+/// Bakes `bake` whole and as N shards for each N, merges, and compares the bytes of the output
+/// and of the `.lp`.
+fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let whole = format!("whole-{out}");
+    ok(&[&["bake"], bake, &["-o", &whole]].concat(), d);
+    let want = std::fs::read(d.join(&whole)).unwrap();
+    let lp = |f: &str| {
+        f.strip_suffix(".exr")
+            .unwrap()
+            .trim_end_matches(".ptm")
+            .to_string()
+            + ".lp"
+    };
+    let want_lp = std::fs::read(d.join(lp(&whole))).unwrap();
+    for &n in counts {
+        let name = format!("n{n}-{out}");
+        let mut parts = Vec::new();
+        for i in 0..n {
+            let s = format!("{i}/{n}");
+            let j = ok(
+                &[&["--json", "bake"], bake, &["-o", &name, "--shard", &s]].concat(),
+                d,
+            );
+            let j: serde_json::Value = serde_json::from_str(&j).unwrap();
+            parts.push(j["output"].as_str().unwrap().to_string());
+        }
+        let merged = format!("merged-{name}");
+        let mut args = vec!["merge"];
+        args.extend(parts.iter().map(|s| s.as_str()));
+        args.extend(["-o", &merged]);
+        ok(&args, d);
+        let got = std::fs::read(d.join(&merged)).unwrap();
+        assert!(
+            got == want,
+            "{bake:?} in {n} shards: merged {merged} differs from {whole}"
+        );
+        assert_eq!(
+            std::fs::read(d.join(lp(&merged))).unwrap(),
+            want_lp,
+            "{n} shards: .lp"
+        );
+    }
+}
+
+const BAKE: &[&str] = &[
+    "--res", "40,60", "--dirs", "12", "--spp", "4", "--seed", "3",
+];
+
+#[test]
+fn sharded_stack_is_byte_identical() {
+    sharded_equals_whole(BAKE, "samples.exr", &[1, 3, 4]);
+}
+
+/// Identity link, hemispherical (u, v), MIP levels (computed by the merge from the whole image).
+#[test]
+fn sharded_ptm6_is_byte_identical() {
+    sharded_equals_whole(
+        &[BAKE, &["--fit", "ptm6", "--link", "identity"]].concat(),
+        "w.ptm.exr",
+        &[1, 3, 4],
+    );
+}
+
+/// Identity link, projected (u, v), no MIP levels: the patent's PTM.
+#[test]
+fn sharded_ptm11_is_byte_identical() {
+    let fit = [
+        "--fit",
+        "ptm11",
+        "--link",
+        "identity",
+        "--uv",
+        "projected",
+        "--no-mips",
+    ];
+    sharded_equals_whole(&[BAKE, &fit].concat(), "w.ptm.exr", &[1, 3, 4]);
+}
+
+/// A floor over the lower 60 % of a 1×1 tile with a box on it: rows near y = H see no swatch
+/// (coverage 0) and one row has partial coverage.
+const HALF_FLOOR_OBJ: &str = "\
+v 0 0 0\nv 1 0 0\nv 1 0.6 0\nv 0 0.6 0\n\
+v 0.3 0.1 0.2\nv 0.7 0.1 0.2\nv 0.7 0.5 0.2\nv 0.3 0.5 0.2\n\
+v 0.3 0.1 0\nv 0.7 0.1 0\nv 0.7 0.5 0\nv 0.3 0.5 0\n\
+f 1 2 3 4\nf 5 6 7 8\nf 9 10 6 5\nf 10 11 7 6\nf 11 12 8 7\nf 12 9 5 8\n";
+
+#[test]
+fn sharded_bakes_with_holes_and_point_lights_are_byte_identical() {
+    // Holes in some shards only: the coverage channel and the masked statistics are
+    // file-level. The swatch path is absolute: each case bakes in its own directory.
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("half.obj");
+    std::fs::write(&obj, HALF_FLOOR_OBJ).unwrap();
+    let obj = obj.to_str().unwrap();
+    let holes = [
+        "--swatch", obj, "--tile", "1,1", "--res", "32,60", "--dirs", "8", "--spp", "5",
+    ];
+    sharded_equals_whole(
+        &[&holes[..], &["--fit", "ptm6", "--link", "identity"]].concat(),
+        "h.ptm.exr",
+        &[3],
+    );
+    sharded_equals_whole(
+        &[&holes[..], &["--light-distance", "3"]].concat(),
+        "h.exr",
+        &[4],
+    );
+}
+
+#[test]
+fn bad_shards_are_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    for (bad, says) in [
+        ("0/0", "at least 1"),
+        ("5/4", "out of range"),
+        ("4/4", "out of range"),
+        ("-1/3", "not a whole number"),
+        ("one/3", "not a whole number"),
+        ("2", "no `/`"),
+    ] {
+        let e = refused(
+            &["bake", "--res", "16", "-o", "s.exr", "--shard", bad],
+            dir.path(),
+        );
+        assert!(e.contains(says), "--shard {bad}: {e}");
+    }
+    let e = refused(
+        &["bake", "--res", "40", "-o", "s.exr", "--shard", "0/4"],
+        dir.path(),
+    );
+    assert!(e.contains("at most 3 shards"), "{e}");
+    let e = refused(
+        &[
+            "bake",
+            "--res",
+            "32",
+            "--fit",
+            "ptm6",
+            "--light-distance",
+            "2",
+            "-o",
+            "s.ptm.exr",
+            "--shard",
+            "0/2",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("not supported"), "{e}");
+    let e = refused(
+        &[
+            "bake",
+            "--res",
+            "32",
+            "--fit",
+            "ptm6",
+            "-o",
+            "s.ptm.exr",
+            "--shard",
+            "0/2",
+        ],
+        dir.path(),
+    );
+    assert!(
+        e.contains("needs --link identity"),
+        "the logistic link is not sharded yet: {e}"
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "refusals write nothing"
+    );
+}
+
+#[test]
+fn merge_refuses_incomplete_mixed_and_damaged_sets() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bake = ["bake", "--res", "48", "--dirs", "6", "--spp", "1"];
+    for i in 0..3 {
+        ok(
+            &[&bake[..], &["-o", "a.exr", "--shard", &format!("{i}/3")]].concat(),
+            d,
+        );
+    }
+    ok(
+        &[&bake[..], &["--seed", "9", "-o", "b.exr", "--shard", "1/3"]].concat(),
+        d,
+    );
+    let p = |s: &str| format!("a.part-000{s}-of-0003.exr");
+    let e = refused(&["merge", &p("0"), &p("2"), "-o", "m.exr"], d);
+    assert!(e.contains("missing shard(s) 1/3"), "{e}");
+    let e = refused(
+        &["merge", &p("0"), &p("1"), &p("1"), &p("2"), "-o", "m.exr"],
+        d,
+    );
+    assert!(e.contains("shard 1/3 given twice"), "{e}");
+    let e = refused(
+        &[
+            "merge",
+            &p("0"),
+            "b.part-0001-of-0003.exr",
+            &p("2"),
+            "-o",
+            "m.exr",
+        ],
+        d,
+    );
+    assert!(
+        e.contains("different bakes: settings") && e.contains("seed=0") && e.contains("seed=9"),
+        "both values shown: {e}"
+    );
+    // A part altered after writing (here a light's name) fails its checksum.
+    let bytes = std::fs::read(d.join(p("1"))).unwrap();
+    let at = bytes.windows(9).position(|w| w == b"light0003").unwrap();
+    let mut forged = bytes.clone();
+    forged[at + 8] = b'9';
+    std::fs::write(d.join("forged.exr"), &forged).unwrap();
+    let e = refused(&["merge", &p("0"), "forged.exr", &p("2"), "-o", "m.exr"], d);
+    assert!(
+        e.contains("forged.exr") && e.contains("checksum mismatch"),
+        "{e}"
+    );
+    // A truncated part (a task killed while copying, a full disk) is named.
+    std::fs::write(d.join("cut.exr"), &bytes[..bytes.len() / 2]).unwrap();
+    let e = refused(&["merge", &p("0"), "cut.exr", &p("2"), "-o", "m.exr"], d);
+    assert!(e.contains("cut.exr"), "{e}");
+    assert!(!d.join("m.exr").exists(), "nothing written");
+    // The complete set merges, from the directory too.
+    std::fs::remove_file(d.join("b.part-0001-of-0003.exr")).unwrap();
+    std::fs::remove_file(d.join("forged.exr")).unwrap();
+    std::fs::remove_file(d.join("cut.exr")).unwrap();
+    ok(&["merge", ".", "-o", "m.exr"], d);
+}
+
+#[test]
+fn complete_parts_are_skipped_and_damaged_ones_rebaked() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bake = [
+        "--json", "bake", "--res", "32", "--dirs", "6", "-o", "a.exr", "--shard", "1/2",
+    ];
+    ok(&bake, d);
+    let j: serde_json::Value = serde_json::from_str(&ok(&bake, d)).unwrap();
+    assert_eq!(j["skipped"], true);
+    let part = d.join("a.part-0001-of-0002.exr");
+    let good = std::fs::read(&part).unwrap();
+    std::fs::write(&part, &good[..good.len() - 100]).unwrap();
+    let j: serde_json::Value = serde_json::from_str(&ok(&bake, d)).unwrap();
+    assert!(j["skipped"].is_null(), "a damaged part is baked again");
+    assert_eq!(std::fs::read(&part).unwrap(), good);
+}
+
+#[test]
+fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("jobs.toml"),
+        "[defaults]\nres = 48\ndirs = 8\nspp = 2\nshards = 3\n\n\
+         [[bake]]\nswatch = \"builtin:plain-weave\"\noutput = \"out/a.exr\"\n\n\
+         [[bake]]\nswatch = \"builtin:jersey\"\nfit = \"ptm6\"\nlink = \"identity\"\noutput = \"out/b.ptm.exr\"\nshards = 2\n",
+    )
+    .unwrap();
+    ok(&["batch", "jobs.toml"], d);
+    ok(
+        &[
+            "bake", "--res", "48", "--dirs", "8", "--spp", "2", "-o", "a.exr",
+        ],
+        d,
+    );
+    assert_eq!(
+        std::fs::read(d.join("out/a.exr")).unwrap(),
+        std::fs::read(d.join("a.exr")).unwrap()
+    );
+    assert!(d.join("out/b.ptm.exr").exists());
+    let (_, _, err) = ptm(
+        &["batch", "jobs.toml", "--slurm", "job", "--throttle", "2"],
+        d,
+    );
+    assert!(err.contains("submit.sh"), "{err}");
+    let tasks = std::fs::read_to_string(d.join("job/tasks.txt")).unwrap();
+    assert_eq!(tasks.lines().count(), 5, "{tasks}");
+    assert!(
+        tasks.lines().last().unwrap().ends_with("--shard 1/2"),
+        "{tasks}"
+    );
+    let submit = std::fs::read_to_string(d.join("job/submit.sh")).unwrap();
+    assert!(
+        submit.contains("--array=0-4%2") && submit.contains("afterany"),
+        "{submit}"
+    );
+    // A manifest with a flag ptm bake does not know is refused before anything runs.
+    std::fs::write(
+        d.join("bad.toml"),
+        "[[bake]]\noutput = \"x.exr\"\nresolution = 4\n",
+    )
+    .unwrap();
+    let e = refused(&["batch", "bad.toml"], d);
+    assert!(
+        e.contains("bad.toml: bake 0") && e.contains("--resolution"),
+        "{e}"
+    );
+}
