@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The main job on the built-in default swatch: bake a plain weave from a 32-light dome at 64²,
-# fit a 6-coefficient PTM, render a GPU preview that evaluates K, and print where each file went.
+# fit a 6-coefficient PTM (the default model: logistic link, hemispherical (u, v), MIP levels),
+# render a GPU preview that evaluates K, and print where each file went.
 # Idempotent: runs the setup, builds what is missing, overwrites out/demo/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,5 +18,5 @@ ptm=${CARGO_TARGET_DIR:-target}/debug/ptm
 echo
 echo "samples (K per light):  $out/samples.exr"
 echo "light dome (.lp):       $out/samples.lp"
-echo "occlusion PTM (ptm6):   $out/weave.ptm.exr"
+echo "occlusion PTM (ptm6, logistic): $out/weave.ptm.exr"
 echo "GPU preview:            $out/preview.png"
