@@ -40,6 +40,10 @@ pub const DEFAULT_MAX_ITERATIONS: u32 = 30;
 /// a full step can overshoot; the cap keeps every iterate bounded without a line search.
 const MAX_STEP: f64 = 16.0;
 
+/// Constant coefficient of a texel with no covered sample (a hole in the cloth): σ(−30) ≈ 1e-13,
+/// so a hole reads as K = 0, "lit", as zero coefficients do under the identity link.
+pub const HOLE_LOGIT: f32 = -30.0;
+
 /// Logit of the warm start is taken of K clamped to [EPS, 1 − EPS].
 const WARM_EPS: f32 = 0.02;
 
@@ -65,6 +69,8 @@ pub(crate) struct Tables {
     pub max_iterations: u32,
     /// Σ ω over the fitting lights.
     pub omega_sum: f64,
+    /// Index of the constant term.
+    pub constant_term: usize,
 }
 
 impl Tables {
@@ -131,6 +137,7 @@ impl Tables {
             tolerance,
             max_iterations,
             omega_sum,
+            constant_term: monos.iter().position(|x| (x.pu, x.pv) == (0, 0)).unwrap(),
         }
     }
 }
@@ -505,6 +512,7 @@ fn final_pass<S: Simd, const M: usize>(
         let o = &mut out[q];
         if !live[q] {
             *o = TexelFit::default();
+            o.c[t.constant_term] = HOLE_LOGIT;
             continue;
         }
         for j in 0..M {
