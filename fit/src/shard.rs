@@ -703,29 +703,6 @@ pub fn check_set(paths: &[PathBuf]) -> Result<Vec<(PathBuf, PartMeta)>> {
     Ok(slots.into_iter().flatten().collect())
 }
 
-/// Same as `ErrorStats::of` in `solve.rs` (mean, 99th percentile by selection, max over the
-/// unmasked texels), so merged statistics are the one-machine bake's to the bit.
-fn error_stats(values: &[f32], mask: &[bool]) -> ErrorStats {
-    let mut v: Vec<f32> = values
-        .iter()
-        .zip(mask)
-        .filter(|(_, &m)| !m)
-        .map(|(&x, _)| x)
-        .collect();
-    if v.is_empty() {
-        return ErrorStats::default();
-    }
-    let mean = v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
-    let max = v.iter().copied().fold(f32::MIN, f32::max);
-    let i99 = ((v.len() as f64 * 0.99).ceil() as usize).clamp(1, v.len()) - 1;
-    let (_, p99, _) = v.select_nth_unstable_by(i99, f32::total_cmp);
-    ErrorStats {
-        mean,
-        p99: *p99 as f64,
-        max: max as f64,
-    }
-}
-
 /// Merges a complete set of parts (see [`check_set`]) into the whole stack or PTM at `out`,
 /// written atomically, byte for byte what one machine writes. A stack merges by copying the
 /// parts' compressed chunks under the whole image's header; a PTM is decoded, concatenated,
@@ -922,7 +899,7 @@ fn finish_fit(ptm: &mut Ptm, fit: &mut FitReport, coverage: Vec<f32>, mips: bool
     let masked: Vec<bool> = coverage.iter().map(|&c| c <= 0.0).collect();
     fit.texels = ptm.width * ptm.height;
     fit.masked = masked.iter().filter(|&&m| m).count();
-    fit.rms = error_stats(&fit.rms_map, &masked);
+    fit.rms = ErrorStats::of(&fit.rms_map, &masked);
     fit.coverage = if coverage.iter().any(|&c| c < 1.0) {
         coverage
     } else {

@@ -111,7 +111,8 @@ pub struct ErrorStats {
 }
 
 impl ErrorStats {
-    fn of(values: &[f32], mask: &[bool]) -> Self {
+    /// Over the texels whose `mask` is false; p99 by selection (O(texels)).
+    pub(crate) fn of(values: &[f32], mask: &[bool]) -> Self {
         let mut v: Vec<f32> = values
             .iter()
             .zip(mask)
@@ -683,12 +684,11 @@ fn fit_logistic(
         rcond: opts.rcond,
         singular_values: f.sigma.clone(),
         solver: format!(
-            "logistic maximum likelihood (binomial deviance), Newton per texel from the least-squares logit fit, ridge lambda={lambda:e} x mean eigenvalue (rho={:.3e}), tolerance {:e} per unit weight, at most {} iterations, weight={}, {} kernel",
+            "logistic maximum likelihood (binomial deviance), Newton per texel from the least-squares logit fit, ridge lambda={lambda:e} x mean eigenvalue (rho={:.3e}), tolerance {:e} per unit weight, at most {} iterations, weight={}",
             tables.ridge,
             opts.tolerance,
             opts.max_iterations,
             opts.weight.name(),
-            kernel.name()
         ),
         warnings,
         ..FitReport::default()
