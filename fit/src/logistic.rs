@@ -31,8 +31,11 @@ use crate::Basis;
 /// Default ridge λ of the logistic fit (relative to the mean eigenvalue of AᵀΩA).
 pub const DEFAULT_RIDGE: f64 = 1e-5;
 /// Default stopping tolerance: a texel stops when its Newton decrement (the objective's
-/// predicted fall) is at most this per unit of light weight, or its step is below 1e-6.
-pub const DEFAULT_TOLERANCE: f64 = 1e-10;
+/// predicted fall) is at most this per unit of light weight, or its step is below 1e-6. Newton
+/// converges quadratically, so the step that meets it leaves far less: on the plain weave,
+/// 1e-5 … 1e-10 give the same held-out error to five digits and K within 3e-6 of an f64 solve
+/// (tests/logistic.rs); 1e-7 saves 0.6 iterations per texel against 1e-10.
+pub const DEFAULT_TOLERANCE: f64 = 1e-7;
 /// Default cap on Newton iterations per texel (texels that hit it are counted).
 pub const DEFAULT_MAX_ITERATIONS: u32 = 30;
 
