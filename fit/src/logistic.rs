@@ -253,7 +253,7 @@ fn warm_start<S: Simd, const M: usize>(t: &Tables, kt: &[f32]) -> [[f32; 16]; M]
     for n in 0..t.nfit {
         let kv = S::load(&kt[n * l..]);
         let k = S::min(S::max(kv, lo), hi);
-        let lg = S::where_nonneg(kv, S::sub(S::ln(k), S::ln(S::sub(one, k))));
+        let lg = S::where_nonneg(kv, S::ln(S::mul(k, S::recip(S::sub(one, k)))));
         let pw = &t.warm[n * M..(n + 1) * M];
         for j in 0..M {
             c[j] = S::fma(S::splat(pw[j]), lg, c[j]);
@@ -476,10 +476,18 @@ fn final_pass<S: Simd, const M: usize>(
     let (mut valid, mut ones, mut zeros, mut wrong) = (zero, zero, zero, zero);
     for n in 0..t.used.len() {
         let an = &t.a[n * M..(n + 1) * M];
-        let mut z = zero;
-        for j in 0..M {
-            z = S::fma(S::splat(an[j]), c[j], z);
+        // z in two chains, as in `residual_weight`.
+        let (mut z0, mut z1) = (zero, zero);
+        let mut j = 0;
+        while j + 1 < M {
+            z0 = S::fma(S::splat(an[j]), c[j], z0);
+            z1 = S::fma(S::splat(an[j + 1]), c[j + 1], z1);
+            j += 2;
         }
+        if j < M {
+            z0 = S::fma(S::splat(an[j]), c[j], z0);
+        }
+        let z = S::add(z0, z1);
         let kv = S::load(&kt[n * l..]);
         let e = S::sub(S::sigmoid(z), kv);
         let e2 = S::where_nonneg(kv, S::mul(e, e));

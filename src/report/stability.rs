@@ -25,11 +25,15 @@ fn bake_stack(swatch: &Swatch, lights: &LightSet, res: usize, spp: u32) -> Resul
     })
 }
 
-fn max_abs_coef(ptm: &Ptm) -> f64 {
+/// Largest |coefficient| over the covered texels (holes carry a fixed logistic constant that
+/// says nothing about the fit).
+fn max_abs_coef(ptm: &Ptm, rep: &FitReport) -> f64 {
+    let hole = |i: usize| rep.coverage.get(i).is_some_and(|&c| c <= 0.0);
     ptm.planes
         .iter()
-        .flatten()
-        .fold(0f64, |m, &c| m.max(c.abs() as f64))
+        .flat_map(|p| p.iter().enumerate())
+        .filter(|&(i, _)| !hole(i))
+        .fold(0f64, |m, (_, &c)| m.max(c.abs() as f64))
 }
 
 /// Newton's iterations (mean/max) and separable/constant texels of a logistic fit, or "-".
@@ -124,7 +128,7 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
                             } else {
                                 rep.warnings.join(" ")
                             },
-                            g3(max_abs_coef(&ptm)),
+                            g3(max_abs_coef(&ptm, &rep)),
                             g3(e.rms),
                             format!("{:.1}% (max {})", 100.0 * e.outside, g3(e.outside_max)),
                             iters,
@@ -175,7 +179,7 @@ pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Ta
     );
     for basis in Basis::ALL {
         let t0 = std::time::Instant::now();
-        let (ptm, _) = fit_stack(
+        let (ptm, rep) = fit_stack(
             &stack,
             &FitOptions {
                 uv: UvMap::Projected,
@@ -188,7 +192,7 @@ pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Ta
             "identity, projected".into(),
             "-".into(),
             g3(measure(&ptm, &truth.lights, &k_true, &cov).rms),
-            g3(max_abs_coef(&ptm)),
+            g3(max_abs_coef(&ptm, &rep)),
             "-".into(),
             "-".into(),
             "-".into(),
@@ -211,7 +215,7 @@ pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Ta
                 "logistic, hemispherical".into(),
                 format!("{lambda:e}"),
                 g3(measure(&ptm, &truth.lights, &k_true, &cov).rms),
-                g3(max_abs_coef(&ptm)),
+                g3(max_abs_coef(&ptm, &rep)),
                 format!("{:.1}/{}", l.iterations_mean, l.iterations_max),
                 l.not_converged.to_string(),
                 l.separable.to_string(),
