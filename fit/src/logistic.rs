@@ -584,55 +584,53 @@ fn block_body<S: Simd, const M: usize, const D: usize>(
             }
         }
     };
-    {
-        loop {
-            let count = st.active.iter().filter(|&&a| a).count();
-            if count == 0 {
-                break;
+    loop {
+        let count = st.active.iter().filter(|&&a| a).count();
+        if count == 0 {
+            break;
+        }
+        // Compact: move active lanes beyond the first `count` slots into free slots below.
+        let mut holes = (0..count)
+            .filter(|&s| !st.active[s])
+            .collect::<Vec<_>>()
+            .into_iter();
+        for s in count..tiles * l {
+            if !st.active[s] {
+                continue;
             }
-            // Compact: move active lanes beyond the first `count` slots into free slots below.
-            let mut holes = (0..count)
-                .filter(|&s| !st.active[s])
-                .collect::<Vec<_>>()
-                .into_iter();
-            for s in count..tiles * l {
+            let f = holes.next().expect("as many holes below as actives above");
+            let (ts, qs, tf, qf) = (s / l, s % l, f / l, f % l);
+            for li in 0..nu {
+                work[tf * stride_k + li * l + qf] = work[ts * stride_k + li * l + qs];
+            }
+            for j in 0..M {
+                st.c[tf][j][qf] = st.c[ts][j][qs];
+            }
+            // A retired texel in the hole keeps its result in final_c; the slot is reused.
+            st.texel.swap(f, s);
+            st.active[f] = true;
+            st.active[s] = false;
+        }
+        for ti in 0..count.div_ceil(l) {
+            let act = &st.active[ti * l..(ti + 1) * l];
+            let done = newton_step::<S, M, D>(
+                t,
+                &work[ti * stride_k..(ti + 1) * stride_k],
+                &mut st.c[ti],
+                act,
+                t.tolerance,
+            );
+            for q in 0..l {
+                let s = ti * l + q;
                 if !st.active[s] {
                     continue;
                 }
-                let f = holes.next().expect("as many holes below as actives above");
-                let (ts, qs, tf, qf) = (s / l, s % l, f / l, f % l);
-                for li in 0..nu {
-                    work[tf * stride_k + li * l + qf] = work[ts * stride_k + li * l + qs];
-                }
-                for j in 0..M {
-                    st.c[tf][j][qf] = st.c[ts][j][qs];
-                }
-                // A retired texel in the hole keeps its result in final_c; the slot is reused.
-                st.texel.swap(f, s);
-                st.active[f] = true;
-                st.active[s] = false;
-            }
-            for ti in 0..count.div_ceil(l) {
-                let act = &st.active[ti * l..(ti + 1) * l];
-                let done = newton_step::<S, M, D>(
-                    t,
-                    &work[ti * stride_k..(ti + 1) * stride_k],
-                    &mut st.c[ti],
-                    act,
-                    t.tolerance,
-                );
-                for q in 0..l {
-                    let s = ti * l + q;
-                    if !st.active[s] {
-                        continue;
-                    }
-                    let i = st.texel[s].expect("an active slot holds a texel");
-                    iterations[i] += 1;
-                    if done[q] || iterations[i] >= t.max_iterations {
-                        converged[i] = done[q];
-                        st.active[s] = false;
-                        retire(&st, s, &mut final_c);
-                    }
+                let i = st.texel[s].expect("an active slot holds a texel");
+                iterations[i] += 1;
+                if done[q] || iterations[i] >= t.max_iterations {
+                    converged[i] = done[q];
+                    st.active[s] = false;
+                    retire(&st, s, &mut final_c);
                 }
             }
         }
