@@ -1023,7 +1023,7 @@ pub(crate) fn pool(src: &Source, from_w: usize, to: Footprint) -> Pooled {
 }
 
 /// Texels per parallel work unit.
-const BLOCK: usize = 256;
+const BLOCK: usize = 512;
 
 /// Fits every texel of the level `fp` (of a level-0 image `w0` wide) from `src`: per texel, its
 /// fit (coefficients, iterations, class, errors). `live[t]` is false for texels to leave out
