@@ -101,14 +101,10 @@ pub fn channel_name(monomial: &str) -> String {
 /// Sizes of MIP levels 1, 2, … of a width × height image down to 1×1, halving and rounding
 /// down (never below 1), as OpenEXR's `MIPMAP_LEVELS` with `ROUND_DOWN`.
 pub fn mip_sizes(width: usize, height: usize) -> Vec<(usize, usize)> {
-    let mut out = Vec::new();
-    let (mut w, mut h) = (width, height);
-    while w > 1 || h > 1 {
-        w = (w / 2).max(1);
-        h = (h / 2).max(1);
-        out.push((w, h));
-    }
-    out
+    crate::logistic::Footprint::chain(width, height)[1..]
+        .iter()
+        .map(|f| (f.width, f.height))
+        .collect()
 }
 
 impl Ptm {

@@ -499,23 +499,9 @@ pub fn read_part(path: &Path) -> Result<Part> {
     let tile = [c.f64("part:tileW", WHAT)?, c.f64("part:tileH", WHAT)?];
     let data = match kind.as_str() {
         "stack" => {
-            let n = lights.len();
-            let mut k = Vec::with_capacity(n);
-            for i in 0..n {
-                k.push(c.take_f32(&k_channel(i), WHAT)?);
-            }
-            let coverage = c.take_f32("coverage", WHAT)?;
-            let uv = if c.text("part:uv", WHAT)? == "per-texel" {
-                let mut uv = Vec::with_capacity(n);
-                for i in 0..n {
-                    let u = c.take_f32(&format!("u.{i:04}"), WHAT)?;
-                    let v = c.take_f32(&format!("v.{i:04}"), WHAT)?;
-                    uv.push(u.into_iter().zip(v).map(|(u, v)| [u, v]).collect());
-                }
-                Some(uv)
-            } else {
-                None
-            };
+            let per_texel = c.text("part:uv", WHAT)? == "per-texel";
+            let (k, coverage, uv) =
+                crate::stack::take_planes(&mut c, lights.len(), per_texel, WHAT)?;
             PartData::Stack(SampleStack {
                 width: c.width,
                 height: c.height,

@@ -519,7 +519,13 @@ fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {
     }
     let (w, held) = light_weights(lights, opts)?;
     let a = design(opts.basis, opts.uv, lights);
-    let factor = Factor::from_design(&a, &w, opts.rcond, opts.regularize);
+    // The logistic link's λ is its own ridge; its factorisation (diagnostics, warm start) is the
+    // identity link's truncated one.
+    let ridge = match opts.link {
+        Link::Identity => opts.regularize,
+        Link::Logistic => None,
+    };
+    let factor = Factor::from_design(&a, &w, opts.rcond, ridge);
     let warnings = diagnose(opts.basis, lights, &w, &factor, opts);
     check_strict(opts, &warnings)?;
     Ok(Prepared {
@@ -785,8 +791,6 @@ pub struct Accumulator {
     seen: Vec<bool>,
     mode: Option<bool>,
     masked: Vec<bool>,
-    /// The coverage given to [`Accumulator::set_coverage`], when some texel is below 1.
-    coverage: Vec<f32>,
     /// Held-out light index → its K plane and, per texel, (u, v) when per-texel.
     held: BTreeMap<usize, HeldLight>,
     /// Dropped samples per texel (skip_bad).
@@ -800,6 +804,7 @@ pub struct Accumulator {
     cov: Vec<u32>,
     occ8: Vec<Vec<u8>>,
     occ16: Vec<Vec<u16>>,
+    /// The coverage given to [`Accumulator::set_coverage`] (empty: every texel covered).
     full_coverage: Vec<f32>,
 }
 
@@ -815,14 +820,7 @@ impl Accumulator {
         if width * height == 0 {
             return Err(Error::Invalid(format!("empty image {width}×{height}")));
         }
-        let prep = if opts.link == Link::Logistic {
-            let mut prep = prepare(lights, &warm_start_options(opts))?;
-            prep.warnings = diagnose(opts.basis, lights, &prep.w, &prep.factor, opts);
-            check_strict(opts, &prep.warnings)?;
-            prep
-        } else {
-            prepare(lights, opts)?
-        };
+        let prep = prepare(lights, opts)?;
         let t = width * height;
         Ok(Accumulator {
             spp: None,
@@ -847,7 +845,6 @@ impl Accumulator {
             seen: vec![false; lights.len()],
             mode: None,
             masked: vec![false; t],
-            coverage: Vec::new(),
             held: BTreeMap::new(),
             bad: BTreeMap::new(),
             skipped: 0,
@@ -873,7 +870,6 @@ impl Accumulator {
         for (m, &c) in self.masked.iter_mut().zip(coverage) {
             *m = c <= 0.0;
         }
-        self.coverage = partial_coverage(coverage);
         self.full_coverage = coverage.to_vec();
         Ok(())
     }
@@ -1291,7 +1287,7 @@ impl Accumulator {
         };
         report.rms = ErrorStats::of(&rms_map, &self.masked);
         report.rms_map = rms_map;
-        report.coverage = self.coverage.clone();
+        report.coverage = partial_coverage(&self.full_coverage);
         report.masked = self.masked.iter().filter(|&&m| m).count();
         let t_solve = t0.elapsed().as_secs_f64();
         if !self.held.is_empty() {
@@ -1353,7 +1349,7 @@ impl Accumulator {
             &self.masked,
             &self.opts,
         )?;
-        report.coverage = self.coverage.clone();
+        report.coverage = partial_coverage(&self.full_coverage);
         report.seconds.insert(0, ("accumulate", t_acc));
         Ok((ptm, report))
     }
@@ -1516,21 +1512,12 @@ fn refuse_per_texel_logistic() -> Error {
     )
 }
 
-/// Options for the identity factorisation a logistic fit uses for its diagnostics and warm start.
-fn warm_start_options(opts: &FitOptions) -> FitOptions {
-    FitOptions {
-        regularize: None,
-        ..opts.clone()
-    }
-}
-
 fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitReport)> {
     if stack.uv.is_some() {
         return Err(refuse_per_texel_logistic());
     }
+    let prep = prepare(&stack.lights, opts)?;
     let t0 = Instant::now();
-    let mut prep = prepare(&stack.lights, &warm_start_options(opts))?;
-    prep.warnings = diagnose(opts.basis, &stack.lights, &prep.w, &prep.factor, opts);
     let mask = masked(stack);
     let mut skipped = 0usize;
     let mut bad_texels = std::collections::BTreeSet::new();
@@ -1545,6 +1532,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
             }
         }
     }
+    let t_scan = t0.elapsed().as_secs_f64();
     let src = Source::Planes {
         k: &stack.k,
         coverage: &stack.coverage,
@@ -1566,13 +1554,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
             bad_texels.len()
         ));
     }
-    report.seconds.insert(
-        0,
-        (
-            "scan",
-            t0.elapsed().as_secs_f64() - report.seconds.iter().map(|s| s.1).sum::<f64>(),
-        ),
-    );
+    report.seconds.insert(0, ("scan", t_scan));
     Ok((ptm, report))
 }
 

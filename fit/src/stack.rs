@@ -211,23 +211,8 @@ impl SampleStack {
         }
         // Directions were written normalised; keep them bit-exact rather than renormalising.
         let lights = LightSet { names, dirs };
-        let mut k = Vec::with_capacity(n);
-        for i in 0..n {
-            k.push(c.take_f32(&k_channel(i), WHAT)?);
-        }
-        let coverage = c.take_f32("coverage", WHAT)?;
         let per_texel = matches!(c.attrs.get("stack:uv"), Some(Attr::Text(s)) if s == "per-texel");
-        let uv = if per_texel {
-            let mut uv = Vec::with_capacity(n);
-            for i in 0..n {
-                let u = c.take_f32(&format!("u.{i:04}"), WHAT)?;
-                let v = c.take_f32(&format!("v.{i:04}"), WHAT)?;
-                uv.push(u.into_iter().zip(v).map(|(u, v)| [u, v]).collect());
-            }
-            Some(uv)
-        } else {
-            None
-        };
+        let (k, coverage, uv) = take_planes(&mut c, n, per_texel, WHAT)?;
         let stack = SampleStack {
             width: c.width,
             height: c.height,
@@ -240,6 +225,35 @@ impl SampleStack {
         stack.validate().map_err(|e| c.error(e.to_string()))?;
         Ok(stack)
     }
+}
+
+/// The sample planes of `n` lights from a stack-like file (a stack or a farm part of one):
+/// `K.0000`…, `coverage`, and for per-texel directions `u.0000`/`v.0000`….
+pub(crate) type Planes = (Vec<Vec<f32>>, Vec<f32>, Option<Vec<Vec<[f32; 2]>>>);
+
+pub(crate) fn take_planes(
+    c: &mut exrio::Contents,
+    n: usize,
+    per_texel: bool,
+    what: &str,
+) -> Result<Planes> {
+    let mut k = Vec::with_capacity(n);
+    for i in 0..n {
+        k.push(c.take_f32(&k_channel(i), what)?);
+    }
+    let coverage = c.take_f32("coverage", what)?;
+    let uv = if per_texel {
+        let mut uv = Vec::with_capacity(n);
+        for i in 0..n {
+            let u = c.take_f32(&format!("u.{i:04}"), what)?;
+            let v = c.take_f32(&format!("v.{i:04}"), what)?;
+            uv.push(u.into_iter().zip(v).map(|(u, v)| [u, v]).collect());
+        }
+        Some(uv)
+    } else {
+        None
+    };
+    Ok((k, coverage, uv))
 }
 
 #[cfg(test)]
