@@ -6,32 +6,8 @@ use ptm_fit::logistic::Kernel;
 use ptm_fit::solve::{fit_stack, Accumulator, FitOptions};
 use ptm_fit::{Basis, LightSet, Link, SampleStack, UvMap};
 
-/// Deterministic uniform numbers in [0, 1) (splitmix64).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
-
-/// Fibonacci hemisphere, elevations above `min_el` degrees.
-fn fibonacci(n: usize, min_el: f64) -> LightSet {
-    let zmin = min_el.to_radians().sin();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    LightSet::from_dirs((0..n).map(|i| {
-        let z = zmin + (1.0 - zmin) * (i as f64 + 0.5) / n as f64;
-        let r = (1.0 - z * z).sqrt();
-        let a = golden * i as f64;
-        [r * a.cos(), r * a.sin(), z]
-    }))
-}
+mod common;
+use common::{fibonacci, Rng};
 
 fn options(basis: Basis, uv: UvMap, lambda: f64) -> FitOptions {
     FitOptions {
@@ -66,15 +42,7 @@ fn sigmoid_stack(
                 .collect()
         })
         .collect();
-    let stack = SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights: lights.clone(),
-        k,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    };
+    let stack = common::stack(lights, w, h, k);
     (stack, coeffs)
 }
 
@@ -217,15 +185,7 @@ fn step_stack(lights: &LightSet, w: usize, h: usize, samples: u32, rng: &mut Rng
                 .collect()
         })
         .collect();
-    SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights: lights.clone(),
-        k,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    }
+    common::stack(lights, w, h, k)
 }
 
 /// Always lit, always occluded and a clean step: the unregularised optimum is at infinity; the
@@ -239,15 +199,7 @@ fn separable_and_constant_texels_stay_finite_and_are_counted() {
         .iter()
         .map(|d| vec![0.0, 1.0, if d[0] > 0.1 { 1.0 } else { 0.0 }])
         .collect();
-    let stack = SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights: lights.clone(),
-        k,
-        coverage: vec![1.0; 3],
-        uv: None,
-    };
+    let stack = common::stack(&lights, w, h, k);
     for basis in Basis::ALL {
         let (ptm, report) = fit_stack(&stack, &options(basis, UvMap::Projected, 1e-5)).unwrap();
         let s = report.logistic.clone().unwrap();
@@ -391,15 +343,7 @@ fn mip_levels_are_fits_of_the_box_filtered_stack() {
                     .collect()
             })
             .collect();
-        let small = SampleStack {
-            width: w,
-            height: h,
-            tile: [1.0, 1.0],
-            lights: lights.clone(),
-            k,
-            coverage: vec![1.0; w * h],
-            uv: None,
-        };
+        let small = common::stack(&lights, w, h, k);
         let (direct, _) = fit_stack(&small, &options(Basis::Ptm6, UvMap::Projected, 1e-5)).unwrap();
         for (a, b) in direct
             .planes

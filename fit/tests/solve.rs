@@ -4,36 +4,12 @@ use nalgebra::{DMatrix, DVector};
 use ptm_fit::solve::{fit_stack, holdout_indices, Accumulator, FitOptions, Weight};
 use ptm_fit::{Basis, Error, LightSet, Ptm, SampleStack};
 
-/// Deterministic uniform numbers in [0, 1) (splitmix64).
-struct Rng(u64);
-impl Rng {
-    fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
+mod common;
+use common::{fibonacci, Rng};
 
 fn dir(el_deg: f64, az_deg: f64) -> [f64; 3] {
     let (e, a) = (el_deg.to_radians(), az_deg.to_radians());
     [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()]
-}
-
-/// Fibonacci hemisphere, elevations above `min_el` degrees.
-fn fibonacci(n: usize, min_el: f64) -> LightSet {
-    let zmin = min_el.to_radians().sin();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    LightSet::from_dirs((0..n).map(|i| {
-        let z = zmin + (1.0 - zmin) * (i as f64 + 0.5) / n as f64;
-        let r = (1.0 - z * z).sqrt();
-        let a = golden * i as f64;
-        [r * a.cos(), r * a.sin(), z]
-    }))
 }
 
 fn ring(n: usize, el: f64, jitter_deg: f64, rng: &mut Rng) -> LightSet {

@@ -1,0 +1,44 @@
+//! Helpers shared by the fit crate's integration tests: a seeded generator, a Fibonacci dome,
+//! and a fully covered distant-light stack from its K planes.
+#![allow(dead_code)]
+use ptm_fit::{LightSet, SampleStack};
+
+/// Deterministic uniform numbers in [0, 1) (splitmix64).
+pub struct Rng(pub u64);
+impl Rng {
+    pub fn next(&mut self) -> f64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    }
+    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.next()
+    }
+}
+
+/// Fibonacci hemisphere, elevations above `min_el` degrees.
+pub fn fibonacci(n: usize, min_el: f64) -> LightSet {
+    let zmin = min_el.to_radians().sin();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    LightSet::from_dirs((0..n).map(|i| {
+        let z = zmin + (1.0 - zmin) * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let a = golden * i as f64;
+        [r * a.cos(), r * a.sin(), z]
+    }))
+}
+
+/// A w × h stack of distant lights, every texel fully covered, tile 1 × 1.
+pub fn stack(lights: &LightSet, w: usize, h: usize, k: Vec<Vec<f32>>) -> SampleStack {
+    SampleStack {
+        width: w,
+        height: h,
+        tile: [1.0, 1.0],
+        lights: lights.clone(),
+        k,
+        coverage: vec![1.0; w * h],
+        uv: None,
+    }
+}
