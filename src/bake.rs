@@ -269,27 +269,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 eprintln!("ptm bake: fit warning: {w}");
             }
             crate::fit::print_logistic("ptm bake", &fit);
-            let save = SaveOptions {
-                half: false,
-                report: Some(&fit),
-                error_map: false,
-            };
-            match &part {
-                Some((meta, path)) => crate::shard::write_ptm(
-                    path,
-                    meta,
-                    ptm.clone(),
-                    fit.clone(),
-                    coverage.clone(),
-                    &lights,
-                    shard_mips,
-                )
-                .with_context(|| format!("writing {}", path.display()))?,
-                None => ptm
-                    .save(&args.output, &save)
-                    .with_context(|| format!("writing {}", args.output.display()))?,
-            }
-            json!({
+            let summary = json!({
                 "basis": fit.basis.map(|b| b.name()),
                 "link": ptm.link.name(),
                 "uv": ptm.uv.name(),
@@ -302,7 +282,30 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 "rms_error_mean": fit.rms.mean,
                 "rms_error_p99": fit.rms.p99,
                 "warnings": fit.warnings,
-            })
+            });
+            match &part {
+                // The part takes the fit itself: no copy of its planes.
+                Some((meta, path)) => crate::shard::write_ptm(
+                    path,
+                    meta,
+                    ptm,
+                    fit,
+                    coverage.clone(),
+                    &lights,
+                    shard_mips,
+                )
+                .with_context(|| format!("writing {}", path.display()))?,
+                None => {
+                    let save = SaveOptions {
+                        half: false,
+                        report: Some(&fit),
+                        error_map: false,
+                    };
+                    ptm.save(&args.output, &save)
+                        .with_context(|| format!("writing {}", args.output.display()))?
+                }
+            }
+            summary
         }
         None => {
             let stack = SampleStack {
