@@ -26,6 +26,7 @@ fn sample_ptm(basis: Basis) -> Ptm {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [1.5, 0.75],
         planes,
     }

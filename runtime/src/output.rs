@@ -93,18 +93,17 @@ impl Image {
     /// Writes the linear radiance as an RGB f32 EXR atomically.
     pub fn write_exr(&self, path: &Path) -> Result<()> {
         use exr::prelude::*;
-        let tmp = ptm_fit::atomic::tmp_path(path);
-        let written = write_rgb_file(&tmp, self.width, self.height, |x, y| {
-            let p = self.pixels[y * self.width + x];
-            (p[0], p[1], p[2])
+        // A failed EXR write publishes nothing (the temporary file is removed).
+        ptm_fit::atomic::write_path(path, |tmp| {
+            write_rgb_file(tmp, self.width, self.height, |x, y| {
+                let p = self.pixels[y * self.width + x];
+                (p[0], p[1], p[2])
+            })
+            .map_err(|e| crate::Error::Image {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })
         })
-        .map_err(|e| crate::Error::Image {
-            path: path.display().to_string(),
-            reason: e.to_string(),
-        });
-        let committed = ptm_fit::atomic::commit_tmp(&tmp, path, Ok(()));
-        written?;
-        Ok(committed?)
     }
 }
 
