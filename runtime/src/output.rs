@@ -136,3 +136,36 @@ pub fn read_rgba8(path: &Path) -> Result<(usize, usize, Vec<[u8; 4]>)> {
     let texels = rgba.pixels().map(|p| p.0).collect();
     Ok((w as usize, h as usize, texels))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_exr_write_publishes_nothing() {
+        let dir = std::env::temp_dir().join(format!("ptm-runtime-output-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("render.exr");
+        let one = Image {
+            width: 2,
+            height: 1,
+            pixels: vec![[0.5, 0.25, 1.0, 1.0]; 2],
+        };
+        one.write_exr(&p).unwrap();
+        let good = std::fs::read(&p).unwrap();
+        // An empty image is no EXR: the write fails, the old file stays, no temporary is left.
+        let empty = Image {
+            width: 0,
+            height: 0,
+            pixels: Vec::new(),
+        };
+        assert!(empty.write_exr(&p).is_err());
+        assert_eq!(std::fs::read(&p).unwrap(), good);
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["render.exr"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
