@@ -10,11 +10,9 @@ use ptm_bake::{dome, BakeConfig, Baker, Swatch};
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, SampleStack, SaveOptions};
 use serde_json::{json, Value};
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum FitArg {
-    Ptm6,
-    Ptm11,
-}
+// `--fit BASIS` takes the same basis argument as `ptm fit --basis`; `FitArg` is its name here.
+use crate::fit::finite;
+use crate::fit::BasisArg as FitArg;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -81,14 +79,6 @@ pub fn lp_path(out: &Path) -> PathBuf {
     let stem = name.strip_suffix(".exr").unwrap_or(&name);
     let stem = stem.strip_suffix(".ptm").unwrap_or(stem);
     out.with_file_name(format!("{stem}.lp"))
-}
-
-fn finite(x: f64) -> Value {
-    if x.is_finite() {
-        json!(x)
-    } else {
-        Value::Null
-    }
 }
 
 pub fn run(args: &Args) -> anyhow::Result<Value> {
@@ -159,10 +149,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let mut shard_mips = false;
     let mut accumulator = match args.fit {
         Some(f) => {
-            let basis = match f {
-                FitArg::Ptm6 => Basis::Ptm6,
-                FitArg::Ptm11 => Basis::Ptm11,
-            };
+            let basis = Basis::from(f);
             let mut opts = FitOptions {
                 regularize: args.regularize,
                 ..FitOptions::new(basis)
