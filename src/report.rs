@@ -51,6 +51,8 @@ fn write_csv(dir: &Path, t: &Table) -> Result<()> {
     Ok(())
 }
 
+/// `ptm report`: runs the study, then writes its figures, CSVs and `report.md` into `--out`;
+/// returns the JSON that `--json` prints.
 pub fn run(args: &Args) -> Result<serde_json::Value> {
     let started = Instant::now();
     let load_at_start = load_average();
