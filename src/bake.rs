@@ -253,7 +253,8 @@ fn announce(args: &Args, swatch: &Swatch, res: [usize; 2], lights: &LightSet) {
 
 /// Where traced K planes went: the streaming fit, or planes kept for the sample stack.
 enum Samples {
-    Fit(Accumulator),
+    /// Boxed: the accumulator's fields are large beside a `Planes`.
+    Fit(Box<Accumulator>),
     Stack(ptm_bake::Planes),
 }
 
@@ -336,7 +337,7 @@ fn trace(
         );
     }
     let samples = match accumulator {
-        Some(acc) => Samples::Fit(acc),
+        Some(acc) => Samples::Fit(Box::new(acc)),
         None => Samples::Stack(planes),
     };
     let kept = Kept {
