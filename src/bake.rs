@@ -207,11 +207,7 @@ fn fit_accumulator(
         return Ok((None, false));
     };
     let mut shard_mips = false;
-    let mut opts = FitOptions {
-        regularize: args.regularize,
-        ..FitOptions::new(Basis::from(f))
-    };
-    args.model.apply(&mut opts);
+    let mut opts = fit_options(args, f);
     if args.shard.is_some() {
         if opts.link != ptm_fit::Link::Identity {
             bail!(
@@ -542,6 +538,16 @@ fn bake_json(
     })
 }
 
+/// The options of the streaming fit `--fit f` asks for.
+fn fit_options(args: &Args, f: FitArg) -> FitOptions {
+    let mut opts = FitOptions {
+        regularize: args.regularize,
+        ..FitOptions::new(Basis::from(f))
+    };
+    args.model.apply(&mut opts);
+    opts
+}
+
 /// Refuses a bake whose buffers cannot fit in the memory this machine has available, naming
 /// the parts and what to change, instead of being killed by the kernel half-way.
 fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<()> {
@@ -553,21 +559,19 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
     let baker = ptm_bake::baker_bytes(res, args.spp);
     let dome = lights as f64 * 64.0;
     let (sink, what) = match args.fit {
-        // Per texel: m sums of AᵀW·k, the packed Gram matrix for point lights, Σw·k², Σw.
+        // What the accumulator will hold (its sums, or the logistic link's counts).
         Some(f) => {
-            let m: f64 = match f {
-                FitArg::Ptm6 => 6.0,
-                FitArg::Ptm11 => 11.0,
-            };
-            let gram = if args.light_distance.is_some() {
-                m * (m + 1.0) / 2.0
-            } else {
-                0.0
-            };
             let link: ptm_fit::Link = args.model.link.into();
             let counts = Accumulator::count_bytes(link, args.spp) as f64;
+            let bytes = Accumulator::memory_bytes(
+                res[0].saturating_mul(res[1]),
+                lights,
+                &fit_options(args, f),
+                args.spp,
+                args.light_distance.is_some(),
+            );
             (
-                texels * (m + gram + 2.0) * 8.0 + texels * lights as f64 * counts + texels * 6.0,
+                bytes as f64,
                 if counts > 0.0 {
                     "the streaming fit's sums and the logistic link's exact sample counts"
                 } else {
