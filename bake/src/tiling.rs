@@ -271,7 +271,11 @@ mod tests {
         let diag = [0.5f64.sqrt(), 0.5f64.sqrt(), 5e-324];
         let d = copies_for_direction([1.0, 1.0], &unit_bounds(0.5), diag, 1e-9);
         let k = (MAX_RUN_TILES / 2f64.sqrt()).ceil() as u32;
-        assert!((k..=k + 1).contains(&rings(&d)) && d.contains(&[0, 0]), "{}", rings(&d));
+        assert!(
+            (k..=k + 1).contains(&rings(&d)) && d.contains(&[0, 0]),
+            "{}",
+            rings(&d)
+        );
     }
 
     #[test]

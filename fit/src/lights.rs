@@ -168,11 +168,18 @@ mod tests {
             .to_string();
         assert!(e.contains("t.lp") && e.contains("3 lights"), "{e}");
         // Huge counts are refused before anything is reserved for them.
-        for n in ["1000000000000000000", "1000000000000", "18446744073709551615"] {
+        for n in [
+            "1000000000000000000",
+            "1000000000000",
+            "18446744073709551615",
+        ] {
             let e = LightSet::parse_lp(&format!("{n}\na 0 0 1\n"), "t.lp")
                 .unwrap_err()
                 .to_string();
-            assert!(e.contains(&format!("header says {n} lights but the file lists 1")), "{e}");
+            assert!(
+                e.contains(&format!("header says {n} lights but the file lists 1")),
+                "{e}"
+            );
         }
         let e = LightSet::parse_lp("1\na 0 0 nan\n", "t.lp")
             .unwrap_err()

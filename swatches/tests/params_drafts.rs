@@ -294,7 +294,11 @@ fn huge_wif_counts_are_bounds_not_allocations() {
     // Treadles=1e18 panicked (capacity overflow) and 1e12 aborted: the counts only bound the
     // indices, the cloth is the same twill.
     let expect = draft::parse_wif(TWILL_WIF, "twill.wif").unwrap();
-    for n in ["1000000000000000000", "1000000000000", "18446744073709551615"] {
+    for n in [
+        "1000000000000000000",
+        "1000000000000",
+        "18446744073709551615",
+    ] {
         let t = TWILL_WIF
             .replace("Treadles=4", &format!("Treadles={n}"))
             .replace("Shafts=4", &format!("Shafts={n}"));
@@ -305,5 +309,8 @@ fn huge_wif_counts_are_bounds_not_allocations() {
     assert_eq!(draft::parse_wif(&t, "dup.wif").unwrap(), expect);
     let t = TWILL_WIF.replace("Treadles=4", "Treadles=99999999999999999999");
     let (sec, _, why) = wif_err(&t);
-    assert!(sec == "WEAVING" && why.contains("not a non-negative integer"), "{why}");
+    assert!(
+        sec == "WEAVING" && why.contains("not a non-negative integer"),
+        "{why}"
+    );
 }
