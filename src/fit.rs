@@ -167,7 +167,7 @@ pub struct Args {
     #[arg(long, value_name = "FILE.lp")]
     pub lights: Option<PathBuf>,
     /// Tile size W,H in swatch units for --images.
-    #[arg(long, value_name = "W,H", value_delimiter = ',', default_values_t = [1.0, 1.0])]
+    #[arg(long, value_name = "W,H", value_delimiter = ',', default_values_t = [1.0, 1.0], allow_hyphen_values = true)]
     pub tile: Vec<f64>,
     /// Also write a 6-term map in HP's PTM 1.2 LRGB format (visibility 1 − K, 8-bit).
     #[arg(long, value_name = "OUT.ptm")]
@@ -212,8 +212,11 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         ),
         (None, Some(pattern)) => {
             let lp = args.lights.as_ref().expect("clap requires --lights");
-            if args.tile.len() != 2 || args.tile.iter().any(|&x| x.is_nan() || x <= 0.0) {
-                bail!("--tile takes two positive sizes W,H, got {:?}", args.tile);
+            if args.tile.len() != 2 || args.tile.iter().any(|&x| !(x.is_finite() && x > 0.0)) {
+                bail!(
+                    "--tile takes two positive finite sizes W,H, got {:?}",
+                    args.tile
+                );
             }
             let (stack, unused) = read_image_stack(pattern, lp, [args.tile[0], args.tile[1]])?;
             if !unused.is_empty() {

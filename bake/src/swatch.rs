@@ -310,7 +310,10 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
                         .ok()
                         .filter(|c| c.is_finite())
                         .ok_or_else(|| {
-                            bad(n, format!("vertex coordinate {t:?} is not a finite number"))
+                            bad(
+                                n,
+                                format!("vertex coordinate {t:?} is non-finite or not a number"),
+                            )
                         })?;
                 }
                 obj.positions.push(v);
@@ -571,12 +574,12 @@ mod tests {
             (
                 "nan.obj",
                 Some("v 0 0 NaN\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
-                "line 1: vertex coordinate \"NaN\" is not a finite number",
+                "line 1: vertex coordinate \"NaN\" is non-finite or not a number",
             ),
             (
                 "inf.obj",
                 Some("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"),
-                "line 2: vertex coordinate \"inf\" is not a finite number",
+                "line 2: vertex coordinate \"inf\" is non-finite or not a number",
             ),
             (
                 "range.obj",

@@ -65,13 +65,13 @@ pub fn check_light_distance(r: f64, swatch: &Swatch) -> Result<()> {
     let far = MAX_LIGHT_DISTANCE * swatch.scale();
     if !(r.is_finite() && r > reach) {
         return Err(Error::Config(format!(
-            "--light-distance {r} puts lights inside the swatch, whose bounds reach {reach:.4e} \
+            "--light-distance {r:e} puts lights inside the swatch, whose bounds reach {reach:.4e} \
              (mesh units) from the tile centre: give a distance above that"
         )));
     }
     if r > far {
         return Err(Error::Config(format!(
-            "--light-distance {r} is over {MAX_LIGHT_DISTANCE:e} times the swatch size ({:.4e}): \
+            "--light-distance {r:e} is over {MAX_LIGHT_DISTANCE:e} times the swatch size ({:.4e}): \
              such lights are distant to f32 precision; leave --light-distance out",
             swatch.scale()
         )));
