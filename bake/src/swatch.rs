@@ -128,6 +128,19 @@ impl Swatch {
                 tile[1]
             )));
         }
+        // Heights are bounded too: tolerances are fractions of the largest of width, height
+        // and depth, and a mesh 1e12 tall over a unit tile widened every copy's box by 1e6 tiles.
+        if extent[2] > MAX_TILES_TALL * tile[0].min(tile[1]) {
+            return Err(bad(format!(
+                "the mesh is {:.4e} tall, {:.3e} times the smaller side of the {:e}×{:e} tile; \
+                 a mesh may be at most {MAX_TILES_TALL} tiles tall: give the tile (--tile W,H or \
+                 the `# tile` header) in the mesh's units, or remove stray vertices",
+                extent[2],
+                extent[2] / tile[0].min(tile[1]),
+                tile[0],
+                tile[1]
+            )));
+        }
         let mut positions = mesh.positions;
         if shift != [0.0, 0.0] {
             for p in &mut positions {
@@ -236,6 +249,9 @@ impl Swatch {
 
 /// The most tiles a mesh may span along x or y (knits and pile overhang theirs by a fraction).
 pub const MAX_TILES_SPANNED: f64 = 16.0;
+
+/// The most tiles a mesh may be tall (long pile over a small tile), as its shadow runs are.
+pub const MAX_TILES_TALL: f64 = crate::tiling::MAX_RUN_TILES;
 
 /// An OBJ file as read, in f64: coordinates far from the origin keep their precision until
 /// [`Obj::recentred`] moves the mesh next to it.
@@ -610,6 +626,11 @@ mod tests {
                 "stray.obj",
                 Some("# tile 1 1\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1e11 0 0\nf 1 2 3\nf 1 2 4\n"),
                 "the mesh is 1.0000e11×1.0000e0 wide (1.000e11×1.000e0 tiles of 1e0×1e0)",
+            ),
+            (
+                "tall.obj",
+                Some("v 0 0 0\nv 1 0 0\nv 1 1 1e12\nf 1 2 3\n"),
+                "a mesh may be at most 256 tiles tall",
             ),
             (
                 "bad-tile.obj",
