@@ -113,6 +113,16 @@ impl Swatch {
                 tile[0], tile[1], extent[0], extent[1]
             )));
         }
+        // Tolerances are fractions of the longer side: a tile 1e13 times longer than wide
+        // widened every copy's box by 1e7 tiles of the short side.
+        let aspect = tile[0].max(tile[1]) / tile[0].min(tile[1]);
+        if aspect > MAX_TILE_ASPECT {
+            return Err(bad(format!(
+                "tile {:e}×{:e} is {aspect:.3e} times longer than wide; at most \
+                 {MAX_TILE_ASPECT:e}: pass --tile W,H (the mesh's x/y extent is {:.4e}×{:.4e})",
+                tile[0], tile[1], extent[0], extent[1]
+            )));
+        }
         // Every tile the mesh spans is a copy in every scene: a mesh thousands of tiles wide (a
         // tile given in other units, a stray vertex) would build millions of copies.
         if (0..2).any(|a| extent[a] > MAX_TILES_SPANNED * tile[a]) {
@@ -249,6 +259,9 @@ impl Swatch {
 
 /// The most tiles a mesh may span along x or y (knits and pile overhang theirs by a fraction).
 pub const MAX_TILES_SPANNED: f64 = 16.0;
+
+/// The longest side of a tile over its shortest (a strip of 1024 threads by one is 1024).
+pub const MAX_TILE_ASPECT: f64 = 1e4;
 
 /// The most tiles a mesh may be tall (long pile over a small tile), as its shadow runs are.
 pub const MAX_TILES_TALL: f64 = crate::tiling::MAX_RUN_TILES;
@@ -626,6 +639,11 @@ mod tests {
                 "stray.obj",
                 Some("# tile 1 1\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1e11 0 0\nf 1 2 3\nf 1 2 4\n"),
                 "the mesh is 1.0000e11×1.0000e0 wide (1.000e11×1.000e0 tiles of 1e0×1e0)",
+            ),
+            (
+                "strip.obj",
+                Some("v 0 0 0\nv 1 0 0\nv 1 1e13 0\nf 1 2 3\n"),
+                "times longer than wide; at most 1e4",
             ),
             (
                 "tall.obj",

@@ -12,7 +12,8 @@
 //! depends only on (seed, reader, i): a finding replays with `ptm-fuzz replay READER FILE`.
 //! Cases 0..corpus are the corpus files unmutated (regression inputs live there).
 //!
-//! Usage: `ptm-fuzz [--cases N] [--seed S] [READER…]`, `ptm-fuzz replay READER FILE`.
+//! Usage: `ptm-fuzz [--cases N] [--seed S] [READER…]`, `ptm-fuzz replay READER FILE`,
+//! `ptm-fuzz mutant READER SEED CASE OUT`, `ptm-fuzz gen-corpus`.
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::io::{BufRead, BufReader, Write};
 use std::path::{Path, PathBuf};
@@ -573,6 +574,15 @@ fn main() -> ExitCode {
         }
         Some("gen-corpus") => {
             gen_corpus();
+            return ExitCode::SUCCESS;
+        }
+        Some("mutant") => {
+            // `mutant READER SEED CASE OUT`: writes one mutant (to keep a finding).
+            let idx = reader(&args[1]);
+            let corpus = load_corpus(&READERS[idx]);
+            let n = |i: usize| args[i].parse::<u64>().unwrap();
+            let bytes = mutant(n(2), idx, n(3), &corpus, READERS[idx].text);
+            std::fs::write(&args[4], bytes).unwrap();
             return ExitCode::SUCCESS;
         }
         Some("replay") => {
