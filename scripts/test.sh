@@ -33,5 +33,8 @@ cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warning
 echo "== cargo test" >&2
 cargo test --workspace
 
+echo "== mutation fuzzing of the readers, 2000 mutants each (scripts/fuzz.sh N for more)" >&2
+bash scripts/fuzz.sh 2000
+
 echo "== farm bake on a real single-node Slurm (scripts/test-slurm.sh)" >&2
 bash scripts/test-slurm.sh
