@@ -1,4 +1,5 @@
-//! MIP chain of the caster opacity and its trilinear lookup (the CPU twin of `blur_mip`).
+//! MIP chains: of the caster opacity (looked up by `blur_mip`), and of a PTM's coefficients for
+//! files that store no levels.
 //!
 //! Built once per caster on the CPU (a static caster needs no per-frame rebuild; wgpu has no
 //! automatic mip generation). Level k texel covers 2^k × 2^k level-0 texels; texels beyond the
@@ -37,50 +38,6 @@ pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[
         (lw, lh, off) = (nw, nh, next_off);
     }
     (texels, levels)
-}
-
-fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
-    [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
-}
-
-fn mip_texel(mip: &[[f32; 4]], l: [u32; 4], x: i32, y: i32) -> [f32; 3] {
-    if x < 0 || y < 0 || x >= l[1] as i32 || y >= l[2] as i32 {
-        return [0.0; 3];
-    }
-    let t = mip[(l[0] + y as u32 * l[1] + x as u32) as usize];
-    [t[0], t[1], t[2]]
-}
-
-/// Bilinear sample of `level` at level-0 texel coordinate t.
-pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[[u32; 4]], level: u32, t: [f32; 2]) -> [f32; 3] {
-    let l = levels[level as usize];
-    let scale = (1u32 << level) as f32;
-    let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
-    let c0 = [c[0].floor(), c[1].floor()];
-    let a = [c[0] - c0[0], c[1] - c0[1]];
-    let (x, y) = (c0[0] as i32, c0[1] as i32);
-    mix3(
-        mix3(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
-        mix3(
-            mip_texel(mip, l, x, y + 1),
-            mip_texel(mip, l, x + 1, y + 1),
-            a[0],
-        ),
-        a[1],
-    )
-}
-
-/// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
-pub fn blur_mip(mip: &[[f32; 4]], levels: &[[u32; 4]], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
-    let top = levels.len() as u32 - 1;
-    let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
-    let l0 = lod as u32;
-    let l1 = (l0 + 1).min(top);
-    mix3(
-        mip_bilinear(mip, levels, l0, t),
-        mip_bilinear(mip, levels, l1, t),
-        lod - l0 as f32,
-    )
 }
 
 /// Appends the MIP chain of a tiled PTM to its texel-major coefficients (`n` per texel, `w`×`h`

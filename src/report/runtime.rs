@@ -221,7 +221,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
         let twin = cpu::render(&p);
         let finite = lit.pixels.iter().flatten().all(|v| v.is_finite());
         let [lx, _, lz] = c.light.position.map(f64::from);
-        let (r, d_ca) = (c.light.radius as f64, p.frame.caster[0] as f64);
+        let (r, d_ca) = (c.light.radius as f64, p.frame.caster_height as f64);
         let d_lc = lz - d_ca;
         let w = caster_radius(r, d_lc, d_ca);
         // Where the ray from cloth point x to the light centre meets the caster plane.
@@ -252,7 +252,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             .collect();
         // Texels straddling the edge are averaged by the caster's resolution: skip the two
         // pixels whose footprint (on the caster) holds the edge texel.
-        let texel = 8.0 / (p.frame.counts[1] as f64);
+        let texel = 8.0 / (p.frame.caster_size[0] as f64);
         let max_dev = xs
             .iter()
             .zip(measured.iter().zip(&analytic))
@@ -273,7 +273,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
         if p.caster_downsample > 1 {
             does += &format!(
                 " (downsampled ×{} to {}×{})",
-                p.caster_downsample, p.frame.counts[1], p.frame.counts[2]
+                p.caster_downsample, p.frame.caster_size[0], p.frame.caster_size[1]
             );
         }
         let ms = timings

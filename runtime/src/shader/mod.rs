@@ -13,6 +13,9 @@ use crate::{Error, Result};
 /// The shading shader, with directives.
 pub const SHADE_WGSL: &str = include_str!("shade.wgsl");
 
+/// The summed-area table passes.
+pub const SAT_WGSL: &str = include_str!("sat.wgsl");
+
 /// The defines a variant switches on.
 pub fn defines(v: &Variant) -> Vec<&'static str> {
     let mut d = Vec::new();
@@ -159,7 +162,7 @@ mod tests {
 
     #[test]
     fn compute_shaders_validate_with_naga() {
-        validate("sat.wgsl", crate::sat::SAT_WGSL).unwrap();
+        validate("sat.wgsl", SAT_WGSL).unwrap();
         validate("separable.wgsl", SEPARABLE_WGSL).unwrap();
     }
 
@@ -210,43 +213,6 @@ mod tests {
                 assert_eq!(src.contains(name), want, "{}: {name}", v.name());
             }
         }
-    }
-
-    #[test]
-    fn ptm_level_layout_matches_the_wgsl_struct() {
-        use crate::scene::PtmLevel;
-        use core::mem::offset_of;
-        let v = Variant::all()
-            .into_iter()
-            .find(|v| v.ptm_mip)
-            .expect("a MIP variant");
-        let module = validate(&v.name(), &shade_source(&v).unwrap()).unwrap();
-        let (members, span) = module
-            .types
-            .iter()
-            .find_map(|(_, t)| match &t.inner {
-                naga::TypeInner::Struct { members, span }
-                    if t.name.as_deref() == Some("PtmLevel") =>
-                {
-                    Some((members.clone(), *span))
-                }
-                _ => None,
-            })
-            .expect("struct PtmLevel in shade.wgsl");
-        let want = [
-            ("offset", offset_of!(PtmLevel, offset)),
-            ("width", offset_of!(PtmLevel, width)),
-            ("height", offset_of!(PtmLevel, height)),
-            ("pad", offset_of!(PtmLevel, pad)),
-            ("period", offset_of!(PtmLevel, period)),
-            ("pad2", offset_of!(PtmLevel, pad2)),
-        ];
-        let got: Vec<(&str, usize)> = members
-            .iter()
-            .map(|m| (m.name.as_deref().unwrap_or("?"), m.offset as usize))
-            .collect();
-        assert_eq!(got, want);
-        assert_eq!(span as usize, std::mem::size_of::<PtmLevel>());
     }
 
     #[test]
