@@ -106,6 +106,28 @@ impl PtmLevel {
     }
 }
 
+/// One level of the caster opacity's MIP chain: `struct MipLevel` in `shader/shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MipLevel {
+    /// First texel of the level in `Prepared::mip`.
+    pub offset: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: u32,
+}
+
+impl MipLevel {
+    pub fn new(offset: usize, width: usize, height: usize) -> MipLevel {
+        MipLevel {
+            offset: offset as u32,
+            width: width as u32,
+            height: height as u32,
+            pad: 0,
+        }
+    }
+}
+
 /// The summed-area table passes' uniform block: `struct SatParams` in `shader/sat.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -180,6 +202,15 @@ mod tests {
         shader::validate(&v.name(), &shader::shade_source(&v).unwrap()).unwrap()
     }
 
+    /// A variant with the caster's MIP chain.
+    fn mip_module() -> naga::Module {
+        let v = Variant::all()
+            .into_iter()
+            .find(|v| v.caster == Some(crate::scene::Blur::Mip))
+            .expect("a variant with the MIP blur");
+        shader::validate(&v.name(), &shader::shade_source(&v).unwrap()).unwrap()
+    }
+
     macro_rules! fields {
         ($t:ty: $($f:ident),* $(,)?) => {
             &[$((stringify!($f), offset_of!($t, $f))),*]
@@ -198,12 +229,15 @@ mod tests {
     }
 
     #[test]
-    fn light_and_ptm_level_match_the_wgsl_structs() {
+    fn light_and_mip_levels_match_the_wgsl_structs() {
         let m = shade_module();
         let want = fields!(LightGpu: position, radius, color, pad);
         check(&m, "Light", want, size_of::<LightGpu>());
         let want = fields!(PtmLevel: offset, width, height, pad, period, pad2);
         check(&m, "PtmLevel", want, size_of::<PtmLevel>());
+        let m = mip_module();
+        let want = fields!(MipLevel: offset, width, height, pad);
+        check(&m, "MipLevel", want, size_of::<MipLevel>());
     }
 
     #[test]

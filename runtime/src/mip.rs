@@ -5,8 +5,10 @@
 //! automatic mip generation). Level k texel covers 2^k × 2^k level-0 texels; texels beyond the
 //! caster count as transparent, so every level keeps "outside = 0".
 
-/// Levels concatenated (rgb opacity in 0..1, a unused) and per level (offset, w, h, 0).
-pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[u32; 4]>) {
+use crate::layout::MipLevel;
+
+/// Levels concatenated (rgb opacity in 0..1, a unused) and where each level lies in them.
+pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<MipLevel>) {
     let mut texels: Vec<[f32; 4]> = opacity
         .iter()
         .map(|o| {
@@ -14,7 +16,7 @@ pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[
             [c[0], c[1], c[2], 0.0]
         })
         .collect();
-    let mut levels = vec![[0, w as u32, h as u32, 0]];
+    let mut levels = vec![MipLevel::new(0, w, h)];
     let (mut lw, mut lh, mut off) = (w, h, 0usize);
     while lw > 1 || lh > 1 {
         let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
@@ -34,7 +36,7 @@ pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[
                 texels.push(s.map(|v| 0.25 * v));
             }
         }
-        levels.push([next_off as u32, nw as u32, nh as u32, 0]);
+        levels.push(MipLevel::new(next_off, nw, nh));
         (lw, lh, off) = (nw, nh, next_off);
     }
     (texels, levels)
@@ -98,11 +100,11 @@ mod tests {
         let (w, h) = (5, 3);
         let op: Vec<u32> = (0..15).map(|i| (i * 17) as u32 * 0x010101).collect();
         let (tex, levels) = build_chain(&op, w, h);
-        let dims: Vec<(u32, u32)> = levels.iter().map(|l| (l[1], l[2])).collect();
+        let dims: Vec<(u32, u32)> = levels.iter().map(|l| (l.width, l.height)).collect();
         assert_eq!(dims, vec![(5, 3), (3, 2), (2, 1), (1, 1)]);
         // The top texel covers 8 × 8 level-0 texels; outside the 5 × 3 caster is 0.
         let total: f32 = op.iter().map(|o| (o & 255) as f32 / 255.0).sum();
-        let top = tex[levels[3][0] as usize][0];
+        let top = tex[levels[3].offset as usize][0];
         assert!(
             (top - total / 64.0).abs() < 1e-6,
             "{top} vs {}",

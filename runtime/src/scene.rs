@@ -609,8 +609,8 @@ pub struct Prepared {
     pub opacity: Vec<u32>,
     /// MIP chain of the opacity (rgb in 0..1, a unused), all levels concatenated.
     pub mip: Vec<[f32; 4]>,
-    /// Per MIP level: offset into `mip`, width, height, 0.
-    pub mip_levels: Vec<[u32; 4]>,
+    /// Per MIP level of `mip`: where its texels start, its size.
+    pub mip_levels: Vec<crate::layout::MipLevel>,
     /// Separable blur: per-light radii and the padded map layout.
     pub separable: crate::separable::Plan,
     pub variant: Variant,

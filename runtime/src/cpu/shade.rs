@@ -5,7 +5,7 @@
 
 use ptm_fit::{Link, UvMap};
 
-use crate::layout::{Frame, LightGpu, PtmLevel};
+use crate::layout::{Frame, LightGpu, MipLevel, PtmLevel};
 use crate::scene::{Blur, Prepared, Variant};
 
 /// What replaces the blur method's caster opacity for (cloth point, light): the Monte Carlo
@@ -255,18 +255,18 @@ fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
     [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
 }
 
-/// Texel (x, y) of the opacity MIP level `l` (offset, w, h, 0); transparent outside.
-pub fn mip_texel(mip: &[[f32; 4]], l: [u32; 4], x: i32, y: i32) -> [f32; 3] {
-    if x < 0 || y < 0 || x >= l[1] as i32 || y >= l[2] as i32 {
+/// Texel (x, y) of the opacity MIP level `l`; transparent outside.
+pub fn mip_texel(mip: &[[f32; 4]], l: &MipLevel, x: i32, y: i32) -> [f32; 3] {
+    if x < 0 || y < 0 || x >= l.width as i32 || y >= l.height as i32 {
         return [0.0; 3];
     }
-    let t = mip[(l[0] + y as u32 * l[1] + x as u32) as usize];
+    let t = mip[(l.offset + y as u32 * l.width + x as u32) as usize];
     [t[0], t[1], t[2]]
 }
 
 /// Bilinear sample of `level` at level-0 texel coordinate t.
-pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[[u32; 4]], level: u32, t: [f32; 2]) -> [f32; 3] {
-    let l = levels[level as usize];
+pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 2]) -> [f32; 3] {
+    let l = &levels[level as usize];
     let scale = (1u32 << level) as f32;
     let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
     let c0 = [c[0].floor(), c[1].floor()];
@@ -284,7 +284,7 @@ pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[[u32; 4]], level: u32, t: [f32; 
 }
 
 /// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
-pub fn blur_mip(mip: &[[f32; 4]], levels: &[[u32; 4]], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
     let top = levels.len() as u32 - 1;
     let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
     let l0 = lod as u32;

@@ -57,7 +57,16 @@ struct Light {
 //#endif
 //#if BLUR_MIP
 @group(0) @binding(6) var<storage, read> mip: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read> mip_levels: array<vec4<u32>>; // offset, w, h, 0
+// One level of the caster opacity's MIP chain (`layout::MipLevel`): its texels start at
+// `offset` in `mip`.
+struct MipLevel {
+    offset: u32,
+    width: u32,
+    height: u32,
+    pad: u32,
+}
+
+@group(0) @binding(7) var<storage, read> mip_levels: array<MipLevel>;
 //#endif
 //#if BLUR_SEPARABLE
 @group(0) @binding(8) var<storage, read> sep_map: array<f32>; // [light][row][col][channel]
@@ -395,11 +404,11 @@ fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
 //#endif
 
 //#if BLUR_MIP
-fn mip_texel(l: vec4<u32>, x: i32, y: i32) -> vec3<f32> {
-    if (x < 0 || y < 0 || x >= i32(l.y) || y >= i32(l.z)) {
+fn mip_texel(l: MipLevel, x: i32, y: i32) -> vec3<f32> {
+    if (x < 0 || y < 0 || x >= i32(l.width) || y >= i32(l.height)) {
         return vec3<f32>(0.0);
     }
-    return mip[l.x + u32(y) * l.y + u32(x)].xyz;
+    return mip[l.offset + u32(y) * l.width + u32(x)].xyz;
 }
 
 // Bilinear sample of MIP `level` at level-0 texel coordinate t (transparent outside).
