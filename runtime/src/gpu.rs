@@ -138,7 +138,7 @@ pub struct Renderer {
     /// The uniform block, and the blur radius per light a separable variant's pre-blurred maps
     /// were made with (empty for other variants).
     frame: Frame,
-    separable_radii: Vec<[f32; 4]>,
+    separable_radii: Vec<[f32; 2]>,
     bind_group: wgpu::BindGroup,
     target: wgpu::Texture,
     size: [u32; 2],

@@ -12,9 +12,9 @@ use crate::layout::{Frame, LightGpu, SepParams};
 /// Per-light radii and the padded map layout.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Plan {
-    /// Per light: box half-sides (wt.x, wt.y) in caster texels, 1 if the caster shadows this
-    /// light (light above the caster plane), 0.
-    pub radii: Vec<[f32; 4]>,
+    /// Per light: box half-sides (wt.x, wt.y) in caster texels (½ texel, the least, for a light
+    /// not above the caster plane, whose map `light_opacity` never reads).
+    pub radii: Vec<[f32; 2]>,
     /// Texels of padding left/right (x) and above/below (y) of the caster.
     pub margin: [u32; 2],
     /// Padded map size.
@@ -42,19 +42,14 @@ pub fn plan(f: &Frame, lights: &[LightGpu]) -> Plan {
         (f.caster_rect[2] - f.caster_rect[0]) / w as f32,
         (f.caster_rect[3] - f.caster_rect[1]) / h as f32,
     ];
-    let radii: Vec<[f32; 4]> = lights
+    let radii: Vec<[f32; 2]> = lights
         .iter()
         .map(|l| {
             let (lz, r) = (l.position[2], l.radius);
             let hgt = f.caster_height;
             let active = lz > hgt;
             let wl = if active { r * hgt / lz } else { 0.0 };
-            [
-                (wl / texel[0]).max(0.5),
-                (wl / texel[1]).max(0.5),
-                if active { 1.0 } else { 0.0 },
-                0.0,
-            ]
+            [(wl / texel[0]).max(0.5), (wl / texel[1]).max(0.5)]
         })
         .collect();
     let max_x = radii.iter().map(|r| r[0]).fold(0.5, f32::max);

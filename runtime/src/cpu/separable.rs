@@ -13,7 +13,7 @@ pub fn texel(params: &SepParams, opacity: &[u32], j: u32, i: u32, ch: u32) -> u3
 
 /// Horizontal pass, every (light, caster row, channel) thread: the mean over x ± radii.x of the
 /// row (transparent outside) at each padded column centre. Layout `[light][row][padded col][ch]`.
-pub fn sep_h(params: &SepParams, opacity: &[u32], radii: &[[f32; 4]]) -> Vec<f32> {
+pub fn sep_h(params: &SepParams, opacity: &[u32], radii: &[[f32; 2]]) -> Vec<f32> {
     let [w, h] = params.size;
     let channels = params.channels;
     let pw = params.padded[0];
@@ -60,7 +60,7 @@ pub fn hval(params: &SepParams, hmap: &[f32], li: u32, j: u32, i: u32, ch: u32) 
 
 /// Vertical pass over the horizontal one, every (light, padded column, channel) thread:
 /// layout `[light][padded row][padded col][ch]`.
-pub fn sep_v(params: &SepParams, hmap: &[f32], radii: &[[f32; 4]]) -> Vec<f32> {
+pub fn sep_v(params: &SepParams, hmap: &[f32], radii: &[[f32; 2]]) -> Vec<f32> {
     let h = params.size[1];
     let channels = params.channels;
     let [pw, ph] = params.padded;

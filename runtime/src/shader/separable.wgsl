@@ -13,7 +13,7 @@ struct SepParams {
 
 @group(0) @binding(0) var<uniform> params: SepParams;
 @group(0) @binding(1) var<storage, read> opacity_tex: array<u32>;
-@group(0) @binding(2) var<storage, read> radii: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> radii: array<vec2<f32>>; // box half-sides x, y
 @group(0) @binding(3) var<storage, read_write> hmap: array<f32>; // [light][row][padded col][ch]
 @group(0) @binding(4) var<storage, read_write> vmap: array<f32>; // [light][padded row][col][ch]
 
