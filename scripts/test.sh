@@ -18,6 +18,12 @@ if cargo tree -p ptm-fit -e normal --prefix none | grep -E '^(embree4-sys|wgpu|w
     exit 1
 fi
 
+echo "== ptm-format (what a render pipeline takes) depends on no solver, thread pool, image codec, Embree or wgpu" >&2
+if cargo tree -p ptm-format -e normal --prefix none | grep -E '^(nalgebra|rayon|rayon-core|image|glob|embree4-sys|wgpu|wgpu-core|wgpu-hal|naga) ' ; then
+    echo "ptm-format must depend on none of nalgebra, rayon, image, glob, embree4-sys, wgpu, naga (see ARCHITECTURE.md)" >&2
+    exit 1
+fi
+
 echo "== cargo clippy --all-targets" >&2
 cargo clippy --workspace --all-targets -- -D warnings
 

@@ -3,7 +3,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_fit::hp::write_hp_lrgb;
+use ptm_fit::atomic::{same_file, Transaction};
+use ptm_fit::hp::encode_hp_lrgb;
 use ptm_fit::images::read_image_stack;
 use ptm_fit::solve::{fit_stack, ErrorStats, FitOptions, FitReport, Weight};
 use ptm_fit::{Basis, SampleStack, SaveOptions};
@@ -202,6 +203,19 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             ptm_fit::UvMap::from(args.model.uv).name()
         );
     }
+    // Every output is checked before the work (an output that is an input, two outputs that
+    // are one file, a missing directory) and all are published together at the end.
+    if let Some(input) = &args.input {
+        if same_file(input, &args.output) {
+            bail!(
+                "the output {} is the input stack: give the PTM another name",
+                args.output.display()
+            );
+        }
+    }
+    let mut outputs = vec![args.output.clone()];
+    outputs.extend(args.export_hp.iter().cloned());
+    let mut tx = Transaction::new(&outputs)?;
     let t0 = Instant::now();
     let (stack, source) = match (&args.input, &args.images) {
         (Some(_), Some(_)) => bail!("give either a sample stack or --images, not both"),
@@ -263,15 +277,26 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         report: Some(&report),
         error_map: args.error_map,
     };
-    ptm.save(&args.output, &save)
+    let bytes = ptm
+        .encode(&args.output, &save)
         .with_context(|| format!("writing {}", args.output.display()))?;
+    tx.stage_bytes(&args.output, &bytes)?;
+    drop(bytes);
+    let hp = match &args.export_hp {
+        Some(p) => {
+            let (bytes, e) = encode_hp_lrgb(&ptm, p, None)
+                .with_context(|| format!("writing {}", p.display()))?;
+            tx.stage_bytes(p, &bytes)?;
+            Some((p, e))
+        }
+        None => None,
+    };
+    tx.commit()?;
     let t_write = t1.elapsed().as_secs_f64();
     let half_bound = args.half.then(|| ptm.half_error_bound());
     print_summary(&report, args, half_bound);
-    let hp = match &args.export_hp {
-        Some(p) => {
-            let e =
-                write_hp_lrgb(&ptm, p, None).with_context(|| format!("writing {}", p.display()))?;
+    let hp = match hp {
+        Some((p, e)) => {
             eprintln!(
                 "ptm fit: wrote {} (HP PTM 1.2 LRGB, visibility 1 − K; 8-bit quantisation adds at most {:.2e} to K, {:.2e} on average)",
                 p.display(),

@@ -40,6 +40,17 @@ pub fn part_files(args: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
 pub fn run(args: &Args) -> anyhow::Result<Value> {
     let t0 = Instant::now();
     let files = part_files(&args.parts)?;
+    let lp = crate::bake::lp_path(&args.output);
+    if let Some(p) = files
+        .iter()
+        .find(|p| ptm_fit::atomic::same_file(p, &args.output) || ptm_fit::atomic::same_file(p, &lp))
+    {
+        bail!(
+            "the output {} (or its light file) is the part {}: give the merged file another name",
+            args.output.display(),
+            p.display()
+        );
+    }
     let bytes: u64 = files
         .iter()
         .filter_map(|p| std::fs::metadata(p).ok())
@@ -49,7 +60,6 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         .with_context(|| format!("merging into {}", args.output.display()))?;
     let (lights, width, height, kind) = (&merged.lights, merged.width, merged.height, &merged.kind);
     let t1 = Instant::now();
-    let lp = crate::bake::lp_path(&args.output);
     lights.write_lp(&lp)?;
     let t_write = t1.elapsed().as_secs_f64();
     let total = t0.elapsed().as_secs_f64();

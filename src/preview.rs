@@ -178,6 +178,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                     link: ptm_fit::Link::Identity,
                     uv: ptm_fit::UvMap::Projected,
                     mips: Vec::new(),
+                    coverage: None,
                     tile: [1.0, 1.0],
                     planes: vec![vec![0.0]; 6],
                 },

@@ -178,6 +178,56 @@ fn fit_command_errors_name_the_problem() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("--strict"));
 }
 
+/// `ptm fit` checks every output before the work and publishes all or none: an `--export-hp`
+/// into a missing directory leaves the main output untouched, and an output that is the input
+/// is refused.
+#[test]
+fn fit_command_outputs_are_one_transaction() {
+    let dir = tmpdir();
+    let (s, _) = stack(&dome(24), 4, 3, false);
+    let samples = dir.path().join("s.exr");
+    s.write(&samples).unwrap();
+    let o = dir.path().join("w.ptm.exr");
+    std::fs::write(&o, "previous output").unwrap();
+    let missing = dir.path().join("nodir/w.ptm");
+    let out = ptm()
+        .args(["fit", p(&samples), "-o", p(&o), "--export-hp", p(&missing)])
+        .args(PLAIN)
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("nodir"), "{err}");
+    assert_eq!(std::fs::read(&o).unwrap(), b"previous output");
+    let mut names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["s.exr", "w.ptm.exr"], "no temporary file left");
+    // The same file twice, or the input as output, is refused before any work.
+    for (out_path, hp) in [(&samples, None), (&o, Some(&o))] {
+        let mut cmd = ptm();
+        cmd.args(["fit", p(&samples), "-o", p(out_path)])
+            .args(PLAIN);
+        if let Some(hp) = hp {
+            cmd.args(["--export-hp", p(hp)]);
+        }
+        let out = cmd.output().unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("same file") || err.contains("is the input"),
+            "{err}"
+        );
+    }
+    assert_eq!(SampleStack::read(&samples).unwrap().k, s.k);
+    // Both outputs are written when both can be.
+    let hp = dir.path().join("w.ptm");
+    run_json(&["fit", p(&samples), "-o", p(&o), "--export-hp", p(&hp)]);
+    assert!(Ptm::load(&o).is_ok() && std::fs::metadata(&hp).unwrap().len() > 0);
+}
+
 /// An independent reader of HP PTM 1.2 LRGB files, written from the format description:
 /// whitespace-separated ASCII header (version, format, width, height, 6 scales, 6 biases), then
 /// 6 bytes per texel (rows bottom to top), then 3 bytes of RGB per texel.

@@ -27,6 +27,7 @@ fn write_ptm(dir: &Path) -> PathBuf {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [1.0, 1.0],
         planes,
     };

@@ -1,18 +1,19 @@
-//! `ptm-fit`: the occlusion PTM itself — polynomial bases, per-texel least squares, the PTM EXR
-//! format, `Ptm::load` and CPU evaluation of K(u, v).
-//!
-//! This crate is the boundary every other crate meets at, and all a render pipeline that only
-//! loads PTM files needs: it depends on neither Embree nor wgpu.
+//! `ptm-fit`: fitting occlusion PTMs — light sets, per-texel least squares and logistic
+//! maximum likelihood, the sample stack, farm parts — over the file layer `ptm-format` (bases,
+//! the PTM EXR format, `Ptm::load` and CPU evaluation of K(u, v)), which it re-exports: a
+//! render pipeline that only loads PTM files needs `ptm-format` alone. It depends on neither
+//! Embree nor wgpu.
 //!
 //! Conventions (docs/FORMAT.md): one tile spans [0, W]×[0, H] with z up; tangent +X, bitangent
 //! +Y; images have column 0 at x = 0 and **row 0 at the far edge y = H**; K is the fraction of a
 //! texel's footprint that cannot see the light (0 = lit, 1 = occluded); (u, v) = (l·X, l·Y) for
 //! the unit vector l towards the light.
 //!
-//! Modules: [`basis`] (monomial tables), [`lights`] (light sets, `.lp`), [`stack`] (the stored
+//! Modules: [`basis`] (monomial tables, from `ptm-format`), [`lights`] (light sets, `.lp`), [`stack`] (the stored
 //! sample stack `samples.exr`), [`solve`] (shared-design SVD fit, streaming [`Accumulator`],
 //! per-texel solves, diagnostics), [`ptm`] (the PTM EXR, [`Ptm::load`], [`Ptm::eval`]), [`hp`]
-//! (HP PTM 1.2 LRGB export), [`images`] (RTI PNG stacks). File layouts: docs/FORMAT.md.
+//! (HP PTM 1.2 LRGB export), [`atomic`] (atomic output) — these four from `ptm-format` —
+//! and [`images`] (RTI PNG stacks). File layouts: docs/FORMAT.md.
 //!
 //! Loading a PTM in a render pipeline:
 //! ```no_run
@@ -26,18 +27,18 @@
 // Index loops over terms and lights mirror the maths (cᵢ, Aᵢⱼ) and keep several arrays in step.
 #![allow(clippy::needless_range_loop)]
 
-pub mod atomic;
-pub mod basis;
-mod exrio;
-pub mod hp;
 pub mod images;
 pub mod lights;
 pub mod logistic;
-pub mod ptm;
 pub mod shard;
 mod simd;
 pub mod solve;
 pub mod stack;
+
+// The file layer, re-exported so `ptm_fit::Ptm`, `ptm_fit::basis::…` and `crate::ptm::…` here
+// keep naming the same items.
+pub use ptm_format::{atomic, basis, exrio, hp, ptm};
+pub use ptm_format::{Error as FormatError, FileFacts, ToFileFacts};
 
 pub use basis::{Basis, Link, Monomial, UvMap};
 pub use lights::LightSet;
@@ -75,3 +76,35 @@ pub enum Error {
 }
 
 pub type Result<T> = std::result::Result<T, Error>;
+
+/// The file layer's errors become the same-named variants here, so matches on
+/// `Error::Io` / `Error::Format` / `Error::Invalid` see them whichever crate raised them.
+impl From<ptm_format::Error> for Error {
+    fn from(e: ptm_format::Error) -> Error {
+        match e {
+            ptm_format::Error::Io { path, source } => Error::Io { path, source },
+            ptm_format::Error::Format { path, reason } => Error::Format { path, reason },
+            ptm_format::Error::Invalid(s) => Error::Invalid(s),
+        }
+    }
+}
+
+/// A fit's report states the facts its PTM file's header records.
+impl ToFileFacts for FitReport {
+    fn file_facts(&self) -> FileFacts<'_> {
+        FileFacts {
+            lights: self.lights,
+            lights_fit: self.lights_fit,
+            solver: &self.solver,
+            rank: self.rank,
+            cond: self.cond,
+            rms_mean: self.rms.mean,
+            rms_p99: self.rms.p99,
+            max_p99: self.max.map(|m| m.p99),
+            holdout: self.holdout.map(|h| (h.mean, h.p99)),
+            warnings: &self.warnings,
+            rms_map: &self.rms_map,
+            max_map: &self.max_map,
+        }
+    }
+}

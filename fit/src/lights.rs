@@ -124,10 +124,7 @@ impl LightSet {
 
     /// Writes an `.lp` file atomically.
     pub fn write_lp(&self, path: &Path) -> Result<()> {
-        crate::atomic::write_atomic(path, |f| {
-            use std::io::Write;
-            f.write_all(self.to_lp().as_bytes())
-        })
+        Ok(crate::atomic::write_bytes(path, self.to_lp().as_bytes())?)
     }
 }
 

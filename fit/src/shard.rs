@@ -192,7 +192,7 @@ fn light_attrs(lights: &LightSet) -> [(&'static str, Attr); 2] {
 /// Stands in for the checksum while the part is encoded (the same length as the real one).
 const UNSEALED: &str = "crc32:00000000";
 
-/// Writes a part atomically: encodes it with a placeholder checksum beside `path`, then writes
+/// Writes a part atomically: encodes it in memory with a placeholder checksum, then writes
 /// the bytes with the CRC-32 of everything but the checksum's own value filled in.
 fn write_sealed(
     path: &Path,
@@ -202,23 +202,13 @@ fn write_sealed(
     mut attrs: Vec<(&'static str, Attr)>,
 ) -> Result<()> {
     attrs.push(("part:checksum", Attr::Text(UNSEALED.into())));
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let stage = path.with_file_name(format!("{name}.{}.stage", std::process::id()));
-    let result = (|| {
-        exrio::write(&stage, width, rows, channels, attrs)?;
-        let mut bytes = std::fs::read(&stage).map_err(|e| Error::Io {
-            path: stage.display().to_string(),
-            source: e,
-        })?;
-        let unexpected = || err(path, "writing part: unexpected EXR layout");
-        let layout = chunks::Layout::parse(&bytes).ok_or_else(unexpected)?;
-        let crc = chunks::crc_without(&bytes, &layout, "part:checksum").ok_or_else(unexpected)?;
-        let at = layout.value("part:checksum").ok_or_else(unexpected)?;
-        bytes[at].copy_from_slice(format!("crc32:{crc:08x}").as_bytes());
-        crate::atomic::write_atomic(path, |w| std::io::Write::write_all(w, &bytes))
-    })();
-    let _ = std::fs::remove_file(&stage);
-    result
+    let mut bytes = exrio::encode(path, width, rows, channels, attrs)?;
+    let unexpected = || err(path, "writing part: unexpected EXR layout");
+    let layout = chunks::Layout::parse(&bytes).ok_or_else(unexpected)?;
+    let crc = chunks::crc_without(&bytes, &layout, "part:checksum").ok_or_else(unexpected)?;
+    let at = layout.value("part:checksum").ok_or_else(unexpected)?;
+    bytes[at].copy_from_slice(format!("crc32:{crc:08x}").as_bytes());
+    Ok(crate::atomic::write_bytes(path, &bytes)?)
 }
 
 /// Reads a part's bytes and checks them: its header and chunk table lie inside the file and
@@ -515,7 +505,7 @@ pub fn read_part(path: &Path) -> Result<Part> {
         "ptm" => {
             let name = c.text("part:basis", WHAT)?;
             let basis = Basis::from_name(&name)
-                .ok_or_else(|| c.error(format!("unknown basis {name:?}")))?;
+                .ok_or_else(|| c.error::<Error>(format!("unknown basis {name:?}")))?;
             let mut planes = Vec::with_capacity(basis.len());
             for m in basis.monomials() {
                 planes.push(c.take_f32(&channel_name(m.name), WHAT)?);
@@ -535,10 +525,12 @@ pub fn read_part(path: &Path) -> Result<Part> {
             let link = c.text("part:link", WHAT)?;
             let link = Link::from_name(&link)
                 .filter(|l| *l == Link::Identity)
-                .ok_or_else(|| c.error(format!("link {link:?}: only identity-link parts merge")))?;
+                .ok_or_else(|| {
+                    c.error::<Error>(format!("link {link:?}: only identity-link parts merge"))
+                })?;
             let uv = c.text("part:uv", WHAT)?;
-            let uv =
-                UvMap::from_name(&uv).ok_or_else(|| c.error(format!("unknown uv map {uv:?}")))?;
+            let uv = UvMap::from_name(&uv)
+                .ok_or_else(|| c.error::<Error>(format!("unknown uv map {uv:?}")))?;
             let mips = c.f64("part:mips", WHAT)? != 0.0;
             let ptm = Ptm {
                 basis,
@@ -549,6 +541,7 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 tile,
                 planes,
                 mips: Vec::new(),
+                coverage: None, // the merge's `finish_fit` sets the whole image's
             };
             PartData::Ptm(Box::new(PtmPart {
                 ptm,
@@ -886,6 +879,7 @@ fn finish_fit(ptm: &mut Ptm, fit: &mut FitReport, coverage: Vec<f32>, mips: bool
     fit.texels = ptm.width * ptm.height;
     fit.masked = masked.iter().filter(|&&m| m).count();
     fit.rms = ErrorStats::of(&fit.rms_map, &masked);
+    ptm.coverage = crate::solve::ptm_coverage(&coverage);
     fit.coverage = if coverage.iter().any(|&c| c < 1.0) {
         coverage
     } else {

@@ -215,6 +215,11 @@ fn partial_coverage(coverage: &[f32]) -> Vec<f32> {
     }
 }
 
+/// The coverage a fitted [`Ptm`] carries: the map when some texel is not fully covered.
+pub(crate) fn ptm_coverage(coverage: &[f32]) -> Option<Vec<f32>> {
+    coverage.iter().any(|&c| c < 1.0).then(|| coverage.to_vec())
+}
+
 /// Evenly spread hold-out lights: index ⌊(j + ½)·n / h⌋ for j < h.
 pub fn holdout_indices(n: usize, h: usize) -> Vec<usize> {
     (0..h.min(n))
@@ -719,6 +724,7 @@ fn fit_logistic(
         tile,
         planes,
         mips,
+        coverage: None, // set by the caller, which knows the coverage
     };
     Ok((ptm, report))
 }
@@ -1284,6 +1290,7 @@ impl Accumulator {
             mips: Vec::new(),
             tile,
             planes,
+            coverage: ptm_coverage(&self.full_coverage),
         };
         report.rms = ErrorStats::of(&rms_map, &self.masked);
         report.rms_map = rms_map;
@@ -1340,7 +1347,7 @@ impl Accumulator {
                 cov: &self.cov,
             }
         };
-        let (ptm, mut report) = fit_logistic(
+        let (mut ptm, mut report) = fit_logistic(
             &src,
             &self.prep,
             &self.lights,
@@ -1350,6 +1357,7 @@ impl Accumulator {
             &self.opts,
         )?;
         report.coverage = partial_coverage(&self.full_coverage);
+        ptm.coverage = ptm_coverage(&self.full_coverage);
         report.seconds.insert(0, ("accumulate", t_acc));
         Ok((ptm, report))
     }
@@ -1537,7 +1545,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         k: &stack.k,
         coverage: &stack.coverage,
     };
-    let (ptm, mut report) = fit_logistic(
+    let (mut ptm, mut report) = fit_logistic(
         &src,
         &prep,
         &stack.lights,
@@ -1547,6 +1555,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         opts,
     )?;
     report.coverage = partial_coverage(&stack.coverage);
+    ptm.coverage = ptm_coverage(&stack.coverage);
     report.skipped_samples = skipped;
     if skipped > 0 {
         report.warnings.push(format!(
@@ -1735,6 +1744,7 @@ fn fit_stack_identity(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         mips: Vec::new(),
         tile: stack.tile,
         planes,
+        coverage: ptm_coverage(&stack.coverage),
     };
     Ok((ptm, report))
 }

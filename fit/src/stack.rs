@@ -114,7 +114,13 @@ impl SampleStack {
             }
         }
         let attrs = self.header_attrs();
-        exrio::write(path, self.width, self.height, channels, attrs)
+        Ok(exrio::write(
+            path,
+            self.width,
+            self.height,
+            channels,
+            attrs,
+        )?)
     }
 
     /// The `stack:*` header attributes of this stack (also written into farm parts, whose
@@ -222,7 +228,9 @@ impl SampleStack {
             coverage,
             uv,
         };
-        stack.validate().map_err(|e| c.error(e.to_string()))?;
+        stack
+            .validate()
+            .map_err(|e| c.error::<Error>(e.to_string()))?;
         Ok(stack)
     }
 }

@@ -26,6 +26,7 @@ fn sample_ptm(basis: Basis) -> Ptm {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [1.5, 0.75],
         planes,
     }
@@ -153,25 +154,72 @@ fn channels_are_named_by_monomial_and_header_is_complete() {
     holed.coverage[7] = 0.25;
     let (ptm, report) = fit_stack(&holed, &FitOptions::new(Basis::Ptm6)).unwrap();
     assert_eq!(report.coverage, holed.coverage);
+    assert_eq!(ptm.coverage.as_ref(), Some(&holed.coverage), "stored stack");
     let mut acc = ptm_fit::Accumulator::new(&lights, 4, 3, &FitOptions::new(Basis::Ptm6)).unwrap();
     acc.set_coverage(&holed.coverage).unwrap();
     for (i, plane) in holed.k.iter().enumerate() {
         acc.add_light(i, plane).unwrap();
     }
-    let (_, streamed) = acc.finish([1.0, 2.0]).unwrap();
+    let (streamed_ptm, streamed) = acc.finish([1.0, 2.0]).unwrap();
     assert_eq!(streamed.coverage, holed.coverage);
+    assert_eq!(
+        streamed_ptm.coverage.as_ref(),
+        Some(&holed.coverage),
+        "identity stream"
+    );
+    // The logistic link, stored and streamed, with MIP levels.
+    let mut logistic = FitOptions::new(Basis::Ptm6);
+    logistic.link = ptm_fit::Link::Logistic;
+    logistic.mips = true;
+    let mut binary = holed.clone();
+    for k in &mut binary.k {
+        for x in k.iter_mut() {
+            *x = if *x > 0.5 { 1.0 } else { 0.0 };
+        }
+    }
+    let (lptm, _) = fit_stack(&binary, &logistic).unwrap();
+    assert_eq!(
+        lptm.coverage.as_ref(),
+        Some(&holed.coverage),
+        "logistic stack"
+    );
+    let mut lacc = ptm_fit::Accumulator::new(&lights, 4, 3, &logistic).unwrap();
+    lacc.set_coverage(&holed.coverage).unwrap();
+    lacc.set_spp(4).unwrap();
+    for (i, plane) in binary.k.iter().enumerate() {
+        lacc.add_light(i, plane).unwrap();
+    }
+    let (lstreamed, _) = lacc.finish([1.0, 2.0]).unwrap();
+    assert_eq!(
+        lstreamed.coverage.as_ref(),
+        Some(&holed.coverage),
+        "logistic stream"
+    );
+    // A fully covered fit carries none.
+    let (full, _) = fit_stack(&stack, &FitOptions::new(Basis::Ptm6)).unwrap();
+    assert_eq!(full.coverage, None);
     let opts = SaveOptions {
         half: true,
         report: Some(&report),
         error_map: false,
     };
     ptm.save(&p, &opts).unwrap();
-    let (_, info) = Ptm::load_with_info(&p).unwrap();
+    let (back, info) = Ptm::load_with_info(&p).unwrap();
     assert_eq!(
         info.coverage.unwrap(),
         holed.coverage,
         "0, 0.25 and 1 are exact in half"
     );
+    assert_eq!(back.coverage.as_ref(), Some(&holed.coverage));
+    // load → save → load keeps it (the file's own facts are not needed for that), and the
+    // logistic PTM's MIP-mapped file too.
+    let p2 = dir.join("again.ptm.exr");
+    back.save(&p2, &SaveOptions::default()).unwrap();
+    assert_eq!(Ptm::load(&p2).unwrap().coverage, back.coverage);
+    lptm.save(&p2, &SaveOptions::default()).unwrap();
+    let lback = Ptm::load(&p2).unwrap();
+    assert!(!lback.mips.is_empty());
+    assert_eq!(lback, lptm);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

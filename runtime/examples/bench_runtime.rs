@@ -29,6 +29,7 @@ fn ptm11(n: usize) -> Ptm {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [1.0, 1.0],
         planes,
     }

@@ -59,4 +59,11 @@ pub enum Error {
     Fit(#[from] ptm_fit::Error),
 }
 
+/// The PTM file layer's errors (loading, saving, atomic output) arrive as fit errors.
+impl From<ptm_fit::FormatError> for Error {
+    fn from(e: ptm_fit::FormatError) -> Error {
+        Error::Fit(e.into())
+    }
+}
+
 pub type Result<T> = std::result::Result<T, Error>;

@@ -93,18 +93,17 @@ impl Image {
     /// Writes the linear radiance as an RGB f32 EXR atomically.
     pub fn write_exr(&self, path: &Path) -> Result<()> {
         use exr::prelude::*;
-        let tmp = ptm_fit::atomic::tmp_path(path);
-        let written = write_rgb_file(&tmp, self.width, self.height, |x, y| {
-            let p = self.pixels[y * self.width + x];
-            (p[0], p[1], p[2])
+        // A failed EXR write publishes nothing (the temporary file is removed).
+        ptm_fit::atomic::write_path(path, |tmp| {
+            write_rgb_file(tmp, self.width, self.height, |x, y| {
+                let p = self.pixels[y * self.width + x];
+                (p[0], p[1], p[2])
+            })
+            .map_err(|e| crate::Error::Image {
+                path: path.display().to_string(),
+                reason: e.to_string(),
+            })
         })
-        .map_err(|e| crate::Error::Image {
-            path: path.display().to_string(),
-            reason: e.to_string(),
-        });
-        let committed = ptm_fit::atomic::commit_tmp(&tmp, path, Ok(()));
-        written?;
-        Ok(committed?)
     }
 }
 
@@ -136,4 +135,37 @@ pub fn read_rgba8(path: &Path) -> Result<(usize, usize, Vec<[u8; 4]>)> {
     let (w, h) = rgba.dimensions();
     let texels = rgba.pixels().map(|p| p.0).collect();
     Ok((w as usize, h as usize, texels))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failed_exr_write_publishes_nothing() {
+        let dir = std::env::temp_dir().join(format!("ptm-runtime-output-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("render.exr");
+        let one = Image {
+            width: 2,
+            height: 1,
+            pixels: vec![[0.5, 0.25, 1.0, 1.0]; 2],
+        };
+        one.write_exr(&p).unwrap();
+        let good = std::fs::read(&p).unwrap();
+        // An empty image is no EXR: the write fails, the old file stays, no temporary is left.
+        let empty = Image {
+            width: 0,
+            height: 0,
+            pixels: Vec::new(),
+        };
+        assert!(empty.write_exr(&p).is_err());
+        assert_eq!(std::fs::read(&p).unwrap(), good);
+        let names: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(names, ["render.exr"]);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

@@ -822,6 +822,7 @@ mod tests {
             link: ptm_fit::Link::Identity,
             uv: ptm_fit::UvMap::Projected,
             mips: Vec::new(),
+            coverage: None,
             tile: [1.0, 1.0],
             // K = 0.3 everywhere: the PTM darkens by 30 %.
             planes: (0..6)

@@ -147,6 +147,7 @@ fn checker_ptm() -> ptm_fit::Ptm {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [1.0, 1.0],
         planes,
     }

@@ -237,6 +237,7 @@ fn constant_ptm(k: f32) -> Ptm {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [0.5, 0.5],
         planes,
     }

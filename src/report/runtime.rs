@@ -44,6 +44,7 @@ fn cloth(n: usize) -> Ptm {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [0.5, 0.5],
         planes,
     }

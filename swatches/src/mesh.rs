@@ -68,23 +68,16 @@ impl Mesh {
 
     /// Writes the mesh as Wavefront OBJ (`v`, then `f` with 1-based indices), atomically: to a
     /// temporary file beside `path`, then renamed over it. The tile size goes in a leading
-    /// comment (`# tile W H`), which [`Mesh::read_obj`] reads back.
+    /// comment (`# tile W H`), which [`Mesh::read_obj`] reads back. Uses `ptm_format::atomic`, as
+    /// every writer of the workspace does.
     pub fn write_obj(&self, path: &Path) -> Result<()> {
-        let io = |source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        };
-        let mut name = path.file_name().unwrap_or_default().to_os_string();
-        name.push(".tmp");
-        let tmp = path.with_file_name(name);
-        let file = std::fs::File::create(&tmp).map_err(io)?;
-        let mut w = std::io::BufWriter::new(file);
-        self.write_obj_to(&mut w).map_err(io)?;
-        w.into_inner()
-            .map_err(|e| io(e.into_error()))?
-            .sync_all()
-            .map_err(io)?;
-        std::fs::rename(&tmp, path).map_err(io)
+        ptm_format::atomic::write_atomic(path, |w| self.write_obj_to(w)).map_err(|e| match e {
+            ptm_format::Error::Io { source, .. } => Error::Io {
+                path: path.to_path_buf(),
+                source,
+            },
+            other => Error::Invalid(other.to_string()),
+        })
     }
 
     /// The OBJ text of [`Mesh::write_obj`] into any writer.

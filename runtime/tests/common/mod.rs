@@ -40,6 +40,7 @@ pub fn random_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
         link: ptm_fit::Link::Identity,
         uv: ptm_fit::UvMap::Projected,
         mips: Vec::new(),
+        coverage: None,
         tile: [1.0, 1.0],
         planes,
     }

@@ -1,6 +1,10 @@
-//! Thin layer over the `exr` crate shared by the sample stack and the PTM file: single-part
-//! scanline files, ZIP compression, named flat channels, portable header attributes (text, text
-//! vector, f64, i32), written atomically.
+//! Thin layer over the `exr` crate shared by the sample stack, the PTM file and the farm parts:
+//! single-part scanline (or tiled MIP-mapped) files, ZIP compression, named flat channels,
+//! portable header attributes (text, text vector, f64, i32), encoded in memory with the header
+//! attributes sorted (byte-identical files for identical content) and written atomically.
+//!
+//! Header text is written as UTF-8 (what OpenEXR's Python bindings decode) and read leniently:
+//! bytes that are not UTF-8 are taken as Latin-1, as files before this version wrote them.
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -11,36 +15,36 @@ use exr::prelude::*;
 use crate::{Error, Result};
 
 /// Samples of one channel as stored: f32 or half.
-pub(crate) enum Samples {
+pub enum Samples {
     F32(Vec<f32>),
     F16(Vec<f16>),
 }
 
 /// A header attribute of one of the portable types.
 #[derive(Clone, Debug, PartialEq)]
-pub(crate) enum Attr {
+pub enum Attr {
     Text(String),
     Texts(Vec<String>),
     F64(f64),
     I32(i32),
 }
 
-/// EXR `Text` holds bytes (Latin-1); characters outside it are written as `?`.
+/// EXR `Text` holds bytes; we write UTF-8.
 fn text(s: &str) -> Text {
-    Text::from_bytes_unchecked(
-        s.chars()
-            .map(|c| u8::try_from(c as u32).unwrap_or(b'?'))
-            .collect(),
-    )
+    Text::from_bytes_unchecked(s.as_bytes().into())
 }
 
+/// UTF-8 when the bytes are, else Latin-1 (files written before headers were UTF-8).
 fn string(t: &Text) -> String {
-    t.bytes().iter().map(|&b| b as char).collect()
+    match std::str::from_utf8(t.bytes()) {
+        Ok(s) => s.to_string(),
+        Err(_) => t.bytes().iter().map(|&b| b as char).collect(),
+    }
 }
 
 /// Writes a width×height single-part EXR with ZIP (16 scanlines per block) compression.
 /// Row 0 of every channel is the first scanline (the top of the image).
-pub(crate) fn write(
+pub fn write(
     path: &Path,
     width: usize,
     height: usize,
@@ -51,8 +55,20 @@ pub(crate) fn write(
     write_levels(path, width, height, levels, attrs)
 }
 
+/// The bytes of the file [`write`] writes (`path` names it in errors only).
+pub fn encode(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Samples)>,
+    attrs: Vec<(&str, Attr)>,
+) -> Result<Vec<u8>> {
+    let levels = channels.into_iter().map(|(n, s)| (n, vec![s])).collect();
+    encode_levels(path, width, height, levels, attrs)
+}
+
 /// Tile size of MIP-mapped files (as `maketx` writes them).
-pub(crate) const TILE: usize = 64;
+pub const TILE: usize = 64;
 
 fn flat(s: Samples) -> FlatSamples {
     match s {
@@ -64,13 +80,25 @@ fn flat(s: Samples) -> FlatSamples {
 /// Writes a single-part EXR whose channels carry one entry per resolution level: one level is
 /// a plain scanline file (as [`write`]); more make a tiled (64×64, ZIP) `MIPMAP_LEVELS` file with
 /// `ROUND_DOWN` sizes, levels 0, 1, … down to 1×1 — the form texture systems read.
-pub(crate) fn write_levels(
+pub fn write_levels(
     path: &Path,
     width: usize,
     height: usize,
     channels: Vec<(String, Vec<Samples>)>,
     attrs: Vec<(&str, Attr)>,
 ) -> Result<()> {
+    let bytes = encode_levels(path, width, height, channels, attrs)?;
+    crate::atomic::write_bytes(path, &bytes)
+}
+
+/// The bytes of the file [`write_levels`] writes (`path` names it in errors only).
+pub fn encode_levels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Vec<Samples>)>,
+    attrs: Vec<(&str, Attr)>,
+) -> Result<Vec<u8>> {
     let mipped = channels.first().is_some_and(|(_, l)| l.len() > 1);
     let list: SmallVec<[AnyChannel<Levels<FlatSamples>>; 4]> = channels
         .into_iter()
@@ -106,30 +134,26 @@ pub(crate) fn write_levels(
         Encoding::SMALL_LOSSLESS
     };
     let layer = Layer::new((width, height), la, encoding, AnyChannels::sort(list));
-    let tmp = crate::atomic::tmp_path(path);
-    let written = Image::from_layer(layer)
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    Image::from_layer(layer)
         .write()
-        .to_file(&tmp)
+        .to_buffered(&mut bytes)
         .map_err(|e| Error::Format {
             path: path.display().to_string(),
             reason: format!("writing EXR: {e}"),
-        })
-        .and_then(|_| sort_header_attributes(&tmp));
-    crate::atomic::commit_tmp(&tmp, path, written)
+        })?;
+    let mut bytes = bytes.into_inner();
+    sort_header_attributes(&mut bytes, path)?;
+    Ok(bytes)
 }
 
-/// Rewrites the header of the single-part EXR at `path` with its attributes sorted by name.
+/// Rewrites the header of the single-part EXR in `bytes` with its attributes sorted by name.
 ///
 /// The `exr` crate keeps custom attributes in a `HashMap` and writes them in its (random,
 /// per-process) iteration order, so the same image would give different bytes on every run.
 /// Sorting the attribute records in place keeps the header's length, so the offset table after
 /// it stays valid, and makes files byte-identical for identical content.
-fn sort_header_attributes(path: &Path) -> Result<()> {
-    let io = |e: std::io::Error| Error::Io {
-        path: path.display().to_string(),
-        source: e,
-    };
-    let mut bytes = std::fs::read(path).map_err(io)?;
+fn sort_header_attributes(bytes: &mut [u8], path: &Path) -> Result<()> {
     let bad = || Error::Format {
         path: path.display().to_string(),
         reason: "writing EXR: unexpected header layout".into(),
@@ -182,11 +206,11 @@ fn sort_header_attributes(path: &Path) -> Result<()> {
         .flat_map(|&(a, b)| bytes[a..b].to_vec())
         .collect();
     bytes[8..8 + header.len()].copy_from_slice(&header);
-    std::fs::write(path, &bytes).map_err(io)
+    Ok(())
 }
 
 /// The contents of a single-part flat EXR: channels by name, header attributes by name.
-pub(crate) struct Contents {
+pub struct Contents {
     pub path: String,
     pub width: usize,
     pub height: usize,
@@ -199,7 +223,7 @@ pub(crate) struct Contents {
 }
 
 /// Reads every channel and attribute of the first layer. Attributes of other types are skipped.
-pub(crate) fn read(path: &Path) -> Result<Contents> {
+pub fn read(path: &Path) -> Result<Contents> {
     let shown = path.display().to_string();
     if let Err(e) = std::fs::metadata(path) {
         return Err(Error::Io {
@@ -326,7 +350,8 @@ impl Contents {
         }
     }
 
-    pub fn error(&self, reason: impl Into<String>) -> Error {
-        self.bad(reason.into())
+    /// A format error naming this file, as the caller's error type (`ptm_fit::Error` converts).
+    pub fn error<E: From<Error>>(&self, reason: impl Into<String>) -> E {
+        self.bad(reason.into()).into()
     }
 }

@@ -7,7 +7,7 @@
 //!
 //! Loading a PTM needs this crate only:
 //! ```no_run
-//! use ptm_fit::Ptm;
+//! use ptm_format::Ptm;
 //! let ptm = Ptm::load("weave.ptm.exr".as_ref())?;
 //! // A light at 30° elevation along +X: l = (cos 30°, 0, sin 30°), so (u, v) = (0.866, 0).
 //! let k = ptm.eval(10, 20, 0.866, 0.0); // occluded fraction at column 10, row 20, in [0, 1]
@@ -16,14 +16,14 @@
 //! let names: Vec<&str> = ptm.basis.monomials().iter().map(|m| m.name).collect();
 //! let c = ptm.coeffs(10, 20);
 //! # let _ = (visibility, names, c);
-//! # Ok::<(), ptm_fit::Error>(())
+//! # Ok::<(), ptm_format::Error>(())
 //! ```
 use std::path::Path;
 
 use half::f16;
 
 use crate::exrio::{self, Attr, Samples};
-use crate::{Basis, Error, FitReport, Link, Result, UvMap};
+use crate::{Basis, Error, Link, Result, UvMap};
 
 /// Value of `ptm:version` for a plain PTM (identity link, projected (u, v)): every reader of
 /// version 1 evaluates it correctly.
@@ -63,17 +63,76 @@ pub struct Ptm {
     /// stores none (a renderer may then average coefficients, which is exact only for the
     /// identity link).
     pub mips: Vec<Level>,
+    /// Per-texel coverage of level 0, row-major: the fraction of the texel's footprint with
+    /// cloth under it (0 = a hole, where the coefficients are 0 and K means nothing). `None`
+    /// when every texel is fully covered. Stored as the `coverage` channel (with box-averaged
+    /// MIP levels when the file has levels).
+    pub coverage: Option<Vec<f32>>,
 }
 
 /// How [`Ptm::save`] writes the file.
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Default)]
 pub struct SaveOptions<'a> {
     /// Store coefficients as half floats (see [`Ptm::half_error_bound`] for the added error).
     pub half: bool,
-    /// The fit's diagnostics, recorded in the header (light count, solver, rank, errors).
-    pub report: Option<&'a FitReport>,
+    /// The fit's facts, recorded in the header (light count, solver, rank, errors): anything
+    /// that can state them as [`FileFacts`] (`ptm_fit::FitReport` does, and so does a
+    /// `FileFacts` itself).
+    pub report: Option<&'a dyn ToFileFacts>,
     /// Also write the per-texel residual maps `err.rms` and `err.max` from `report`.
     pub error_map: bool,
+}
+
+impl std::fmt::Debug for SaveOptions<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("SaveOptions")
+            .field("half", &self.half)
+            .field("report", &self.report.map(|r| r.file_facts()))
+            .field("error_map", &self.error_map)
+            .finish()
+    }
+}
+
+/// The file-level facts of a fit that a PTM header records beside the coefficients, borrowed
+/// from whatever produced them (the fitter's report). Every figure is the whole file's.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FileFacts<'a> {
+    /// Lights in the light set (`ptm:nLights`).
+    pub lights: usize,
+    /// Lights the fit used, hold-out lights excluded (`ptm:nLightsFit`).
+    pub lights_fit: usize,
+    /// The solver in words (`ptm:solver`).
+    pub solver: &'a str,
+    /// Rank of the design (`ptm:rank`).
+    pub rank: usize,
+    /// Condition number of the design; not recorded when infinite (`ptm:cond`).
+    pub cond: f64,
+    /// Mean and 99th percentile over covered texels of the per-texel RMS error of K
+    /// (`ptm:rmsMean`, `ptm:rmsP99`).
+    pub rms_mean: f64,
+    pub rms_p99: f64,
+    /// 99th percentile of the per-texel maximum error of K, when measured (`ptm:maxErrP99`).
+    pub max_p99: Option<f64>,
+    /// Mean and 99th percentile of the RMS error of K on hold-out lights, when some were held
+    /// out (`ptm:holdoutRmsMean`, `ptm:holdoutRmsP99`).
+    pub holdout: Option<(f64, f64)>,
+    /// Warnings in words (`ptm:warnings`).
+    pub warnings: &'a [String],
+    /// Per-texel RMS and maximum error of K, row-major (empty when not computed); written as
+    /// `err.rms` / `err.max` when [`SaveOptions::error_map`] is set.
+    pub rms_map: &'a [f32],
+    pub max_map: &'a [f32],
+}
+
+/// Something that states the [`FileFacts`] of a PTM file.
+pub trait ToFileFacts {
+    fn file_facts(&self) -> FileFacts<'_>;
+}
+
+impl ToFileFacts for FileFacts<'_> {
+    fn file_facts(&self) -> FileFacts<'_> {
+        *self
+    }
 }
 
 /// Header facts of a PTM file beside the coefficients.
@@ -98,13 +157,18 @@ pub fn channel_name(monomial: &str) -> String {
     format!("ptm.{monomial}")
 }
 
-/// Sizes of MIP levels 1, 2, … of a width × height image down to 1×1, halving and rounding
-/// down (never below 1), as OpenEXR's `MIPMAP_LEVELS` with `ROUND_DOWN`.
+/// Sizes of MIP levels 1, 2, … of a width × height image down to 1×1, halving a side while it
+/// is above 1 and rounding down, as OpenEXR's `MIPMAP_LEVELS` with `ROUND_DOWN` (tested against
+/// the exr crate; the logistic fitter's pooling chain is tested against this).
 pub fn mip_sizes(width: usize, height: usize) -> Vec<(usize, usize)> {
-    crate::logistic::Footprint::chain(width, height)[1..]
-        .iter()
-        .map(|f| (f.width, f.height))
-        .collect()
+    let mut out = Vec::new();
+    let (mut w, mut h) = (width, height);
+    while w > 1 || h > 1 {
+        w = if w > 1 { w / 2 } else { 1 };
+        h = if h > 1 { h / 2 } else { 1 };
+        out.push((w, h));
+    }
+    out
 }
 
 impl Ptm {
@@ -125,6 +189,7 @@ impl Ptm {
             tile,
             planes,
             mips: Vec::new(),
+            coverage: None,
         }
     }
 
@@ -196,6 +261,29 @@ impl Ptm {
                 self.basis.len()
             )));
         }
+        if let Some(cov) = &self.coverage {
+            if cov.len() != n {
+                return Err(Error::Invalid(format!(
+                    "PTM {}×{}: coverage has {} texels, not {n}",
+                    self.width,
+                    self.height,
+                    cov.len()
+                )));
+            }
+            if let Some((i, c)) = cov
+                .iter()
+                .enumerate()
+                .find(|(_, c)| !(0.0..=1.0).contains(*c))
+            {
+                return Err(Error::Invalid(format!(
+                    "PTM {}×{}: coverage {c} at texel (column {}, row {}) is not a fraction in [0, 1]",
+                    self.width,
+                    self.height,
+                    i % self.width,
+                    i / self.width
+                )));
+            }
+        }
         if !self.mips.is_empty() {
             let want = mip_sizes(self.width, self.height);
             let got: Vec<(usize, usize)> = self.mips.iter().map(|l| (l.width, l.height)).collect();
@@ -243,6 +331,13 @@ impl Ptm {
 
     /// Writes the PTM EXR atomically.
     pub fn save(&self, path: &Path, opts: &SaveOptions) -> Result<()> {
+        let bytes = self.encode(path, opts)?;
+        crate::atomic::write_bytes(path, &bytes)
+    }
+
+    /// The bytes of the PTM EXR [`Ptm::save`] writes (`path` names the file in errors only), to
+    /// stage in an [`atomic::Transaction`](crate::atomic::Transaction) with other outputs.
+    pub fn encode(&self, path: &Path, opts: &SaveOptions) -> Result<Vec<u8>> {
         self.validate()?;
         if opts.half {
             let big = std::iter::once(&self.planes)
@@ -330,41 +425,42 @@ impl Ptm {
                 Attr::Text(format!("ptm-fit {}", env!("CARGO_PKG_VERSION"))),
             ),
         ];
+        if let Some(cov) = &self.coverage {
+            // Holes in the cloth: coefficients 0 there, which reads as "lit" without this.
+            channels.push(("coverage".into(), with_levels(cov)));
+        }
         if let Some(r) = opts.report {
+            let r = r.file_facts();
             attrs.push(("ptm:nLights", Attr::I32(r.lights as i32)));
             attrs.push(("ptm:nLightsFit", Attr::I32(r.lights_fit as i32)));
-            attrs.push(("ptm:solver", Attr::Text(r.solver.clone())));
+            attrs.push(("ptm:solver", Attr::Text(r.solver.into())));
             attrs.push(("ptm:rank", Attr::I32(r.rank as i32)));
             if r.cond.is_finite() {
                 attrs.push(("ptm:cond", Attr::F64(r.cond)));
             }
-            attrs.push(("ptm:rmsMean", Attr::F64(r.rms.mean)));
-            attrs.push(("ptm:rmsP99", Attr::F64(r.rms.p99)));
-            if let Some(m) = r.max {
-                attrs.push(("ptm:maxErrP99", Attr::F64(m.p99)));
+            attrs.push(("ptm:rmsMean", Attr::F64(r.rms_mean)));
+            attrs.push(("ptm:rmsP99", Attr::F64(r.rms_p99)));
+            if let Some(m) = r.max_p99 {
+                attrs.push(("ptm:maxErrP99", Attr::F64(m)));
             }
-            if let Some(h) = r.holdout {
-                attrs.push(("ptm:holdoutRmsMean", Attr::F64(h.mean)));
-                attrs.push(("ptm:holdoutRmsP99", Attr::F64(h.p99)));
+            if let Some((mean, p99)) = r.holdout {
+                attrs.push(("ptm:holdoutRmsMean", Attr::F64(mean)));
+                attrs.push(("ptm:holdoutRmsP99", Attr::F64(p99)));
             }
             if !r.warnings.is_empty() {
-                attrs.push(("ptm:warnings", Attr::Texts(r.warnings.clone())));
-            }
-            if r.coverage.len() == self.width * self.height {
-                // Holes in the cloth: coefficients 0 there, which reads as "lit" without this.
-                channels.push(("coverage".into(), with_levels(&r.coverage)));
+                attrs.push(("ptm:warnings", Attr::Texts(r.warnings.to_vec())));
             }
             if opts.error_map {
                 let n = self.width * self.height;
                 if r.rms_map.len() == n {
-                    channels.push(("err.rms".into(), with_levels(&r.rms_map)));
+                    channels.push(("err.rms".into(), with_levels(r.rms_map)));
                 }
                 if r.max_map.len() == n {
-                    channels.push(("err.max".into(), with_levels(&r.max_map)));
+                    channels.push(("err.max".into(), with_levels(r.max_map)));
                 }
             }
         }
-        exrio::write_levels(path, self.width, self.height, channels, attrs)
+        exrio::encode_levels(path, self.width, self.height, channels, attrs)
     }
 
     /// Loads a PTM EXR. A file that is not a PTM, lacks a coefficient channel or names an
@@ -380,7 +476,7 @@ impl Ptm {
         match c.attrs.get("ptm:version") {
             Some(Attr::Text(v)) if v == PTM_VERSION || v == PTM_VERSION_2 => {}
             Some(Attr::Text(v)) => {
-                return Err(c.error(format!(
+                return Err(c.error::<Error>(format!(
                     "PTM version {v:?} is not supported (this version reads {PTM_VERSION:?} and {PTM_VERSION_2:?})"
                 )))
             }
@@ -390,12 +486,12 @@ impl Ptm {
                 } else {
                     " (no `ptm:version` attribute)"
                 };
-                return Err(c.error(format!("not an occlusion PTM{hint}")));
+                return Err(c.error::<Error>(format!("not an occlusion PTM{hint}")));
             }
         }
         let name = c.text("ptm:basis", WHAT)?;
         let basis = Basis::from_name(&name).ok_or_else(|| {
-            c.error(format!(
+            c.error::<Error>(format!(
                 "unknown basis {name:?} (this version reads {})",
                 Basis::ALL.map(|b| b.name()).join(", ")
             ))
@@ -403,7 +499,7 @@ impl Ptm {
         if let Ok(list) = c.texts("ptm:monomials", WHAT) {
             let want: Vec<&str> = basis.monomials().iter().map(|m| m.name).collect();
             if list != want {
-                return Err(c.error(format!(
+                return Err(c.error::<Error>(format!(
                     "monomial list {list:?} does not match basis {name} ({want:?})"
                 )));
             }
@@ -411,7 +507,7 @@ impl Ptm {
         let link = match c.attrs.get("ptm:link") {
             None => Link::Identity,
             Some(Attr::Text(name)) => Link::from_name(name).ok_or_else(|| {
-                c.error(format!(
+                c.error::<Error>(format!(
                     "unknown link {name:?} in `ptm:link` (this version reads {})",
                     Link::ALL.map(|l| l.name()).join(", ")
                 ))
@@ -423,7 +519,7 @@ impl Ptm {
             // Files before the attribute named its map held the projected formula in words.
             Some(Attr::Text(name)) if name == UvMap::Projected.formula() => UvMap::Projected,
             Some(Attr::Text(name)) => UvMap::from_name(name).ok_or_else(|| {
-                c.error(format!(
+                c.error::<Error>(format!(
                     "unknown (u, v) map {name:?} in `ptm:uv` (this version reads {})",
                     UvMap::ALL.map(|m| m.name()).join(", ")
                 ))
@@ -457,7 +553,7 @@ impl Ptm {
                 })
                 .collect()
         } else {
-            return Err(c.error(format!(
+            return Err(c.error::<Error>(format!(
                 "coefficient channels have different numbers of MIP levels (expected {} each)",
                 sizes.len()
             )));
@@ -470,9 +566,10 @@ impl Ptm {
             cond: c.f64("ptm:cond", WHAT).ok(),
             rms_mean: c.f64("ptm:rmsMean", WHAT).ok(),
             err_rms: c.take_f32("err.rms", WHAT).ok(),
-            coverage: c.take_f32("coverage", WHAT).ok(),
+            coverage: None,
             err_max: c.take_f32("err.max", WHAT).ok(),
         };
+        let coverage = c.take_f32("coverage", WHAT).ok();
         let ptm = Ptm {
             basis,
             link,
@@ -482,8 +579,14 @@ impl Ptm {
             tile,
             planes,
             mips,
+            coverage,
         };
-        ptm.validate().map_err(|e| c.error(e.to_string()))?;
+        ptm.validate()
+            .map_err(|e| c.error::<Error>(e.to_string()))?;
+        let info = PtmInfo {
+            coverage: ptm.coverage.clone(),
+            ..info
+        };
         Ok((ptm, info))
     }
 }

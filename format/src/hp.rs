@@ -8,7 +8,6 @@
 //! first row is our last. Layout: ASCII header `PTM_1.2`, `PTM_FORMAT_LRGB`, width, height,
 //! 6 scales, 6 biases (one token group per line), then 6 bytes per texel (a0..a5), then 3 bytes
 //! per texel (R, G, B).
-use std::io::Write;
 use std::path::Path;
 
 use crate::{Basis, Error, Ptm, Result};
@@ -31,6 +30,18 @@ pub struct HpExport {
 /// Writes `ptm` (ptm6 only) as an HP PTM 1.2 LRGB file, atomically. `rgb`, when given, is the
 /// per-texel albedo in our row order; otherwise the RGB block is white.
 pub fn write_hp_lrgb(ptm: &Ptm, path: &Path, rgb: Option<&[[u8; 3]]>) -> Result<HpExport> {
+    let (bytes, export) = encode_hp_lrgb(ptm, path, rgb)?;
+    crate::atomic::write_bytes(path, &bytes)?;
+    Ok(export)
+}
+
+/// The bytes [`write_hp_lrgb`] writes (`path` names the file in errors only), to stage in an
+/// [`atomic::Transaction`](crate::atomic::Transaction).
+pub fn encode_hp_lrgb(
+    ptm: &Ptm,
+    path: &Path,
+    rgb: Option<&[[u8; 3]]>,
+) -> Result<(Vec<u8>, HpExport)> {
     ptm.validate()?;
     if ptm.basis != Basis::Ptm6 {
         return Err(Error::Invalid(format!(
@@ -99,15 +110,16 @@ pub fn write_hp_lrgb(ptm: &Ptm, path: &Path, rgb: Option<&[[u8; 3]]>) -> Result<
     header += "\n";
     header += &biases.map(|b| b.to_string()).join(" ");
     header += "\n";
-    crate::atomic::write_atomic(path, |f| {
-        f.write_all(header.as_bytes())?;
-        f.write_all(&coeff_bytes)?;
-        f.write_all(&rgb_bytes)
-    })?;
-    Ok(HpExport {
-        scales,
-        biases,
-        max_error,
-        mean_error: sum_error / n as f64,
-    })
+    let mut bytes = header.into_bytes();
+    bytes.extend_from_slice(&coeff_bytes);
+    bytes.extend_from_slice(&rgb_bytes);
+    Ok((
+        bytes,
+        HpExport {
+            scales,
+            biases,
+            max_error,
+            mean_error: sum_error / n as f64,
+        },
+    ))
 }

@@ -1,0 +1,55 @@
+//! `ptm-format`: the occlusion PTM file and all a render pipeline needs to use one — the
+//! polynomial bases, links and (u, v) maps ([`basis`]), the PTM in memory with [`Ptm::load`],
+//! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), HP PTM 1.2
+//! export ([`hp`]) and the atomic file output every writer of the workspace uses ([`atomic`]).
+//!
+//! It depends on `exr`, `half` and `thiserror` only: no solver (nalgebra), no thread pool
+//! (rayon), no image codec, no Embree, no wgpu. The fitter (`ptm-fit`) builds on it and
+//! re-exports it.
+//!
+//! Conventions (docs/FORMAT.md): one tile spans [0, W]×[0, H] with z up; tangent +X, bitangent
+//! +Y; images have column 0 at x = 0 and **row 0 at the far edge y = H**; K is the fraction of a
+//! texel's footprint that cannot see the light (0 = lit, 1 = occluded); (u, v) = (l·X, l·Y) for
+//! the unit vector l towards the light.
+//!
+//! Loading a PTM in a render pipeline:
+//! ```no_run
+//! let ptm = ptm_format::Ptm::load("weave.ptm.exr".as_ref())?;
+//! let (u, v) = (0.5f32, 0.25f32); // (l·X, l·Y) of the unit vector towards the light
+//! let k = ptm.eval(3, 7, u, v); // occluded fraction at column 3, row 7, clamped to [0, 1]
+//! // Holes in the cloth (coverage 0) have no K: mask them.
+//! let hole = ptm.coverage.as_ref().is_some_and(|c| c[7 * ptm.width + 3] <= 0.0);
+//! # let _ = (k, hole);
+//! # Ok::<(), ptm_format::Error>(())
+//! ```
+
+// Index loops over terms mirror the maths (cᵢ) and keep several arrays in step.
+#![allow(clippy::needless_range_loop)]
+
+pub mod atomic;
+pub mod basis;
+pub mod exrio;
+pub mod hp;
+pub mod ptm;
+
+pub use atomic::{same_file, write_atomic, Transaction};
+pub use basis::{Basis, Link, Monomial, UvMap};
+pub use ptm::{FileFacts, Level, Ptm, PtmInfo, SaveOptions, ToFileFacts};
+
+/// Errors of the format crate. Messages name the file and, where there is something to do, what.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("{path}: {source}")]
+    Io {
+        path: String,
+        source: std::io::Error,
+    },
+    /// A file that is not what it should be (not a PTM, a missing channel, a bad attribute).
+    #[error("{path}: {reason}")]
+    Format { path: String, reason: String },
+    /// Arguments that make no file (plane sizes, a basis the format cannot hold).
+    #[error("{0}")]
+    Invalid(String),
+}
+
+pub type Result<T> = std::result::Result<T, Error>;
