@@ -232,6 +232,12 @@ impl Renderer {
             entries.push((5, table));
         }
 
+        if v.basis.is_some() && v.coverage {
+            entries.push((
+                10,
+                gpu.storage("coverage", bytemuck::cast_slice(&p.coverage)),
+            ));
+        }
         if v.ptm_mip {
             entries.push((
                 9,

@@ -5,7 +5,7 @@
 //! automatic mip generation). Level k texel covers 2^k × 2^k level-0 texels; texels beyond the
 //! caster count as transparent, so every level keeps "outside = 0".
 
-use crate::layout::MipLevel;
+use crate::layout::{MipLevel, PtmLevel};
 
 /// Levels concatenated (rgb opacity in 0..1, a unused) and where each level lies in them.
 pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<MipLevel>) {
@@ -78,9 +78,59 @@ pub fn build_ptm_chain(coeffs: &mut Vec<f32>, n: usize, w: usize, h: usize) -> V
     levels
 }
 
+/// A PTM's level-0 coverage followed by its box averages at every further level of `levels`
+/// (as `Prepared::coeffs` lays levels out: level k's texels start at `levels[k].offset`). Each
+/// level averages blocks of the level above: 2 texels along a side that shrank (an odd last
+/// texel of a rounded-down level is dropped, as the file's levels drop it), 1 along a side that
+/// did not. Without levels: level 0 alone.
+pub fn coverage_chain(coverage: &[f32], levels: &[PtmLevel]) -> Vec<f32> {
+    let mut out = coverage.to_vec();
+    for pair in levels.windows(2) {
+        let (up, lv) = (&pair[0], &pair[1]);
+        let (uw, uh) = (up.width as usize, up.height as usize);
+        let (w, h) = (lv.width as usize, lv.height as usize);
+        let fx = if w < uw { 2 } else { 1 };
+        let fy = if h < uh { 2 } else { 1 };
+        let scale = 1.0 / (fx * fy) as f32;
+        debug_assert_eq!(out.len(), lv.offset as usize);
+        for j in 0..h {
+            for i in 0..w {
+                let mut sum = 0f32;
+                for dy in 0..fy {
+                    for dx in 0..fx {
+                        sum += out[up.offset as usize + (j * fy + dy) * uw + i * fx + dx];
+                    }
+                }
+                out.push(sum * scale);
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn coverage_chain_box_averages_rounded_down_and_exact_levels() {
+        // 5×2 → 2×1 (rounded down: column 4 dropped) → 1×1.
+        let cov = [0.0, 1.0, 1.0, 1.0, 0.5, 0.0, 0.0, 1.0, 0.0, 0.5];
+        let levels = [
+            PtmLevel::exact(0, 5, 2),
+            PtmLevel::exact(10, 2, 1),
+            PtmLevel::exact(12, 1, 1),
+        ];
+        let c = coverage_chain(&cov, &levels);
+        assert_eq!(&c[10..], &[0.25, 0.75, 0.5]);
+        // An exact chain that keeps an odd side: 4×3 → 2×3 averages pairs along x only.
+        let cov: Vec<f32> = (0..12).map(|i| (i % 4) as f32 / 4.0).collect();
+        let levels = [PtmLevel::exact(0, 4, 3), PtmLevel::exact(12, 2, 3)];
+        let c = coverage_chain(&cov, &levels);
+        assert_eq!(&c[12..], &[0.125, 0.625, 0.125, 0.625, 0.125, 0.625]);
+        // No chain: level 0 only.
+        assert_eq!(coverage_chain(&cov, &[]), cov);
+    }
 
     #[test]
     fn ptm_chain_averages_blocks_and_stops_at_odd_sides() {

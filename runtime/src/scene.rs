@@ -213,6 +213,7 @@ impl Scene {
         let mut nonfinite_coeffs = 0;
         let mut warnings = Vec::new();
         let mut basis = None;
+        let mut coverage = Vec::new();
         let (mut link, mut uv) = (Link::Identity, UvMap::Projected);
         if let Some(ptm) = &self.ptm {
             let n = ptm.basis.len();
@@ -225,9 +226,9 @@ impl Scene {
                     ptm.basis.name()
                 )));
             }
-            if !ptm.mips.is_empty() {
-                // Stored levels must be the round-down chain with every plane: the lookup
-                // trusts their sizes.
+            if !ptm.mips.is_empty() || ptm.coverage.is_some() {
+                // Stored levels must be the round-down chain with every plane, coverage a
+                // fraction per texel: the lookups trust their sizes.
                 ptm.validate()?;
             }
             if !(ptm.tile[0] > 0.0 && ptm.tile[1] > 0.0) {
@@ -286,6 +287,9 @@ impl Scene {
                     }
                     ptm_levels = levels;
                 }
+            }
+            if let Some(cov) = &ptm.coverage {
+                coverage = crate::mip::coverage_chain(cov, &ptm_levels);
             }
         }
 
@@ -374,6 +378,7 @@ impl Scene {
             caster: self.caster.as_ref().map(|_| self.blur),
             colored: self.caster.is_some() && self.colored_shadow,
             ptm_mip: !ptm_levels.is_empty(),
+            coverage: !coverage.is_empty(),
             link,
             uv,
         };
@@ -382,6 +387,7 @@ impl Scene {
             lights,
             coeffs,
             ptm_levels,
+            coverage,
             albedo,
             opacity,
             mip,
@@ -470,6 +476,8 @@ pub struct Variant {
     pub colored: bool,
     /// The PTM is minified somewhere in the view: trilinear lookups in its MIP chain.
     pub ptm_mip: bool,
+    /// The PTM's file has per-texel coverage: radiance is scaled by it (0 in holes).
+    pub coverage: bool,
     /// The PTM's link (identity without a PTM): only its code is compiled.
     pub link: Link,
     /// The PTM's (u, v) map (projected without a PTM): only its code is compiled.
@@ -485,14 +493,16 @@ impl Variant {
             Some(ptm_fit::Basis::Ptm6),
             Some(ptm_fit::Basis::Ptm11),
         ] {
-            // Link, map and MIP chain exist only with a PTM.
-            let mut ptm_kinds = vec![(Link::Identity, UvMap::Projected, false)];
+            // Link, map, MIP chain and coverage exist only with a PTM.
+            let mut ptm_kinds = vec![(Link::Identity, UvMap::Projected, false, false)];
             if basis.is_some() {
                 ptm_kinds.clear();
                 for link in Link::ALL {
                     for uv in UvMap::ALL {
                         for ptm_mip in [false, true] {
-                            ptm_kinds.push((link, uv, ptm_mip));
+                            for coverage in [false, true] {
+                                ptm_kinds.push((link, uv, ptm_mip, coverage));
+                            }
                         }
                     }
                 }
@@ -503,13 +513,14 @@ impl Variant {
                         if caster.is_none() && colored {
                             continue;
                         }
-                        for &(link, uv, ptm_mip) in &ptm_kinds {
+                        for &(link, uv, ptm_mip, coverage) in &ptm_kinds {
                             out.push(Variant {
                                 basis,
                                 albedo_texture,
                                 caster,
                                 colored,
                                 ptm_mip,
+                                coverage,
                                 link,
                                 uv,
                             });
@@ -532,6 +543,9 @@ impl Variant {
         }
         if self.ptm_mip {
             parts.push("ptm-mip".into());
+        }
+        if self.coverage {
+            parts.push("coverage".into());
         }
         if self.albedo_texture {
             parts.push("albedo".into());
@@ -602,6 +616,10 @@ pub struct Prepared {
     /// or else coefficients averaged 2×2 ([`crate::mip::build_ptm_chain`]); empty when the view
     /// never minifies the PTM.
     pub ptm_levels: Vec<PtmLevel>,
+    /// The PTM's coverage (0 = a hole, 1 = all cloth) per texel of every level in
+    /// `ptm_levels` (texel offsets as for `coeffs`), box-averaged level by level; level 0 only
+    /// without a chain; empty when the file has none ([`crate::mip::coverage_chain`]).
+    pub coverage: Vec<f32>,
     /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
     pub albedo: Vec<[f32; 4]>,
     /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three

@@ -388,6 +388,31 @@ impl Twin<'_> {
         c
     }
 
+    /// Bilinearly filtered coverage of MIP level `level` at p.
+    pub fn coverage_level(&self, p: [f32; 2], level: usize) -> f32 {
+        let lv = &self.p.ptm_levels[level];
+        let (idx, w) = level_bilinear(self.f(), p, lv);
+        let c = |k: usize| self.p.coverage[idx[k] + lv.offset as usize];
+        w[0] * c(0) + w[1] * c(1) + w[2] * c(2) + w[3] * c(3)
+    }
+
+    /// Coverage at p (0 in a hole), filtered as the coefficients are.
+    pub fn ptm_coverage(&self, p: [f32; 2], lod: f32) -> f32 {
+        let f = self.f();
+        if !self.p.variant.ptm_mip {
+            let (idx, w) = tile_bilinear(f, p, f.ptm_size);
+            let c = |k: usize| self.p.coverage[idx[k]];
+            return w[0] * c(0) + w[1] * c(1) + w[2] * c(2) + w[3] * c(3);
+        }
+        let l0 = lod.floor();
+        let fr = lod - l0;
+        let mut c = self.coverage_level(p, l0 as usize);
+        if fr > 0.0 {
+            c += fr * (self.coverage_level(p, l0 as usize + 1) - c);
+        }
+        c
+    }
+
     pub fn albedo_at(&self, p: [f32; 2]) -> [f32; 3] {
         let f = self.f();
         if !self.p.variant.albedo_texture {
@@ -504,6 +529,11 @@ impl Twin<'_> {
             for ch in 0..3 {
                 radiance[ch] += albedo[ch] * light.color[ch] * (l[2] / d2) * visible[ch];
             }
+        }
+        if self.p.variant.basis.is_some() && self.p.variant.coverage {
+            // A hole shows nothing; partly covered texels blend.
+            let c = self.ptm_coverage(p, lod);
+            radiance = radiance.map(|r| r * c);
         }
         radiance
     }

@@ -25,6 +25,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.basis.is_some() && v.ptm_mip {
         d.push("PTM_MIP");
     }
+    if v.basis.is_some() && v.coverage {
+        d.push("PTM_COVERAGE");
+    }
     if v.basis.is_some() && v.link == Link::Logistic {
         d.push("PTM_LOGISTIC");
     }
@@ -143,9 +146,9 @@ mod tests {
     #[test]
     fn every_shade_variant_validates_with_naga() {
         let all = Variant::all();
-        // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain;
-        // × albedo × caster.
-        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2) * 2 * 9);
+        // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
+        // and without coverage; × albedo × caster.
+        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2) * 2 * 9);
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -174,6 +177,7 @@ mod tests {
             caster: None,
             colored: false,
             ptm_mip: false,
+            coverage: false,
             link: Link::Identity,
             uv: UvMap::Projected,
         };
@@ -187,7 +191,7 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         let module = validate("plain", &src).unwrap();
-        for name in ["mip", "sep_map", "ptm_levels", "ptm_lod"] {
+        for name in ["mip", "sep_map", "ptm_levels", "ptm_lod", "ptm_coverage"] {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");

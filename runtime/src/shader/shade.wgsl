@@ -87,6 +87,10 @@ struct PtmLevel {
 
 @group(0) @binding(9) var<storage, read> ptm_levels: array<PtmLevel>;
 //#endif
+//#if PTM_COVERAGE
+// Per PTM texel (levels laid out as in `coeffs`): the fraction with cloth under it, 0 in a hole.
+@group(0) @binding(10) var<storage, read> coverage: array<f32>;
+//#endif
 
 // Full-screen triangle: vertices (−1, −1), (3, −1), (−1, 3).
 @vertex
@@ -243,6 +247,37 @@ fn ptm_coeffs(p: vec2<f32>, lod: f32) -> array<f32, {{NC}}> {
     }
     return c;
 }
+//#endif
+
+//#if PTM_COVERAGE
+//#if PTM_MIP
+// Bilinearly filtered coverage of MIP level `level` at p.
+fn coverage_level(p: vec2<f32>, level: u32) -> f32 {
+    let lv = ptm_levels[level];
+    let b = level_bilinear(p, lv);
+    let i = b.index + vec4<u32>(lv.offset);
+    return b.weight.x * coverage[i.x] + b.weight.y * coverage[i.y] + b.weight.z * coverage[i.z]
+        + b.weight.w * coverage[i.w];
+}
+
+// Coverage at p, filtered as the coefficients are (trilinear between the levels around lod).
+fn ptm_coverage(p: vec2<f32>, lod: f32) -> f32 {
+    let l0 = floor(lod);
+    let f = lod - l0;
+    var c = coverage_level(p, u32(l0));
+    if (f > 0.0) {
+        c = c + f * (coverage_level(p, u32(l0) + 1u) - c);
+    }
+    return c;
+}
+//#else
+// Coverage at p, filtered as the coefficients are (bilinear).
+fn ptm_coverage(p: vec2<f32>, lod: f32) -> f32 {
+    let b = tile_bilinear(p, frame.ptm_size);
+    return b.weight.x * coverage[b.index.x] + b.weight.y * coverage[b.index.y]
+        + b.weight.z * coverage[b.index.z] + b.weight.w * coverage[b.index.w];
+}
+//#endif
 //#endif
 
 //#if PTM_HEMISPHERICAL
@@ -515,7 +550,7 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
 //#endif
 
 // Linear radiance leaving acceptor point p (normal +Z):
-// Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K).
+// Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K), × coverage with one.
 // `lod`: the PTM's level of detail at this pixel (0 without a MIP chain).
 fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
     let albedo = albedo_at(p);
@@ -541,6 +576,10 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
 //#endif
         radiance += albedo * light.color * (l.z / d2) * visible;
     }
+//#if PTM_COVERAGE
+    // A hole shows nothing (black, as a ray that misses the cloth); partly covered texels blend.
+    radiance *= ptm_coverage(p, lod);
+//#endif
     return radiance;
 }
 
