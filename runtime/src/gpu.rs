@@ -321,9 +321,11 @@ impl Renderer {
                 self.light_count
             )));
         }
-        self.gpu
-            .queue
-            .write_buffer(&self.lights, 0, bytemuck::cast_slice(lights));
+        if !lights.is_empty() {
+            self.gpu
+                .queue
+                .write_buffer(&self.lights, 0, bytemuck::cast_slice(lights));
+        }
         Ok(())
     }
 
