@@ -2,19 +2,19 @@
 //! (`samples.exr`, K per light + coverage) or, with `--fit`, straight into a PTM without ever
 //! holding the whole stack.
 use std::io::IsTerminal;
+use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_bake::{dome, BakeConfig, Baker, Swatch};
+use ptm_bake::{dome, BakeConfig, BakeReport, Baker, Swatch};
+use ptm_fit::shard::PartMeta;
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, SampleStack, SaveOptions};
 use serde_json::{json, Value};
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum FitArg {
-    Ptm6,
-    Ptm11,
-}
+// `--fit BASIS` takes the same basis argument as `ptm fit --basis`; `FitArg` is its name here.
+use crate::fit::finite;
+use crate::fit::BasisArg as FitArg;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -83,17 +83,32 @@ pub fn lp_path(out: &Path) -> PathBuf {
     out.with_file_name(format!("{stem}.lp"))
 }
 
-fn finite(x: f64) -> Value {
-    if x.is_finite() {
-        json!(x)
-    } else {
-        Value::Null
-    }
-}
-
+/// `ptm bake`: checks the input, traces the dome light by light into the fit or the stack,
+/// writes it (or a farm part) and the `.lp`; returns the JSON that `--json` prints.
 pub fn run(args: &Args) -> anyhow::Result<Value> {
     let t_all = Instant::now();
     // Everything that can refuse the input runs before any output is written.
+    let (swatch, t_load) = resolve_swatch(args)?;
+    let (res, rows) = resolve_rows(args)?;
+    let lights = build_dome(args, [res[0], rows.len()])?;
+    let part = match check_outputs(args, res, &swatch, &lights)? {
+        Output::Complete(path) => return Ok(json!({ "part": path, "skipped": true })),
+        Output::Whole => None,
+        Output::Part(meta, path) => Some((meta, path)),
+    };
+    let (accumulator, shard_mips) = fit_accumulator(args, &lights, res[0], rows.len())?;
+    announce(args, &swatch, res, &lights);
+    let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, accumulator)?;
+    let written = write_outputs(args, &swatch, &lights, kept, &part, shard_mips)?;
+    print_summary(&report, &written);
+    Ok(bake_json(
+        args, &swatch, res, rows, &lights, &report, written, t_load, t_all,
+    ))
+}
+
+/// Parses `--tile`, loads and checks the swatch, and prints its warnings. Returns the swatch
+/// and the seconds loading took.
+fn resolve_swatch(args: &Args) -> anyhow::Result<(Swatch, f64)> {
     let tile = match args.tile.as_deref() {
         None => None,
         Some(&[w, h]) => Some([w, h]),
@@ -102,10 +117,15 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let t0 = Instant::now();
     let swatch = Swatch::load(&args.swatch, tile)?;
     let t_load = t0.elapsed().as_secs_f64();
-    let warnings = swatch.warnings();
-    for w in &warnings {
+    for w in &swatch.warnings() {
         eprintln!("ptm bake: warning: {w}");
     }
+    Ok((swatch, t_load))
+}
+
+/// The whole bake's texels (`--res`) and the rows this run traces and holds: all of them, or
+/// a farm shard's block. Refuses the flag combinations a shard cannot bake.
+fn resolve_rows(args: &Args) -> anyhow::Result<([usize; 2], Range<usize>)> {
     let res = match args.res[..] {
         [n] => [n, n],
         [w, h] => [w, h],
@@ -122,7 +142,12 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
     }
-    let mem_res = [res[0], rows.len()];
+    Ok((res, rows))
+}
+
+/// The light directions (`--lights`, `--dome` or `--dirs` Fibonacci), each refused before it
+/// is built when the bake of `mem_res` texels would not fit in memory.
+fn build_dome(args: &Args, mem_res: [usize; 2]) -> anyhow::Result<LightSet> {
     let lights: LightSet = match (&args.lights, &args.dome) {
         (Some(p), _) => LightSet::read_lp(p)?,
         (None, Some(spec)) => dome::parse(spec, args.min_elevation)?,
@@ -136,59 +161,75 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     if args.lights.is_some() || args.dome.is_some() {
         check_memory(args, mem_res, lights.len())?;
     }
-    let part = match args.shard {
-        Some(s) => {
-            let meta = crate::shard::meta(args, s, res, &swatch, &lights)?;
-            let path = s.part_path(&args.output);
-            if crate::shard::is_complete(&path, &meta) {
-                eprintln!("ptm bake: {} is complete; skipped", path.display());
-                return Ok(json!({ "part": path, "skipped": true }));
-            }
-            Some((meta, path))
-        }
-        None => None,
+    Ok(lights)
+}
+
+/// Where the bake goes.
+enum Output {
+    /// `--output` itself.
+    Whole,
+    /// A farm part: what identifies the bake in it, and its path.
+    Part(PartMeta, PathBuf),
+    /// A farm part that is already complete and valid: nothing to bake.
+    Complete(PathBuf),
+}
+
+/// Decides where the bake goes: `--output`, or with `--shard` the part file, unless that part
+/// is already complete (said on stderr).
+fn check_outputs(
+    args: &Args,
+    res: [usize; 2],
+    swatch: &Swatch,
+    lights: &LightSet,
+) -> anyhow::Result<Output> {
+    let Some(s) = args.shard else {
+        return Ok(Output::Whole);
     };
-    let cfg = BakeConfig {
-        res,
-        spp: args.spp,
-        seed: args.seed,
-        light_distance: args.light_distance,
-        packets: !args.single_rays,
-        threads: args.threads,
+    let meta = crate::shard::meta(args, s, res, swatch, lights)?;
+    let path = s.part_path(&args.output);
+    if crate::shard::is_complete(&path, &meta) {
+        eprintln!("ptm bake: {} is complete; skipped", path.display());
+        return Ok(Output::Complete(path));
+    }
+    Ok(Output::Part(meta, path))
+}
+
+/// With `--fit`, the streaming fit of `width × height` texels that takes each light's K as it
+/// is traced, and whether a farm part defers the MIP levels to the merge. Prints the fit's
+/// warnings about the light set.
+fn fit_accumulator(
+    args: &Args,
+    lights: &LightSet,
+    width: usize,
+    height: usize,
+) -> anyhow::Result<(Option<Accumulator>, bool)> {
+    let Some(f) = args.fit else {
+        return Ok((None, false));
     };
     let mut shard_mips = false;
-    let mut accumulator = match args.fit {
-        Some(f) => {
-            let basis = match f {
-                FitArg::Ptm6 => Basis::Ptm6,
-                FitArg::Ptm11 => Basis::Ptm11,
-            };
-            let mut opts = FitOptions {
-                regularize: args.regularize,
-                ..FitOptions::new(basis)
-            };
-            args.model.apply(&mut opts);
-            if args.shard.is_some() {
-                if opts.link != ptm_fit::Link::Identity {
-                    bail!(
-                        "--shard with --fit needs --link identity (the logistic fit's MIP levels \
-                         and iteration statistics span all texels): add --link identity, or bake \
-                         the sample stack in shards, merge, then `ptm fit`"
-                    );
-                }
-                // The merge computes the MIP levels of the whole image.
-                shard_mips = opts.mips;
-                opts.mips = false;
-            }
-            let mut acc = Accumulator::new(&lights, res[0], rows.len(), &opts)?;
-            acc.set_spp(args.spp)?;
-            for w in acc.warnings() {
-                eprintln!("ptm bake: fit warning: {w}");
-            }
-            Some(acc)
+    let mut opts = fit_options(args, f);
+    if args.shard.is_some() {
+        if opts.link != ptm_fit::Link::Identity {
+            bail!(
+                "--shard with --fit needs --link identity (the logistic fit's MIP levels \
+                 and iteration statistics span all texels): add --link identity, or bake \
+                 the sample stack in shards, merge, then `ptm fit`"
+            );
         }
-        None => None,
-    };
+        // The merge computes the MIP levels of the whole image.
+        shard_mips = opts.mips;
+        opts.mips = false;
+    }
+    let mut acc = Accumulator::new(lights, width, height, &opts)?;
+    acc.set_spp(args.spp)?;
+    for w in acc.warnings() {
+        eprintln!("ptm bake: fit warning: {w}");
+    }
+    Ok((Some(acc), shard_mips))
+}
+
+/// Says on stderr what is about to be baked (and that lights below the horizon bake to K = 1).
+fn announce(args: &Args, swatch: &Swatch, res: [usize; 2], lights: &LightSet) {
     let below = lights.dirs.iter().filter(|d| d[2] <= 0.0).count();
     if below > 0 {
         eprintln!("ptm bake: warning: {below} light(s) at or below the horizon bake to K = 1");
@@ -204,8 +245,42 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         args.spp,
         lights.len()
     );
+}
 
-    let mut baker = Baker::new_rows(&swatch, &cfg, rows.clone())?;
+/// Where traced K planes went: the streaming fit, or planes kept for the sample stack.
+enum Samples {
+    /// Boxed: the accumulator's fields are large beside a `Planes`.
+    Fit(Box<Accumulator>),
+    Stack(ptm_bake::Planes),
+}
+
+/// What a trace keeps for the output: its K, the texels' coverage, and the traced size
+/// (width × the rows traced).
+struct Kept {
+    samples: Samples,
+    coverage: Vec<f32>,
+    size: [usize; 2],
+}
+
+/// Traces `rows` of the bake light by light into the fit (or keeps the planes), with a
+/// progress bar on a terminal; reports uncovered texels and lights whose shadows were capped.
+fn trace(
+    args: &Args,
+    swatch: &Swatch,
+    res: [usize; 2],
+    rows: Range<usize>,
+    lights: &LightSet,
+    mut accumulator: Option<Accumulator>,
+) -> anyhow::Result<(Kept, BakeReport)> {
+    let cfg = BakeConfig {
+        res,
+        spp: args.spp,
+        seed: args.seed,
+        light_distance: args.light_distance,
+        packets: !args.single_rays,
+        threads: args.threads,
+    };
+    let mut baker = Baker::new_rows(swatch, &cfg, rows.clone())?;
     let coverage = baker.coverage().to_vec();
     if let Some(acc) = accumulator.as_mut() {
         acc.set_coverage(&coverage)?;
@@ -223,7 +298,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         None
     };
     let mut planes = ptm_bake::Planes::default();
-    let report = baker.trace(&lights, &mut |i, k, uv| {
+    let report = baker.trace(lights, &mut |i, k, uv| {
         if let Some(b) = &bar {
             b.inc(1);
         }
@@ -257,10 +332,49 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             ptm_bake::tiling::MAX_RUN_TILES
         );
     }
+    let samples = match accumulator {
+        Some(acc) => Samples::Fit(Box::new(acc)),
+        None => Samples::Stack(planes),
+    };
+    let kept = Kept {
+        samples,
+        coverage,
+        size: [res[0], rows.len()],
+    };
+    Ok((kept, report))
+}
+
+/// What was written, and the seconds the solve and the writing took.
+struct Written {
+    /// The fit's summary for the JSON (null without `--fit`).
+    fit: Value,
+    /// The file written (the part, for a farm shard), and the `.lp` beside a whole bake.
+    output: PathBuf,
+    lp: Option<PathBuf>,
+    t_fit: f64,
+    t_write: f64,
+}
+
+/// Solves the fit (if any) and writes the PTM or sample stack to `--output` or the farm part,
+/// then the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes
+/// the `.lp` beside the merged output).
+fn write_outputs(
+    args: &Args,
+    swatch: &Swatch,
+    lights: &LightSet,
+    kept: Kept,
+    part: &Option<(PartMeta, PathBuf)>,
+    shard_mips: bool,
+) -> anyhow::Result<Written> {
+    let Kept {
+        samples,
+        coverage,
+        size,
+    } = kept;
     let mut t_fit = 0.0;
     let mut t1 = Instant::now();
-    let fit_json = match accumulator {
-        Some(acc) => {
+    let fit_json = match samples {
+        Samples::Fit(acc) => {
             let (ptm, fit) = acc.finish(swatch.tile)?;
             // The per-light accumulation ran inside the shadow stage; this is the solve.
             t_fit = t1.elapsed().as_secs_f64();
@@ -283,7 +397,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 "rms_error_p99": fit.rms.p99,
                 "warnings": fit.warnings,
             });
-            match &part {
+            match part {
                 // The part takes the fit itself: no copy of its planes.
                 Some((meta, path)) => crate::shard::write_ptm(
                     path,
@@ -291,7 +405,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                     ptm,
                     fit,
                     coverage.clone(),
-                    &lights,
+                    lights,
                     shard_mips,
                 )
                 .with_context(|| format!("writing {}", path.display()))?,
@@ -307,17 +421,17 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             }
             summary
         }
-        None => {
+        Samples::Stack(planes) => {
             let stack = SampleStack {
-                width: res[0],
-                height: rows.len(),
+                width: size[0],
+                height: size[1],
                 tile: swatch.tile,
                 lights: lights.clone(),
                 k: planes.k,
                 coverage: coverage.clone(),
                 uv: planes.uv,
             };
-            match &part {
+            match part {
                 Some((meta, path)) => crate::shard::write_stack(path, meta, stack)
                     .with_context(|| format!("writing {}", path.display()))?,
                 None => stack
@@ -328,14 +442,24 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         }
     };
     // A part carries its lights; `ptm merge` writes the .lp beside the merged output.
-    let (output, lp) = match &part {
+    let (output, lp) = match part {
         Some((_, path)) => (path.clone(), None),
         None => (args.output.clone(), Some(lp_path(&args.output))),
     };
     if let Some(lp) = &lp {
         lights.write_lp(lp)?;
     }
-    let t_write = t1.elapsed().as_secs_f64();
+    Ok(Written {
+        fit: fit_json,
+        output,
+        lp,
+        t_fit,
+        t_write: t1.elapsed().as_secs_f64(),
+    })
+}
+
+/// The closing lines on stderr: ray throughput, then what was written.
+fn print_summary(report: &BakeReport, written: &Written) {
     let rays = report.primary_rays + report.shadow_rays;
     let t_trace = report.seconds_primary + report.seconds_shadow;
     let max_rings = report.rings.iter().copied().max().unwrap_or(0);
@@ -348,21 +472,42 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         2 * max_rings + 1,
         2 * max_rings + 1
     );
-    match &lp {
-        Some(lp) => eprintln!("ptm bake: wrote {} and {}", output.display(), lp.display()),
-        None => eprintln!("ptm bake: wrote part {}", output.display()),
+    match &written.lp {
+        Some(lp) => eprintln!(
+            "ptm bake: wrote {} and {}",
+            written.output.display(),
+            lp.display()
+        ),
+        None => eprintln!("ptm bake: wrote part {}", written.output.display()),
     }
-    Ok(json!({
+}
+
+/// The JSON that `--json` prints.
+#[allow(clippy::too_many_arguments)]
+fn bake_json(
+    args: &Args,
+    swatch: &Swatch,
+    res: [usize; 2],
+    rows: Range<usize>,
+    lights: &LightSet,
+    report: &BakeReport,
+    written: Written,
+    t_load: f64,
+    t_all: Instant,
+) -> Value {
+    let rays = report.primary_rays + report.shadow_rays;
+    let t_trace = report.seconds_primary + report.seconds_shadow;
+    json!({
         "swatch": swatch.origin,
-        "output": output,
+        "output": written.output,
         "shard": args.shard.map(|s| s.to_string()),
         "rows": [rows.start, rows.end],
-        "lights_file": lp,
+        "lights_file": written.lp,
         "triangles": swatch.triangles.len(),
         "degenerate_triangles": swatch.degenerate,
         "tile": swatch.tile,
         "seam_mismatch": swatch.seams.map(|s| s.mismatch.map(finite)),
-        "warnings": warnings,
+        "warnings": swatch.warnings(),
         "width": res[0],
         "height": res[1],
         "spp": args.spp,
@@ -380,17 +525,27 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "uncovered_texels": report.uncovered_texels,
         "below_horizon": report.below_horizon,
         "capped": report.capped,
-        "fit": fit_json,
+        "fit": written.fit,
         "seconds": {
             "load": t_load,
             "scene": report.seconds_scene,
             "primary": report.seconds_primary,
             "shadow": report.seconds_shadow,
-            "fit": t_fit,
-            "write": t_write,
+            "fit": written.t_fit,
+            "write": written.t_write,
             "total": t_all.elapsed().as_secs_f64(),
         },
-    }))
+    })
+}
+
+/// The options of the streaming fit `--fit f` asks for.
+fn fit_options(args: &Args, f: FitArg) -> FitOptions {
+    let mut opts = FitOptions {
+        regularize: args.regularize,
+        ..FitOptions::new(Basis::from(f))
+    };
+    args.model.apply(&mut opts);
+    opts
 }
 
 /// Refuses a bake whose buffers cannot fit in the memory this machine has available, naming
@@ -404,21 +559,19 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
     let baker = ptm_bake::baker_bytes(res, args.spp);
     let dome = lights as f64 * 64.0;
     let (sink, what) = match args.fit {
-        // Per texel: m sums of AᵀW·k, the packed Gram matrix for point lights, Σw·k², Σw.
+        // What the accumulator will hold (its sums, or the logistic link's counts).
         Some(f) => {
-            let m: f64 = match f {
-                FitArg::Ptm6 => 6.0,
-                FitArg::Ptm11 => 11.0,
-            };
-            let gram = if args.light_distance.is_some() {
-                m * (m + 1.0) / 2.0
-            } else {
-                0.0
-            };
             let link: ptm_fit::Link = args.model.link.into();
             let counts = Accumulator::count_bytes(link, args.spp) as f64;
+            let bytes = Accumulator::memory_bytes(
+                res[0].saturating_mul(res[1]),
+                lights,
+                &fit_options(args, f),
+                args.spp,
+                args.light_distance.is_some(),
+            );
             (
-                texels * (m + gram + 2.0) * 8.0 + texels * lights as f64 * counts + texels * 6.0,
+                bytes as f64,
                 if counts > 0.0 {
                     "the streaming fit's sums and the logistic link's exact sample counts"
                 } else {

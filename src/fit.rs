@@ -10,6 +10,7 @@ use ptm_fit::solve::{fit_stack, ErrorStats, FitOptions, FitReport, Weight};
 use ptm_fit::{Basis, SampleStack, SaveOptions};
 use serde_json::{json, Value};
 
+/// `ptm fit --basis` and `ptm bake --fit`: the polynomial basis (`ptm_fit::Basis`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum BasisArg {
     Ptm6,
@@ -179,7 +180,8 @@ fn stats(s: &ErrorStats) -> Value {
     json!({ "mean": s.mean, "p99": s.p99, "max": s.max })
 }
 
-fn finite(x: f64) -> Value {
+/// A number for the JSON: null where it is not finite (NaN, ±∞).
+pub fn finite(x: f64) -> Value {
     if x.is_finite() {
         json!(x)
     } else {

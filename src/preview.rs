@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use ptm_fit::Ptm;
-use ptm_runtime::scene::Perspective;
+use ptm_runtime::scene::{Perspective, Prepared};
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
 use serde_json::{json, Value};
 
@@ -158,6 +158,9 @@ fn nth<T: Copy>(v: &[T], i: usize, default: T) -> T {
     v.get(i).or(v.last()).copied().unwrap_or(default)
 }
 
+/// The scene the flags describe: the PTM (or plain cloth) tiled `--repeat` times, the view at
+/// the output's aspect, albedo, lights (one default light when none is given), the caster and
+/// the camera.
 fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     let size = [args.size.0, args.size.1];
     if args.repeat == 0 {
@@ -268,6 +271,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     Ok(scene)
 }
 
+/// Seconds per render pass, by pass name.
 fn timings_json(t: &ptm_runtime::Timings) -> Value {
     Value::Object(
         t.passes
@@ -313,13 +317,11 @@ fn run_window(_: &Args) -> anyhow::Result<Value> {
     )
 }
 
+/// `ptm preview`: builds and prepares the scene, opens the GPU, says what preparing found,
+/// renders (and compares the blur methods), writes the images; returns the JSON that `--json`
+/// prints. With `--window`, shows the scene interactively instead.
 pub fn run(args: &Args) -> anyhow::Result<Value> {
-    if !args.exposure.is_finite() {
-        bail!(
-            "--exposure {} must be a finite number of stops",
-            args.exposure
-        );
-    }
+    check_exposure(args)?;
     if args.window {
         return run_window(args);
     }
@@ -328,15 +330,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let output = args.output.as_deref().context("--output is required")?;
     let scene = build_scene(args)?;
     let prepared = scene.prepare()?;
-    let t = Instant::now();
-    let gpu = Gpu::new()?;
-    let device_s = t.elapsed().as_secs_f64();
-    eprintln!(
-        "ptm preview: {} on {}",
-        prepared.variant.name(),
-        gpu.describe()
-    );
-
+    let (gpu, device_s) = open_gpu(&prepared)?;
     let mut report = json!({
         "adapter": gpu.describe(),
         "variant": prepared.variant.name(),
@@ -346,6 +340,45 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "blur": scene.caster.as_ref().map(|_| scene.blur.name()),
         "device_s": device_s,
     });
+    diagnose(&scene, &prepared, &mut report);
+    let image = render(args, &gpu, &scene, &prepared, &mut report)?;
+    if args.compare_blur {
+        compare_blur(args, &gpu, &scene, &mut report)?;
+    }
+    write_outputs(args, output, &image, &mut report)?;
+    report["total_s"] = json!(start.elapsed().as_secs_f64());
+    Ok(report)
+}
+
+/// Refuses an `--exposure` that is not a finite number of stops.
+fn check_exposure(args: &Args) -> anyhow::Result<()> {
+    if !args.exposure.is_finite() {
+        bail!(
+            "--exposure {} must be a finite number of stops",
+            args.exposure
+        );
+    }
+    Ok(())
+}
+
+/// Opens whatever adapter wgpu finds and says which shader variant runs on it. Returns the
+/// GPU and the seconds opening it took.
+fn open_gpu(prepared: &Prepared) -> anyhow::Result<(Gpu, f64)> {
+    let t = Instant::now();
+    let gpu = Gpu::new()?;
+    let device_s = t.elapsed().as_secs_f64();
+    eprintln!(
+        "ptm preview: {} on {}",
+        prepared.variant.name(),
+        gpu.describe()
+    );
+    Ok((gpu, device_s))
+}
+
+/// Tells (stderr) and records (`report`) what preparing the scene found: a downsampled caster,
+/// non-finite coefficients, the runtime's warnings, lights that add nothing or are not
+/// shadowed, and K leaving [0, 1] before clamping.
+fn diagnose(scene: &Scene, prepared: &Prepared, report: &mut Value) {
     if prepared.caster_downsample > 1 {
         eprintln!(
             "ptm preview: the caster is larger than {0}²; box-downsampled by {1} (u32 box sums are \
@@ -385,7 +418,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             }
         }
     }
-    if let Some(k) = cpu::k_excursion(&prepared) {
+    if let Some(k) = cpu::k_excursion(prepared) {
         if k.clamped_fraction > 0.0 {
             eprintln!(
                 "ptm preview: K left [0, 1] before clamping in {:.2}% of evaluations (min {:.3}, \
@@ -400,43 +433,63 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             "evaluations": k.evaluations,
         });
     }
+}
 
-    let image: Image = if let Some(n) = args.turntable {
-        if n == 0 {
-            bail!("--turntable needs at least 1 frame");
-        }
-        let mut frames = Vec::new();
-        let mut per_frame = Vec::new();
-        for k in 0..n {
-            let turned = scene.with_lights_turned(std::f32::consts::TAU * k as f32 / n as f32);
-            let (img, t) = gpu::render(&gpu, &turned.prepare()?)?;
-            per_frame.push(timings_json(&t));
-            frames.push(img);
-        }
-        let columns = (n as f64).sqrt().ceil() as usize;
-        report["turntable"] = json!({ "frames": n, "columns": columns, "timings": per_frame });
-        Image::contact_sheet(&frames, columns).expect("frames share one size")
-    } else {
-        let (img, t) = gpu::render(&gpu, &prepared)?;
+/// Renders the scene on the GPU: one frame, or with `--turntable N` N frames with the lights
+/// turned about the vertical axis, tiled into a contact sheet. Records the pass timings.
+fn render(
+    args: &Args,
+    gpu: &Gpu,
+    scene: &Scene,
+    prepared: &Prepared,
+    report: &mut Value,
+) -> anyhow::Result<Image> {
+    let Some(n) = args.turntable else {
+        let (img, t) = gpu::render(gpu, prepared)?;
         report["timings"] = timings_json(&t);
-        img
+        return Ok(img);
     };
-
-    if args.compare_blur {
-        if scene.caster.is_none() {
-            bail!("--compare-blur needs a caster (--caster image.png)");
-        }
-        let rows = compare::compare_blur(&gpu, &scene, args.mc_samples)?;
-        eprintln!("{}", compare::table(&rows));
-        report["compare_blur"] = json!(rows
-            .iter()
-            .map(|r| json!({
-                "method": r.method, "max_abs_error": r.max_abs_error,
-                "mean_abs_error": r.mean_abs_error, "shade_s": r.shade_s, "setup_s": r.setup_s,
-            }))
-            .collect::<Vec<_>>());
+    if n == 0 {
+        bail!("--turntable needs at least 1 frame");
     }
+    let mut frames = Vec::new();
+    let mut per_frame = Vec::new();
+    for k in 0..n {
+        let turned = scene.with_lights_turned(std::f32::consts::TAU * k as f32 / n as f32);
+        let (img, t) = gpu::render(gpu, &turned.prepare()?)?;
+        per_frame.push(timings_json(&t));
+        frames.push(img);
+    }
+    let columns = (n as f64).sqrt().ceil() as usize;
+    report["turntable"] = json!({ "frames": n, "columns": columns, "timings": per_frame });
+    Ok(Image::contact_sheet(&frames, columns).expect("frames share one size"))
+}
 
+/// `--compare-blur`: every blur method against the Monte Carlo soft shadow, as a table on
+/// stderr and rows in `report`.
+fn compare_blur(args: &Args, gpu: &Gpu, scene: &Scene, report: &mut Value) -> anyhow::Result<()> {
+    if scene.caster.is_none() {
+        bail!("--compare-blur needs a caster (--caster image.png)");
+    }
+    let rows = compare::compare_blur(gpu, scene, args.mc_samples)?;
+    eprintln!("{}", compare::table(&rows));
+    report["compare_blur"] = json!(rows
+        .iter()
+        .map(|r| json!({
+            "method": r.method, "max_abs_error": r.max_abs_error,
+            "mean_abs_error": r.mean_abs_error, "shade_s": r.shade_s, "setup_s": r.setup_s,
+        }))
+        .collect::<Vec<_>>());
+    Ok(())
+}
+
+/// Writes the PNG (at `--exposure`) and, with `--exr`, the linear EXR; records their paths.
+fn write_outputs(
+    args: &Args,
+    output: &Path,
+    image: &Image,
+    report: &mut Value,
+) -> anyhow::Result<()> {
     image.write_png(output, args.exposure)?;
     eprintln!("ptm preview: wrote {}", output.display());
     report["png"] = json!(path_str(output));
@@ -445,10 +498,10 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         eprintln!("ptm preview: wrote {}", exr.display());
         report["exr"] = json!(path_str(exr));
     }
-    report["total_s"] = json!(start.elapsed().as_secs_f64());
-    Ok(report)
+    Ok(())
 }
 
+/// A path as the JSON shows it.
 fn path_str(p: &Path) -> String {
     p.display().to_string()
 }

@@ -501,16 +501,18 @@ fn final_pass<S: Simd, const M: usize>(
             let is0 = S::where_nonneg(kv, S::where_nonneg(S::sub(zero, kv), one));
             ones = S::add(ones, is1);
             zeros = S::add(zeros, is0);
-            // Misclassified: k = 1 with z ≤ 0, k = 0 with z ≥ 0, or any fractional k.
-            let frac = S::sub(S::sub(v, is1), is0);
-            let w1 = S::mul(is1, S::where_nonneg(S::sub(zero, z), one));
-            let w0 = S::mul(is0, S::where_nonneg(z, one));
-            wrong = S::add(wrong, S::add(frac, S::add(w1, w0)));
+            // Misclassified binary samples: k = 1 with z ≤ 0, k = 0 with z ≥ 0. Fractional
+            // samples (valid − ones − zeros) are added once after the loop: the counts are
+            // small integers, exact in f32, so the sum is the same in any order.
+            let w1 = S::where_nonneg(S::sub(zero, z), is1);
+            let w0 = S::where_nonneg(z, is0);
+            wrong = S::add(wrong, S::add(w1, w0));
         } else {
             hs = S::add(hs, e2);
             hn = S::add(hn, v);
         }
     }
+    wrong = S::add(wrong, S::sub(S::sub(valid, ones), zeros));
     let mut lanes = [[0f32; 16]; 8];
     for (dst, v) in lanes
         .iter_mut()
@@ -866,6 +868,37 @@ impl Source<'_> {
         }
     }
 
+    /// Asks the CPU to start loading what `fill(l, start, len)` will read: a block reads one
+    /// short run of every light's plane, too many streams for the hardware prefetcher, so the
+    /// loads would otherwise wait on memory one light after another.
+    #[inline]
+    fn prefetch(&self, l: usize, start: usize, len: usize) {
+        fn lines<T>(s: &[T]) {
+            #[cfg(target_arch = "x86_64")]
+            {
+                let bytes = std::mem::size_of_val(s);
+                let p = s.as_ptr() as *const i8;
+                for o in (0..bytes).step_by(64) {
+                    // SAFETY: a prefetch only hints the cache; the address lies within `s`.
+                    unsafe {
+                        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(
+                            p.add(o),
+                        )
+                    };
+                }
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            let _ = s;
+        }
+        let r = start..start + len;
+        match self {
+            Source::Planes { k, .. } | Source::Weighted { k, .. } => lines(&k[l][r]),
+            Source::Counts8 { occ, .. } => lines(&occ[l][r]),
+            Source::Counts16 { occ, .. } => lines(&occ[l][r]),
+            Source::Counts32 { occ, .. } => lines(&occ[l][r]),
+        }
+    }
+
     fn lights(&self) -> usize {
         match self {
             Source::Planes { k, .. } | Source::Weighted { k, .. } => k.len(),
@@ -1025,6 +1058,9 @@ pub(crate) fn pool(src: &Source, from_w: usize, to: Footprint) -> Pooled {
 /// Texels per parallel work unit.
 const BLOCK: usize = 512;
 
+/// Lights ahead whose block rows are prefetched while one is filled.
+const PREFETCH_AHEAD: usize = 8;
+
 /// Fits every texel of the level `fp` (of a level-0 image `w0` wide) from `src`: per texel, its
 /// fit (coefficients, iterations, class, errors). `live[t]` is false for texels to leave out
 /// (coefficients 0). Parallel over blocks; the result does not depend on the thread count.
@@ -1065,6 +1101,9 @@ pub(crate) fn fit_level(
                 let mut row = vec![0f32; tiles * lanes];
                 let mut any = vec![false; len];
                 for (li, &l) in t.used.iter().enumerate() {
+                    if let Some(&ahead) = t.used.get(li + PREFETCH_AHEAD) {
+                        src.prefetch(ahead, start, len);
+                    }
                     src.fill(l, start, &mut row[..len]);
                     for i in 0..len {
                         if !live_v[i] {

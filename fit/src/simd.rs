@@ -23,6 +23,8 @@ pub(crate) trait Simd {
     fn min(a: Self::V, b: Self::V) -> Self::V;
     fn max(a: Self::V, b: Self::V) -> Self::V;
     fn sqrt(a: Self::V) -> Self::V;
+    /// |a| (the sign bit cleared).
+    fn abs(a: Self::V) -> Self::V;
     /// x where k ≥ 0, else 0 (k < 0 or NaN).
     fn where_nonneg(k: Self::V, x: Self::V) -> Self::V;
     /// 2ⁿ for integer-valued n in [−126, 127].
@@ -131,6 +133,10 @@ impl Simd for Portable {
         std::array::from_fn(|i| a[i].sqrt())
     }
     #[inline(always)]
+    fn abs(a: [f32; 8]) -> [f32; 8] {
+        std::array::from_fn(|i| a[i].abs())
+    }
+    #[inline(always)]
     fn where_nonneg(k: [f32; 8], x: [f32; 8]) -> [f32; 8] {
         std::array::from_fn(|i| if k[i] >= 0.0 { x[i] } else { 0.0 })
     }
@@ -202,6 +208,11 @@ impl Simd for Avx2 {
     #[inline(always)]
     fn sqrt(a: Self::V) -> Self::V {
         unsafe { std::arch::x86_64::_mm256_sqrt_ps(a) }
+    }
+    #[inline(always)]
+    fn abs(a: Self::V) -> Self::V {
+        use std::arch::x86_64::*;
+        unsafe { _mm256_and_ps(a, _mm256_castsi256_ps(_mm256_set1_epi32(0x7fff_ffff))) }
     }
     #[inline(always)]
     fn recip(x: Self::V) -> Self::V {
@@ -295,6 +306,10 @@ impl Simd for Avx512 {
     #[inline(always)]
     fn sqrt(a: Self::V) -> Self::V {
         unsafe { std::arch::x86_64::_mm512_sqrt_ps(a) }
+    }
+    #[inline(always)]
+    fn abs(a: Self::V) -> Self::V {
+        unsafe { std::arch::x86_64::_mm512_abs_ps(a) }
     }
     #[inline(always)]
     fn recip(x: Self::V) -> Self::V {

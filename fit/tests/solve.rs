@@ -523,3 +523,57 @@ fn out_of_range_rcond_and_negative_ridge_are_refused_by_both_paths() {
         }
     }
 }
+
+/// `Accumulator::memory_bytes` predicts exactly what the accumulator's buffers hold once every
+/// light is added, for each link, both kinds of directions, held-out lights and both count
+/// widths (spp ≤ 255 and above).
+#[test]
+fn memory_estimate_matches_the_allocations() {
+    use ptm_fit::Link;
+    let (w, h) = (13usize, 7usize);
+    let t = w * h;
+    let lights = fibonacci(24, 10.0);
+    let n = lights.len();
+    let coverage: Vec<f32> = (0..t).map(|i| if i % 9 == 0 { 0.0 } else { 1.0 }).collect();
+    let cases = [
+        (Basis::Ptm6, Link::Identity, 0, 16, false),
+        (Basis::Ptm11, Link::Identity, 3, 16, false),
+        (Basis::Ptm6, Link::Identity, 2, 16, true),
+        (Basis::Ptm11, Link::Identity, 0, 16, true),
+        (Basis::Ptm6, Link::Logistic, 0, 16, false),
+        (Basis::Ptm11, Link::Logistic, 2, 300, false),
+    ];
+    let mut sizes = Vec::new();
+    for (basis, link, holdout, spp, per_texel) in cases {
+        let opts = FitOptions {
+            link,
+            holdout,
+            ..FitOptions::new(basis)
+        };
+        let mut acc = Accumulator::new(&lights, w, h, &opts).unwrap();
+        acc.set_coverage(&coverage).unwrap();
+        acc.set_spp(spp).unwrap();
+        for l in 0..n {
+            // K a fraction of the covered samples, so the logistic link's counts are exact.
+            let k: Vec<f32> = (0..t)
+                .map(|i| ((i * 7 + l * 3) % (spp as usize + 1)) as f32 / spp as f32)
+                .collect();
+            if per_texel {
+                let d = lights.dirs[l];
+                let uv = vec![[d[0] as f32, d[1] as f32]; t];
+                acc.add_light_uv(l, &k, &uv).unwrap();
+            } else {
+                acc.add_light(l, &k).unwrap();
+            }
+        }
+        let want = Accumulator::memory_bytes(t, n, &opts, spp, per_texel);
+        let case = format!("{basis:?} {link:?} holdout {holdout} spp {spp} per-texel {per_texel}");
+        assert_eq!(acc.held_bytes(), want, "{case}");
+        sizes.push(want);
+        acc.finish([1.0, 1.0]).unwrap();
+    }
+    // The figures grow the way the buffers do: ptm11 over ptm6, held-out planes, Gram matrices,
+    // 16-bit counts over 8-bit ones.
+    assert!(sizes[1] > sizes[0] && sizes[2] > sizes[0] && sizes[3] > sizes[1]);
+    assert_eq!(sizes[5], sizes[4] + (t * n) as u128);
+}

@@ -6,11 +6,12 @@ use std::sync::OnceLock;
 use anyhow::{anyhow, Context, Result};
 use plotters::prelude::*;
 
-use super::study::{pareto, Outcome};
-use super::MODELS;
+use ptm_report::study::{pareto, Outcome};
+use ptm_report::{SwatchStudy, MODELS};
 
 const FONT: &str = "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf";
 
+/// Registers DejaVu Sans as plotters' "sans-serif" (once per process).
 pub fn register_font() -> Result<()> {
     static DONE: OnceLock<std::result::Result<(), String>> = OnceLock::new();
     DONE.get_or_init(|| {
@@ -37,7 +38,7 @@ const COLORS: [RGBColor; 6] = [
     RGBColor(23, 190, 207),
 ];
 
-/// One marker per (link, uv) model, in the order of `report::MODELS`: identity link hollow
+/// One marker per (link, uv) model, in the order of `ptm_report::MODELS`: identity link hollow
 /// circle (projected) or cross (hemispherical); logistic link filled triangle (projected) or
 /// filled circle (hemispherical, `ptm fit`'s default).
 fn marker<'a, C: 'static + Clone>(
@@ -56,9 +57,9 @@ fn marker<'a, C: 'static + Clone>(
 /// Scatter (log time, linear error) of RMS error of K against bake + fit seconds: one colour per
 /// swatch, one marker per (link, uv) model; each swatch's Pareto front over every setting is the
 /// solid line, the front of the plain PTM alone (identity, projected) the dashed one.
-pub fn error_vs_time(path: &Path, series: &[(String, Vec<Outcome>)]) -> Result<()> {
+pub fn error_vs_time(path: &Path, series: &[SwatchStudy]) -> Result<()> {
     register_font()?;
-    let pts = series.iter().flat_map(|(_, o)| o.iter());
+    let pts = series.iter().flat_map(|s| s.outcomes.iter());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, 0f64, f64::MAX, 0f64);
     for o in pts {
         x0 = x0.min(o.seconds());
@@ -96,7 +97,8 @@ pub fn error_vs_time(path: &Path, series: &[(String, Vec<Outcome>)]) -> Result<(
             .y_desc("RMS error of K")
             .label_style(("sans-serif", 14))
             .draw()?;
-        for (si, (name, outcomes)) in series.iter().enumerate() {
+        for (si, study) in series.iter().enumerate() {
+            let (name, outcomes) = (&study.name, &study.outcomes);
             let color = COLORS[si % COLORS.len()];
             chart
                 .draw_series(

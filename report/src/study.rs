@@ -1,11 +1,14 @@
 //! Error against run time: bake + fit a swatch under many settings and measure the error of the
-//! fitted (clamped) K against a dense ground-truth bake on held-out light directions.
+//! fitted (clamped) K against a dense ground-truth bake on held-out light directions; per
+//! swatch, the Pareto front, the four models on the same bakes, and the best setting per
+//! time budget.
 use std::time::Instant;
 
-use anyhow::Result;
 use ptm_bake::{dome, BakeConfig, Baker, Swatch};
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, Link, Ptm, UvMap, Weight};
 use rayon::prelude::*;
+
+use crate::{Plan, Result, MODELS};
 
 /// Held-out directions: Fibonacci above 5°, turned 0.7 rad in azimuth so that no test light
 /// coincides with a light of any training dome (those are unturned Fibonacci domes).
@@ -131,7 +134,8 @@ impl Truth {
 /// Error of a PTM against reference planes on the test lights, over covered texels.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Errors {
-    /// RMS and 99th percentile of |K_fit − K_true| (K_fit clamped to [0, 1], as rendered).
+    /// RMS, 99th percentile and maximum of |K_fit − K_true| (K_fit clamped to [0, 1], as
+    /// rendered).
     pub rms: f64,
     pub p99: f64,
     pub max: f64,
@@ -140,6 +144,7 @@ pub struct Errors {
     pub outside_max: f64,
 }
 
+/// Measures `ptm` against `k_true[light][texel]` on `lights`, over texels with coverage.
 pub fn measure(ptm: &Ptm, lights: &LightSet, k_true: &[Vec<f32>], coverage: &[f32]) -> Errors {
     let n = ptm.width * ptm.height;
     let per_light: Vec<(Vec<f32>, usize, f64)> = lights
@@ -192,6 +197,7 @@ pub struct Setting {
 }
 
 impl Setting {
+    /// The setting in words, as the tables and the log name it.
     pub fn label(&self) -> String {
         format!(
             "{} lights, spp {}, {}², {}, {}, {}, {}",
@@ -225,6 +231,7 @@ pub struct Outcome {
 }
 
 impl Outcome {
+    /// Bake + fit seconds: what the setting costs from a swatch to a PTM.
     pub fn seconds(&self) -> f64 {
         self.bake_s + self.fit_s
     }
@@ -304,6 +311,174 @@ pub fn pareto(outcomes: &[Outcome]) -> Vec<usize> {
         }
     }
     front
+}
+
+/// The four models of [`MODELS`] fitted from one bake and basis: one row of the model table.
+#[derive(Clone, Debug)]
+pub struct ModelRow {
+    /// The plain PTM's setting (identity link, projected (u, v), uniform weight).
+    pub setting: Setting,
+    /// RMS error of K and fit seconds per model, in the order of [`MODELS`].
+    pub rms: [f64; 4],
+    pub fit_s: [f64; 4],
+    /// The shared bake's seconds.
+    pub bake_s: f64,
+}
+
+impl ModelRow {
+    /// The fraction by which `ptm fit`'s default model (logistic, hemispherical) reduces the
+    /// RMS error of the plain PTM on the same bake.
+    pub fn default_gain(&self) -> f64 {
+        1.0 - self.rms[3] / self.rms[0]
+    }
+}
+
+/// The most accurate measured setting within a time budget.
+#[derive(Clone, Debug)]
+pub struct Recommendation {
+    /// Bake + fit seconds allowed.
+    pub budget_s: f64,
+    pub best: Outcome,
+}
+
+/// One swatch's sweep: every setting of the plan measured against its ground truth.
+#[derive(Clone, Debug)]
+pub struct SwatchStudy {
+    /// Builtin name (`plain-weave`).
+    pub name: String,
+    pub triangles: usize,
+    /// The periodic tile's width and height, in mesh units.
+    pub tile: [f64; 2],
+    /// Seconds of the two truth bakes, and the truth's own RMS sampling noise of K.
+    pub truth_seconds: f64,
+    pub truth_noise: f64,
+    /// In the order the settings were baked (grouped by bake).
+    pub outcomes: Vec<Outcome>,
+    /// Indices into `outcomes` of the Pareto front, by time ([`pareto`]).
+    pub pareto: Vec<usize>,
+    pub models: Vec<ModelRow>,
+    /// One per half decade of seconds spanning the measured range.
+    pub recommendations: Vec<Recommendation>,
+}
+
+impl SwatchStudy {
+    /// Bakes the truth of `swatch` on the `test` lights and measures every setting of `plan`
+    /// (one bake per (lights, spp, texels), every setting that shares it fitted from it).
+    /// Returns the truth too: the stability cases measure against it.
+    pub fn run(
+        name: &str,
+        swatch: &Swatch,
+        plan: &Plan,
+        test: &LightSet,
+        progress: &mut dyn FnMut(&str),
+    ) -> Result<(SwatchStudy, Truth)> {
+        progress(&format!(
+            "{name}: {} triangles, baking the truth",
+            swatch.triangles.len()
+        ));
+        let truth = Truth::bake(swatch, plan.truth_res, plan.truth_spp, test.clone())?;
+        let mut coarse = std::collections::HashMap::new();
+        let mut outcomes = Vec::new();
+        let mut keys = Vec::new();
+        for s in &plan.settings {
+            if !keys.contains(&s.bake_key()) {
+                keys.push(s.bake_key());
+            }
+        }
+        for key in keys {
+            let group: Vec<Setting> = plan
+                .settings
+                .iter()
+                .filter(|s| s.bake_key() == key)
+                .cloned()
+                .collect();
+            let c = coarse.entry(key.2).or_insert_with(|| truth.at(key.2));
+            for o in run_settings(swatch, &truth, c, &group)? {
+                progress(&format!(
+                    "{name}: {:<70} bake {:>7.3} s  fit {:>7.3} s  rms {:.4}",
+                    o.setting.label(),
+                    o.bake_s,
+                    o.fit_s,
+                    o.errors.rms
+                ));
+                outcomes.push(o);
+            }
+        }
+        let study = SwatchStudy {
+            name: name.to_owned(),
+            triangles: swatch.triangles.len(),
+            tile: swatch.tile,
+            truth_seconds: truth.seconds,
+            truth_noise: truth.noise,
+            pareto: pareto(&outcomes),
+            models: model_rows(&outcomes),
+            recommendations: recommendations(&outcomes),
+            outcomes,
+        };
+        Ok((study, truth))
+    }
+
+    /// The outcome with the least RMS error.
+    pub fn best(&self) -> &Outcome {
+        self.outcomes
+            .iter()
+            .min_by(|a, b| a.errors.rms.total_cmp(&b.errors.rms))
+            .expect("a study measures at least one setting")
+    }
+}
+
+/// Every bake and basis measured under all four models (uniform weight): one row each.
+fn model_rows(outcomes: &[Outcome]) -> Vec<ModelRow> {
+    let mut rows = Vec::new();
+    for o in outcomes.iter().filter(|o| {
+        (o.setting.link, o.setting.uv) == MODELS[0] && o.setting.weight == Weight::Uniform
+    }) {
+        let same = |m: (Link, UvMap)| {
+            outcomes.iter().find(|x| {
+                x.setting
+                    == Setting {
+                        link: m.0,
+                        uv: m.1,
+                        ..o.setting.clone()
+                    }
+            })
+        };
+        let four: Vec<&Outcome> = MODELS.iter().filter_map(|&m| same(m)).collect();
+        if four.len() < MODELS.len() {
+            continue;
+        }
+        rows.push(ModelRow {
+            setting: o.setting.clone(),
+            rms: std::array::from_fn(|i| four[i].errors.rms),
+            fit_s: std::array::from_fn(|i| four[i].fit_s),
+            bake_s: o.bake_s,
+        });
+    }
+    rows
+}
+
+/// Budgets spanning the measured range, one per half decade, each with the most accurate
+/// setting within it.
+fn recommendations(outcomes: &[Outcome]) -> Vec<Recommendation> {
+    let (lo, hi) = outcomes.iter().fold((f64::MAX, 0f64), |(a, b), o| {
+        (a.min(o.seconds()), b.max(o.seconds()))
+    });
+    let mut out = Vec::new();
+    let mut budget = 10f64.powf((lo.log10() * 2.0).ceil() / 2.0);
+    while budget <= hi * 1.5 {
+        if let Some(best) = outcomes
+            .iter()
+            .filter(|o| o.seconds() <= budget)
+            .min_by(|a, b| a.errors.rms.total_cmp(&b.errors.rms))
+        {
+            out.push(Recommendation {
+                budget_s: budget,
+                best: best.clone(),
+            });
+        }
+        budget *= 10f64.sqrt();
+    }
+    out
 }
 
 #[cfg(test)]

@@ -1,15 +1,163 @@
 //! Stiff and extreme cases, each run and measured: light layouts that cannot determine the
 //! basis, precision (f32 against f64 solving, half against float storage), and geometry at
 //! extreme scales or broken in the ways real meshes are.
-use anyhow::Result;
+use std::path::Path;
+
 use ptm_bake::{bake_planes, dome, Swatch};
+use ptm_fit::solve::LogisticStats;
 use ptm_fit::{
     fit_stack, Basis, FitOptions, FitReport, LightSet, Link, Ptm, SampleStack, SaveOptions, UvMap,
 };
 use ptm_swatches::Mesh;
 
-use super::study::{bake_config, measure, Truth};
-use super::table::{g3, Table};
+use crate::study::{bake_config, measure, Errors, Truth};
+use crate::{Plan, Result};
+
+/// The stability cases, on one swatch at its truth's resolution.
+#[derive(Clone, Debug)]
+pub struct Stability {
+    /// Builtin name of the swatch.
+    pub swatch: String,
+    /// Texels a side, covered texels, samples per texel of every bake here.
+    pub res: usize,
+    pub covered: usize,
+    pub spp: u32,
+    pub layouts: Vec<LayoutRow>,
+    /// Fibonacci lights of the ridge sweep.
+    pub ridge_dirs: usize,
+    pub ridge: Vec<RidgeRow>,
+    pub precision: Vec<PrecisionRow>,
+    pub geometry: Geometry,
+}
+
+impl Stability {
+    /// Runs every case on `swatch` (builtin `name`) against `truth`; `scratch` is an existing
+    /// folder for the half-float PTMs of the precision study.
+    pub fn run(
+        name: &str,
+        swatch: &Swatch,
+        truth: &Truth,
+        plan: &Plan,
+        scratch: &Path,
+    ) -> Result<Stability> {
+        Ok(Stability {
+            swatch: name.to_owned(),
+            res: truth.res,
+            covered: truth.coverage.iter().filter(|&&c| c > 0.0).count(),
+            spp: plan.spp,
+            layouts: layouts(swatch, truth, plan.spp)?,
+            ridge_dirs: plan.ridge_dirs,
+            ridge: ridge(swatch, truth, plan.spp, plan.ridge_dirs)?,
+            precision: precision(swatch, truth, plan.spp, scratch)?,
+            geometry: geometry(name, truth.res, plan.spp)?,
+        })
+    }
+}
+
+/// One light layout fitted with one basis and model.
+#[derive(Clone, Debug)]
+pub struct LayoutRow {
+    pub layout: &'static str,
+    pub basis: Basis,
+    pub link: Link,
+    pub uv: UvMap,
+    /// The fit, or the error `ptm fit` would stop with, in words.
+    pub fit: std::result::Result<LayoutFit, String>,
+}
+
+/// What a fit of a light layout reports and how good it is.
+#[derive(Clone, Debug)]
+pub struct LayoutFit {
+    /// Rank and condition number of the (weighted) design matrix.
+    pub rank: usize,
+    pub cond: f64,
+    /// The fit's warnings, as `ptm fit` prints them (empty: ok).
+    pub warnings: Vec<String>,
+    /// Largest |coefficient| over covered texels.
+    pub max_abs_coef: f64,
+    /// Against the truth on the held-out lights.
+    pub errors: Errors,
+    pub logistic: Option<LogisticStats>,
+}
+
+/// One fit of the ridge sweep: the identity link's least squares (`lambda` None) or the
+/// logistic link at ridge λ.
+#[derive(Clone, Debug)]
+pub struct RidgeRow {
+    pub basis: Basis,
+    pub link: Link,
+    pub uv: UvMap,
+    /// Relative to the mean eigenvalue of AᵀΩA.
+    pub lambda: Option<f64>,
+    /// RMS error of K on the held-out lights.
+    pub rms: f64,
+    pub max_abs_coef: f64,
+    pub logistic: Option<LogisticStats>,
+    pub fit_s: f64,
+}
+
+/// What a precision case compares with our f64 SVD fit.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Variant {
+    /// The same fit by f32 normal equations, texel by texel.
+    F32NormalEquations,
+    /// The f64 fit stored as half floats and read back; `bound` is the file's stated bound.
+    HalfStorage { bound: f64 },
+}
+
+/// One precision case.
+#[derive(Clone, Debug)]
+pub struct PrecisionRow {
+    pub lights: &'static str,
+    pub variant: Variant,
+    pub basis: Basis,
+    pub cond: f64,
+    /// Largest |ΔK| (unclamped) against the f64 SVD fit; infinite where NaN appears.
+    pub max_dk: f64,
+    /// RMS error of K on the held-out lights, of the f64 SVD fit and of the variant.
+    pub rms_f64: f64,
+    pub rms_variant: f64,
+}
+
+/// The geometry cases of one builtin swatch.
+#[derive(Clone, Debug)]
+pub struct Geometry {
+    pub spec: String,
+    pub cases: Vec<GeometryCase>,
+}
+
+/// One geometry case and what the bake made of it.
+#[derive(Clone, Debug)]
+pub enum GeometryCase {
+    /// The swatch scaled by `scale`: K against the unscaled bake.
+    Scaled {
+        scale: f32,
+        max_dk: f64,
+        /// (texel, light) pairs whose K differs, of `total`.
+        differ: usize,
+        total: usize,
+    },
+    /// `appended` zero-area triangles added; the swatch's warnings.
+    Degenerate {
+        appended: usize,
+        warnings: Vec<String>,
+        max_dk: f64,
+        differ: usize,
+    },
+    /// Vertices near the x = W border lifted by 5% of H; the swatch's warnings.
+    NonPeriodic { warnings: Vec<String> },
+    /// The coarsest tessellation `spec` (`triangles`) baked at `fine_res`² and at `res`²:
+    /// uncovered texels of the fine bake, and the coverage-weighted mean K of both.
+    FinerThanTriangles {
+        spec: String,
+        triangles: usize,
+        fine_res: usize,
+        res: usize,
+        uncovered: usize,
+        mean_fine: f64,
+        mean_base: f64,
+    },
+}
 
 /// Bakes `lights` over `swatch` at the truth's resolution into a stored stack.
 fn bake_stack(swatch: &Swatch, lights: &LightSet, res: usize, spp: u32) -> Result<SampleStack> {
@@ -36,20 +184,6 @@ fn max_abs_coef(ptm: &Ptm, rep: &FitReport) -> f64 {
         .fold(0f64, |m, (_, &c)| m.max(c.abs() as f64))
 }
 
-/// Newton's iterations (mean/max) and separable/constant texels of a logistic fit, or "-".
-fn newton_cells(rep: &FitReport) -> [String; 2] {
-    match &rep.logistic {
-        Some(l) => [
-            format!(
-                "{:.1}/{} ({} at the cap)",
-                l.iterations_mean, l.iterations_max, l.not_converged
-            ),
-            format!("{}/{}", l.separable, l.constant),
-        ],
-        None => ["-".into(), "-".into()],
-    }
-}
-
 /// The plain PTM and `ptm fit`'s default model.
 const FITS: [(Link, UvMap); 2] = [
     (Link::Identity, UvMap::Projected),
@@ -57,7 +191,7 @@ const FITS: [(Link, UvMap); 2] = [
 ];
 
 /// The light layouts of the issue, fitted with both bases and both of [`FITS`] on a real bake.
-pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
+pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow>> {
     let mut near_ring = dome::rings("30x16")?;
     for (i, d) in near_ring.dirs.iter_mut().enumerate() {
         // ±1e-4 in z: numerically a ring, formally full rank.
@@ -69,7 +203,7 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
     for (i, d) in near_ring3.dirs.iter_mut().enumerate() {
         d[2] += if i % 2 == 0 { 1e-3 } else { -1e-3 };
     }
-    let cases: Vec<(&str, LightSet)> = vec![
+    let cases: Vec<(&'static str, LightSet)> = vec![
         (
             "Fibonacci 64 above 5° (reference)",
             dome::fibonacci(64, 5.0)?,
@@ -87,96 +221,48 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Table> {
         ("64 lights down to 1°", dome::fibonacci(64, 1.0)?),
     ];
     let (k_true, cov) = truth.at(truth.res);
-    let mut t = Table::new(
-        "stability_layouts",
-        &[
-            "light layout",
-            "basis",
-            "link, uv",
-            "rank",
-            "cond",
-            "what ptm says",
-            "max |coef|",
-            "RMS err K (held out)",
-            "K outside [0,1]",
-            "Newton iterations mean/max",
-            "separable/constant texels",
-        ],
-    );
-    for (name, lights) in &cases {
+    let mut rows = Vec::new();
+    for (layout, lights) in &cases {
         let stack = bake_stack(swatch, lights, truth.res, spp)?;
         for basis in Basis::ALL {
             for (link, uv) in FITS {
-                let fit = format!("{}, {}", link.name(), uv.name());
                 let opts = FitOptions {
                     link,
                     uv,
                     ..FitOptions::new(basis)
                 };
-                let row = match fit_stack(&stack, &opts) {
-                    Ok((ptm, rep)) => {
-                        let e = measure(&ptm, &truth.lights, &k_true, &cov);
-                        let [iters, sep] = newton_cells(&rep);
-                        vec![
-                            name.to_string(),
-                            basis.name().into(),
-                            fit,
-                            format!("{}/{}", rep.rank, basis.len()),
-                            g3(rep.cond),
-                            if rep.warnings.is_empty() {
-                                "ok".into()
-                            } else {
-                                rep.warnings.join(" ")
-                            },
-                            g3(max_abs_coef(&ptm, &rep)),
-                            g3(e.rms),
-                            format!("{:.1}% (max {})", 100.0 * e.outside, g3(e.outside_max)),
-                            iters,
-                            sep,
-                        ]
-                    }
-                    Err(err) => {
-                        let mut r = vec![
-                            name.to_string(),
-                            basis.name().into(),
-                            fit,
-                            "-".into(),
-                            "-".into(),
-                            format!("error: {err}"),
-                        ];
-                        r.extend(std::iter::repeat_n("-".to_string(), 5));
-                        r
-                    }
+                let fit = match fit_stack(&stack, &opts) {
+                    Ok((ptm, rep)) => Ok(LayoutFit {
+                        rank: rep.rank,
+                        cond: rep.cond,
+                        max_abs_coef: max_abs_coef(&ptm, &rep),
+                        errors: measure(&ptm, &truth.lights, &k_true, &cov),
+                        warnings: rep.warnings,
+                        logistic: rep.logistic,
+                    }),
+                    Err(err) => Err(err.to_string()),
                 };
-                t.push(row);
+                rows.push(LayoutRow {
+                    layout,
+                    basis,
+                    link,
+                    uv,
+                    fit,
+                });
             }
         }
     }
-    Ok(t)
+    Ok(rows)
 }
 
 /// The logistic link's ridge λ (relative to the mean eigenvalue of AᵀΩA) from 1e-6 to 10 on a
 /// Fibonacci dome of `dirs` lights, hemispherical (u, v), beside the identity link's fit of the
 /// same stack: what λ does to the error, the coefficients, Newton and the separable texels.
-pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Table> {
+pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Vec<RidgeRow>> {
     let (k_true, cov) = truth.at(truth.res);
     let lights = dome::fibonacci(dirs, 5.0)?;
     let stack = bake_stack(swatch, &lights, truth.res, spp)?;
-    let mut t = Table::new(
-        "stability_ridge",
-        &[
-            "basis",
-            "link, uv",
-            "λ",
-            "RMS err K (held out)",
-            "max |coef|",
-            "Newton iterations mean/max",
-            "texels at the iteration cap",
-            "separable texels",
-            "constant texels",
-            "fit s",
-        ],
-    );
+    let mut rows = Vec::new();
     for basis in Basis::ALL {
         let t0 = std::time::Instant::now();
         let (ptm, rep) = fit_stack(
@@ -187,18 +273,16 @@ pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Ta
             },
         )?;
         let secs = t0.elapsed().as_secs_f64();
-        t.push(vec![
-            basis.name().into(),
-            "identity, projected".into(),
-            "-".into(),
-            g3(measure(&ptm, &truth.lights, &k_true, &cov).rms),
-            g3(max_abs_coef(&ptm, &rep)),
-            "-".into(),
-            "-".into(),
-            "-".into(),
-            "-".into(),
-            g3(secs),
-        ]);
+        rows.push(RidgeRow {
+            basis,
+            link: Link::Identity,
+            uv: UvMap::Projected,
+            lambda: None,
+            rms: measure(&ptm, &truth.lights, &k_true, &cov).rms,
+            max_abs_coef: max_abs_coef(&ptm, &rep),
+            logistic: None,
+            fit_s: secs,
+        });
         for lambda in [1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0, 10.0] {
             let opts = FitOptions {
                 link: Link::Logistic,
@@ -209,22 +293,19 @@ pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Ta
             let t0 = std::time::Instant::now();
             let (ptm, rep) = fit_stack(&stack, &opts)?;
             let secs = t0.elapsed().as_secs_f64();
-            let l = rep.logistic.clone().unwrap_or_default();
-            t.push(vec![
-                basis.name().into(),
-                "logistic, hemispherical".into(),
-                format!("{lambda:e}"),
-                g3(measure(&ptm, &truth.lights, &k_true, &cov).rms),
-                g3(max_abs_coef(&ptm, &rep)),
-                format!("{:.1}/{}", l.iterations_mean, l.iterations_max),
-                l.not_converged.to_string(),
-                l.separable.to_string(),
-                l.constant.to_string(),
-                g3(secs),
-            ]);
+            rows.push(RidgeRow {
+                basis,
+                link: Link::Logistic,
+                uv: UvMap::Hemispherical,
+                lambda: Some(lambda),
+                rms: measure(&ptm, &truth.lights, &k_true, &cov).rms,
+                max_abs_coef: max_abs_coef(&ptm, &rep),
+                logistic: rep.logistic,
+                fit_s: secs,
+            });
         }
     }
-    Ok(t)
+    Ok(rows)
 }
 
 /// Solves one texel's normal equations AᵀA c = Aᵀk in f32 (Gaussian elimination, partial
@@ -268,20 +349,10 @@ pub fn precision(
     swatch: &Swatch,
     truth: &Truth,
     spp: u32,
-    scratch: &std::path::Path,
-) -> Result<Table> {
+    scratch: &Path,
+) -> Result<Vec<PrecisionRow>> {
     let (k_true, cov) = truth.at(truth.res);
-    let mut t = Table::new(
-        "stability_precision",
-        &[
-            "case",
-            "basis",
-            "cond",
-            "max |ΔK| vs f64 SVD",
-            "RMS err K, f64 SVD",
-            "RMS err K, this variant",
-        ],
-    );
+    let mut rows = Vec::new();
     let mut near_ring = dome::rings("30x16")?;
     for (i, d) in near_ring.dirs.iter_mut().enumerate() {
         d[2] += if i % 2 == 0 { 1e-3 } else { -1e-3 };
@@ -316,14 +387,15 @@ pub fn precision(
             }
             let dk = max_dk(&ptm, &f32_ptm, &truth.lights);
             let theirs = measure(&f32_ptm, &truth.lights, &k_true, &cov);
-            t.push(vec![
-                format!("{name}: f32 normal equations"),
-                basis.name().into(),
-                g3(rep.cond),
-                g3(dk),
-                g3(ours.rms),
-                g3(theirs.rms),
-            ]);
+            rows.push(PrecisionRow {
+                lights: name,
+                variant: Variant::F32NormalEquations,
+                basis,
+                cond: rep.cond,
+                max_dk: dk,
+                rms_f64: ours.rms,
+                rms_variant: theirs.rms,
+            });
             if name == "Fibonacci 64" {
                 let path = scratch.join(format!("half-{}.ptm.exr", basis.name()));
                 ptm.save(
@@ -336,21 +408,21 @@ pub fn precision(
                 let back = Ptm::load(&path)?;
                 let _ = std::fs::remove_file(&path);
                 let half = measure(&back, &truth.lights, &k_true, &cov);
-                t.push(vec![
-                    format!(
-                        "{name}: half-float storage (stated bound {})",
-                        g3(ptm.half_error_bound())
-                    ),
-                    basis.name().into(),
-                    g3(rep.cond),
-                    g3(max_dk(&ptm, &back, &truth.lights)),
-                    g3(ours.rms),
-                    g3(half.rms),
-                ]);
+                rows.push(PrecisionRow {
+                    lights: name,
+                    variant: Variant::HalfStorage {
+                        bound: ptm.half_error_bound(),
+                    },
+                    basis,
+                    cond: rep.cond,
+                    max_dk: max_dk(&ptm, &back, &truth.lights),
+                    rms_f64: ours.rms,
+                    rms_variant: half.rms,
+                });
             }
         }
     }
-    Ok(t)
+    Ok(rows)
 }
 
 /// Largest |K_a − K_b| (unclamped) over texels and lights; NaN anywhere counts as infinite.
@@ -385,7 +457,7 @@ fn scaled(mesh: &Mesh, s: f32) -> Mesh {
 
 /// The same swatch at extreme scales, with degenerate triangles, made non-periodic, and
 /// sampled finer than its triangles.
-pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Table> {
+pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Geometry> {
     let mesh = ptm_swatches::builtin(spec)?;
     let lights = dome::fibonacci(16, 5.0)?;
     /// A bake of one mesh: the checked swatch, K planes, coverage, uncovered texels.
@@ -406,24 +478,16 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Table> {
         }
         (m, n)
     };
-    let mut t = Table::new(
-        "stability_geometry",
-        &[
-            "case",
-            "what ptm does",
-            "max |ΔK| vs reference bake",
-            "texel·lights that differ",
-        ],
-    );
+    let mut cases = Vec::new();
     for s in [1e-12f32, 1e-4, 1e4, 1e12] {
         let (_, k, _, _) = bake(scaled(&mesh, s), &format!("{spec} ×{s:e}"), res)?;
         let (m, n) = diff(&k);
-        t.push(vec![
-            format!("{spec} scaled by {s:e}"),
-            "bakes a copy scaled by a power of two (exact) to unit size: Embree alone loses hits from 1e-12".into(),
-            g3(m),
-            format!("{n} of {}", k_ref.len() * k_ref[0].len()),
-        ]);
+        cases.push(GeometryCase::Scaled {
+            scale: s,
+            max_dk: m,
+            differ: n,
+            total: k_ref.len() * k_ref[0].len(),
+        });
     }
     // Degenerate triangles: repeated vertices and collinear triples, appended.
     let mut degen = mesh.clone();
@@ -440,12 +504,12 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Table> {
     degen.triangles.push([0, 1, nv]);
     let (sw, k, _, _) = bake(degen, &format!("{spec} + 51 degenerate"), res)?;
     let (m, n) = diff(&k);
-    t.push(vec![
-        "51 zero-area triangles appended".into(),
-        sw.warnings().join(" "),
-        g3(m),
-        format!("{n}"),
-    ]);
+    cases.push(GeometryCase::Degenerate {
+        appended: 51,
+        warnings: sw.warnings(),
+        max_dk: m,
+        differ: n,
+    });
     // Non-periodic: lift every vertex within 2% of the x = W border by 5% of the tile height.
     let mut broken = mesh.clone();
     let (w, h) = (mesh.tile[0], mesh.tile[1]);
@@ -455,12 +519,9 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Table> {
         }
     }
     let sw = Swatch::from_mesh(broken, None, &format!("{spec} (x = W border lifted)"))?;
-    t.push(vec![
-        "vertices near x = W lifted by 5% of H".into(),
-        sw.warnings().join(" "),
-        "-".into(),
-        "-".into(),
-    ]);
+    cases.push(GeometryCase::NonPeriodic {
+        warnings: sw.warnings(),
+    });
     // Texels finer than triangles: the coarsest tessellation at 4× the resolution; the mean
     // of K over 4×4 fine texels must match a bake at the base resolution within sampling error.
     let coarse = format!(
@@ -483,15 +544,17 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Table> {
         }
         s / w
     };
-    t.push(vec![
-        format!("{coarse} ({ntri} triangles) at {}² texels", res * 4),
-        format!("{unc} uncovered texels; facets resolved, K stays in [0, 1]"),
-        format!(
-            "mean K {} vs {} at {res}²",
-            g3(mean(&k_fine, Some(&cov_fine))),
-            g3(mean(&k_base, Some(&cov_base)))
-        ),
-        "-".into(),
-    ]);
-    Ok(t)
+    cases.push(GeometryCase::FinerThanTriangles {
+        spec: coarse,
+        triangles: ntri,
+        fine_res: res * 4,
+        res,
+        uncovered: unc,
+        mean_fine: mean(&k_fine, Some(&cov_fine)),
+        mean_base: mean(&k_base, Some(&cov_base)),
+    });
+    Ok(Geometry {
+        spec: spec.to_owned(),
+        cases,
+    })
 }

@@ -1,6 +1,5 @@
 //! A small table type: every table of the report is written as Markdown into `report.md` and as
 //! the CSV behind it.
-use std::path::Path;
 
 /// A titled table of preformatted cells.
 pub struct Table {
@@ -11,6 +10,7 @@ pub struct Table {
 }
 
 impl Table {
+    /// An empty table with these column headers.
     pub fn new(name: impl Into<String>, columns: &[&'static str]) -> Self {
         Table {
             name: name.into(),
@@ -19,11 +19,13 @@ impl Table {
         }
     }
 
+    /// Appends a row (one cell per column).
     pub fn push(&mut self, row: Vec<String>) {
         debug_assert_eq!(row.len(), self.columns.len());
         self.rows.push(row);
     }
 
+    /// A Markdown table (`|` in cells escaped, newlines as spaces).
     pub fn markdown(&self) -> String {
         let mut s = format!("| {} |\n", self.columns.join(" | "));
         s += &format!("|{}\n", "---|".repeat(self.columns.len()));
@@ -37,6 +39,8 @@ impl Table {
         s
     }
 
+    /// RFC 4180 CSV: header line, then one line per row; cells with commas, quotes or
+    /// newlines quoted.
     pub fn csv(&self) -> String {
         let quote = |c: &str| {
             if c.contains([',', '"', '\n']) {
@@ -56,16 +60,6 @@ impl Table {
             s += &(r.iter().map(|c| quote(c)).collect::<Vec<_>>().join(",") + "\n");
         }
         s
-    }
-
-    /// Writes `<dir>/<name>.csv` atomically.
-    pub fn write_csv(&self, dir: &Path) -> anyhow::Result<()> {
-        let path = dir.join(format!("{}.csv", self.name));
-        ptm_fit::atomic::write_atomic(&path, |f| {
-            use std::io::Write;
-            f.write_all(self.csv().as_bytes())
-        })?;
-        Ok(())
     }
 }
 

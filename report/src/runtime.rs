@@ -2,13 +2,79 @@
 //! ground truth beside its frame time, and the extreme cases of the penumbra map (R → 0,
 //! d_ca → 0, d_lc → 0, a huge light, an 8192² caster through the summed-area table), each
 //! measured against its analytic answer and against the CPU twin.
-use anyhow::Result;
 use ptm_fit::{Basis, Ptm};
 use ptm_runtime::penumbra::{caster_radius, half_plane_fraction};
 use ptm_runtime::synthetic::{half_plane, leaves};
 use ptm_runtime::{compare, cpu, gpu, Blur, Gpu, Light, Scene};
 
-use super::table::{g3, Table};
+use crate::{Error, Result};
+
+/// The runtime part of the study, on one adapter.
+#[derive(Clone, Debug)]
+pub struct Runtime {
+    /// The adapter, in words (`Gpu::describe`).
+    pub adapter: String,
+    pub blur: Vec<BlurRow>,
+    pub extremes: Vec<ExtremeRow>,
+}
+
+impl Runtime {
+    /// Opens whatever adapter wgpu finds and measures the blur methods (a smaller image and
+    /// fewer Monte Carlo samples when `quick`) and the extreme cases.
+    pub fn run(quick: bool) -> Result<Runtime> {
+        let gpu = Gpu::new().map_err(Error::NoAdapter)?;
+        Ok(Runtime {
+            adapter: gpu.describe(),
+            blur: blur_methods(&gpu, quick)?,
+            extremes: extremes(&gpu)?,
+        })
+    }
+}
+
+/// One blur method's soft shadow against the Monte Carlo ground truth.
+#[derive(Clone, Debug)]
+pub struct BlurRow {
+    /// The spherical light's radius, and the penumbra radius it gives on the caster (texels).
+    pub light_radius: f32,
+    pub penumbra_texels: f64,
+    pub measured: compare::BlurRow,
+}
+
+/// The 10–90 % width of an opacity profile on the cloth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ProfileWidth {
+    /// The case's analytic opacity is a constant: no width to speak of.
+    Constant,
+    /// No edge of the profile lies in view.
+    NoEdgeInView,
+    /// In cloth units.
+    Width(f64),
+}
+
+/// One extreme case of the penumbra map, measured.
+#[derive(Clone, Debug)]
+pub struct ExtremeRow {
+    pub name: &'static str,
+    /// What ptm does about it, in words.
+    pub does: &'static str,
+    pub blur: Blur,
+    /// The caster was box-downsampled by this factor (1: not) to `caster_texels`.
+    pub caster_downsample: usize,
+    pub caster_texels: [u32; 2],
+    /// Analytic and measured 10–90 % widths of the opacity profile along the strip.
+    pub analytic_width: ProfileWidth,
+    pub measured_width: ProfileWidth,
+    /// One caster texel's footprint on the cloth; None where the light lies on the caster
+    /// plane.
+    pub caster_texel_on_cloth: Option<f64>,
+    /// Largest |opacity − analytic| along the strip (edge texels skipped).
+    pub max_deviation: f64,
+    /// Largest |GPU − CPU twin| over the image; None where the images do not compare.
+    pub gpu_vs_twin: Option<f64>,
+    pub all_finite: bool,
+    /// Setup + shade passes, milliseconds.
+    pub ms: f64,
+}
 
 fn light(position: [f32; 3], radius: f32) -> Light {
     Light {
@@ -51,20 +117,9 @@ fn cloth(n: usize) -> Ptm {
 }
 
 /// Every blur method against the Monte Carlo soft shadow, for a small and a large light.
-pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Table> {
+pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
     let (side, mc) = if quick { (96, 96) } else { (384, 512) };
-    let mut t = Table::new(
-        "runtime_blur",
-        &[
-            "light radius R",
-            "penumbra radius on the caster (texels)",
-            "method",
-            "max |err| (radiance)",
-            "mean |err| (radiance)",
-            "shade ms",
-            "setup ms",
-        ],
-    );
+    let mut rows = Vec::new();
     let caster_texels = 512;
     for radius in [0.1f32, 0.5] {
         let mut s = Scene::over_ptm(cloth(32), 4, [side, side]);
@@ -72,19 +127,15 @@ pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Table> {
         s.lights = vec![light([0.3, 0.2, 2.0], radius)];
         s.caster = Some(leaves(caster_texels, [-1.5, -1.5, 1.5, 1.5], 0.6));
         let w = caster_radius(radius as f64, 2.0 - 0.6, 0.6) * caster_texels as f64 / 3.0;
-        for r in compare::compare_blur(g, &s, mc)? {
-            t.push(vec![
-                g3(radius as f64),
-                g3(w),
-                r.method.into(),
-                g3(r.max_abs_error as f64),
-                g3(r.mean_abs_error as f64),
-                g3(1e3 * r.shade_s),
-                g3(1e3 * r.setup_s),
-            ]);
+        for measured in compare::compare_blur(g, &s, mc)? {
+            rows.push(BlurRow {
+                light_radius: radius,
+                penumbra_texels: w,
+                measured,
+            });
         }
     }
-    Ok(t)
+    Ok(rows)
 }
 
 const STRIP: u32 = 256;
@@ -129,7 +180,7 @@ struct Case {
 /// The extreme cases, each measured: analytic penumbra width on the acceptor against the
 /// measured 10–90 % width, the largest deviation from the analytic opacity profile, the GPU
 /// against its CPU twin, and whether every pixel is finite.
-pub fn extremes(g: &Gpu) -> Result<Table> {
+pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
     let h = 0.5f32;
     let big = 8192;
     let cases = vec![
@@ -198,21 +249,7 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             analytic: None,
         },
     ];
-    let mut t = Table::new(
-        "runtime_extremes",
-        &[
-            "case",
-            "what ptm does",
-            "blur",
-            "analytic penumbra width on the cloth",
-            "measured 10–90 % width",
-            "caster texel on the cloth",
-            "max |opacity − analytic|",
-            "GPU vs CPU twin",
-            "all finite",
-            "setup + shade ms",
-        ],
-    );
+    let mut rows = Vec::new();
     for c in cases {
         let mut s = strip(c.light, c.blur);
         let free = gpu::render(g, &s.prepare()?)?.0;
@@ -261,44 +298,35 @@ pub fn extremes(g: &Gpu) -> Result<Table> {
             .map(|(_, (m, a))| (m - a).abs())
             .fold(0f64, f64::max);
         // A profile without an edge in view (constant) has no width.
-        let show_width = |w: f64| {
+        let width = |w: f64| {
             if c.analytic.is_some() {
-                "-".to_string()
+                ProfileWidth::Constant
             } else if w.is_nan() {
-                "no edge in view".to_string()
+                ProfileWidth::NoEdgeInView
             } else {
-                g3(w)
+                ProfileWidth::Width(w)
             }
         };
-        let mut does = c.does.to_string();
-        if p.caster_downsample > 1 {
-            does += &format!(
-                " (downsampled ×{} to {}×{})",
-                p.caster_downsample, p.frame.caster_size[0], p.frame.caster_size[1]
-            );
-        }
         let ms = timings
             .passes
             .iter()
             .filter(|(n, _)| !matches!(*n, "compile" | "readback"))
             .fold(0.0, |a, (_, s)| a + s)
             * 1e3;
-        t.push(vec![
-            c.name.into(),
-            does,
-            c.blur.name().into(),
-            show_width(width_10_90(&xs, &analytic)),
-            show_width(width_10_90(&xs, &measured)),
-            if d_lc > 0.0 {
-                g3(texel * lz / d_lc)
-            } else {
-                "-".into()
-            },
-            g3(max_dev),
-            g3(lit.max_abs_diff(&twin).unwrap_or(f32::NAN) as f64),
-            if finite { "yes" } else { "NO" }.into(),
-            g3(ms),
-        ]);
+        rows.push(ExtremeRow {
+            name: c.name,
+            does: c.does,
+            blur: c.blur,
+            caster_downsample: p.caster_downsample,
+            caster_texels: p.frame.caster_size,
+            analytic_width: width(width_10_90(&xs, &analytic)),
+            measured_width: width(width_10_90(&xs, &measured)),
+            caster_texel_on_cloth: (d_lc > 0.0).then(|| texel * lz / d_lc),
+            max_deviation: max_dev,
+            gpu_vs_twin: lit.max_abs_diff(&twin).map(f64::from),
+            all_finite: finite,
+            ms,
+        });
     }
-    Ok(t)
+    Ok(rows)
 }

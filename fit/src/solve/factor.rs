@@ -1,0 +1,345 @@
+//! The f64 factorisation of a shared (weighted) design matrix or a per-texel normal matrix,
+//! and the plain-word diagnostics of a light set.
+use nalgebra::{DMatrix, SymmetricEigen};
+
+use super::options::{check_strict, holdout_indices, FitOptions, Weight, COND_WARN};
+use crate::{logistic, Basis, Error, LightSet, Link, Result, UvMap};
+
+pub(super) fn light_weights(
+    lights: &LightSet,
+    opts: &FitOptions,
+) -> Result<(Vec<f64>, Vec<usize>)> {
+    if opts.holdout >= lights.len() {
+        return Err(Error::Invalid(format!(
+            "--holdout {} leaves no light to fit ({} lights)",
+            opts.holdout,
+            lights.len()
+        )));
+    }
+    let held = holdout_indices(lights.len(), opts.holdout);
+    let mut w: Vec<f64> = lights
+        .dirs
+        .iter()
+        .map(|d| match opts.weight {
+            Weight::Uniform => 1.0,
+            Weight::Cosine => d[2].max(0.0),
+        })
+        .collect();
+    for &i in &held {
+        w[i] = 0.0;
+    }
+    Ok((w, held))
+}
+
+/// Signed coefficient list of a basis direction, e.g. `u2 + v2 - 0.75*1`.
+pub fn describe_direction(basis: Basis, v: &[f64]) -> String {
+    let big = v.iter().fold(0.0f64, |a, &x| a.max(x.abs()));
+    let lead = v.iter().copied().find(|x| x.abs() == big).unwrap_or(1.0);
+    let scale = if lead < 0.0 { -1.0 / big } else { 1.0 / big };
+    let mut s = String::new();
+    for (x, m) in v.iter().zip(basis.monomials()) {
+        let x = x * scale;
+        if x.abs() < 1e-3 {
+            continue;
+        }
+        let sign = if x < 0.0 { " - " } else { " + " };
+        if s.is_empty() {
+            if x < 0.0 {
+                s.push('-');
+            }
+        } else {
+            s.push_str(sign);
+        }
+        if (x.abs() - 1.0).abs() < 5e-4 {
+            s.push_str(m.name);
+        } else {
+            s.push_str(&format!("{:.3}*{}", x.abs(), m.name));
+        }
+    }
+    s
+}
+
+/// A factored (weighted) design: right singular vectors and singular values of W½A, and the
+/// solve operator S (terms × terms) with c = S · AᵀW·k.
+#[derive(Clone, Debug)]
+pub(super) struct Factor {
+    pub sigma: Vec<f64>,
+    pub v: DMatrix<f64>,
+    pub rank: usize,
+    pub cutoff: f64,
+    pub cond: f64,
+    pub s: DMatrix<f64>,
+}
+
+impl Factor {
+    /// From singular values (descending) and right singular vectors (columns).
+    pub(super) fn new(
+        sigma: Vec<f64>,
+        v: DMatrix<f64>,
+        rcond: f64,
+        regularize: Option<f64>,
+    ) -> Factor {
+        let m = sigma.len();
+        let smax = sigma.first().copied().unwrap_or(0.0);
+        let cutoff = rcond * smax;
+        let rank = sigma.iter().filter(|&&s| s > cutoff && s > 0.0).count();
+        let smin = sigma.last().copied().unwrap_or(0.0);
+        let cond = if smin > 0.0 {
+            smax / smin
+        } else {
+            f64::INFINITY
+        };
+        let ridge = regularize.map(|l| l * sigma.iter().map(|s| s * s).sum::<f64>() / m as f64);
+        let f: Vec<f64> = sigma
+            .iter()
+            .map(|&s| match ridge {
+                Some(l) if s * s + l > 0.0 => 1.0 / (s * s + l),
+                Some(_) => 0.0,
+                None if s > cutoff && s > 0.0 => 1.0 / (s * s),
+                None => 0.0,
+            })
+            .collect();
+        let mut s = DMatrix::zeros(m, m);
+        for (k, &fk) in f.iter().enumerate() {
+            if fk == 0.0 {
+                continue;
+            }
+            let col = v.column(k);
+            s += fk * col * col.transpose();
+        }
+        Factor {
+            sigma,
+            v,
+            rank,
+            cutoff,
+            cond,
+            s,
+        }
+    }
+
+    /// From the SVD of W½A (rows padded to at least `terms`, so V is complete).
+    pub(super) fn from_design(
+        a: &DMatrix<f64>,
+        w: &[f64],
+        rcond: f64,
+        regularize: Option<f64>,
+    ) -> Factor {
+        let (n, m) = a.shape();
+        let mut wa = DMatrix::zeros(n.max(m), m);
+        for i in 0..n {
+            let sw = w[i].sqrt();
+            for j in 0..m {
+                wa[(i, j)] = sw * a[(i, j)];
+            }
+        }
+        let svd = nalgebra::SVD::new(wa, false, true);
+        let vt = svd.v_t.expect("v requested");
+        Factor::new(
+            svd.singular_values.iter().copied().collect(),
+            vt.transpose(),
+            rcond,
+            regularize,
+        )
+    }
+
+    /// From a normal matrix G = AᵀWA (symmetric eigendecomposition; σ = √λ).
+    pub(super) fn from_normal(g: DMatrix<f64>, rcond: f64, regularize: Option<f64>) -> Factor {
+        let m = g.nrows();
+        let eig = SymmetricEigen::new(g);
+        let mut order: Vec<usize> = (0..m).collect();
+        order.sort_by(|&a, &b| eig.eigenvalues[b].total_cmp(&eig.eigenvalues[a]));
+        let sigma = order
+            .iter()
+            .map(|&i| eig.eigenvalues[i].max(0.0).sqrt())
+            .collect();
+        let v = DMatrix::from_fn(m, m, |r, c| eig.eigenvectors[(r, order[c])]);
+        Factor::new(sigma, v, rcond, regularize)
+    }
+
+    /// Right singular vectors with σ ≤ `limit` (undetermined or poorly determined directions).
+    pub(super) fn weak_directions(&self, basis: Basis, limit: f64) -> Vec<String> {
+        (0..self.sigma.len())
+            .filter(|&k| self.sigma[k] <= limit)
+            .map(|k| describe_direction(basis, self.v.column(k).as_slice()))
+            .collect()
+    }
+}
+
+/// Plain-word warnings about a light set and its factorisation.
+pub(super) fn diagnose(
+    basis: Basis,
+    lights: &LightSet,
+    w: &[f64],
+    f: &Factor,
+    opts: &FitOptions,
+) -> Vec<String> {
+    let m = basis.len();
+    let fit: Vec<usize> = (0..lights.len()).filter(|&i| w[i] > 0.0).collect();
+    let mut out = Vec::new();
+    if fit.len() < m {
+        out.push(format!(
+            "only {} lights enter the fit for {} coefficients of {}: at least {} directions of the basis are undetermined",
+            fit.len(),
+            m,
+            basis.name(),
+            m - fit.len()
+        ));
+    }
+    if !fit.is_empty() {
+        let r2: Vec<f64> = fit
+            .iter()
+            .map(|&i| lights.dirs[i][0].powi(2) + lights.dirs[i][1].powi(2))
+            .collect();
+        let (lo, hi) = r2
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
+        let el = |r2: f64| (1.0 - r2).max(0.0).sqrt().asin().to_degrees();
+        if fit.len() >= 2 && hi - lo < 1e-9 {
+            out.push(format!(
+                "all lights lie on one elevation ring ({:.2}°, u²+v² = {:.4}): u2+v2 cannot be told from the constant, and K inside the ring is not determined by the data",
+                el(lo),
+                lo
+            ));
+        } else if fit.len() >= 2 && hi - lo < 0.02 {
+            out.push(format!(
+                "lights lie near one elevation ring (elevations {:.2}°–{:.2}°): terms that differ only by u²+v² are nearly indistinguishable",
+                el(hi),
+                el(lo)
+            ));
+        }
+        let min_el = fit
+            .iter()
+            .map(|&i| lights.elevation_deg(i))
+            .fold(f64::MAX, f64::min);
+        if min_el >= 45.0 {
+            out.push(format!(
+                "no light below {min_el:.1}° elevation: K at grazing lights, where most occlusion lives, is extrapolated"
+            ));
+        }
+    }
+    if f.rank < m {
+        let what = match (opts.link, opts.regularize) {
+            (Link::Logistic, l) => format!(
+                "logistic fit whose ridge (lambda = {:e} x mean eigenvalue) holds them near 0",
+                l.unwrap_or(logistic::DEFAULT_RIDGE)
+            ),
+            (Link::Identity, Some(l)) => format!("ridge solution (lambda = {l:e} x mean eigenvalue)"),
+            (Link::Identity, None) => format!(
+                "minimum-norm solution (truncated SVD: singular values <= {:.3e} = {:e} x sigma_max dropped)",
+                f.cutoff, opts.rcond
+            ),
+        };
+        out.push(format!(
+            "rank {} of {}: the light set cannot determine these basis directions: {}; returning the {what}",
+            f.rank,
+            m,
+            f.weak_directions(basis, f.cutoff).join("; ")
+        ));
+    } else if f.cond > COND_WARN {
+        let smax = f.sigma[0];
+        out.push(format!(
+            "ill-conditioned (condition number {:.1} > {COND_WARN}): poorly determined directions: {}",
+            f.cond,
+            f.weak_directions(basis, smax / COND_WARN).join("; ")
+        ));
+    }
+    out
+}
+
+pub(super) fn design(basis: Basis, uv: UvMap, lights: &LightSet) -> DMatrix<f64> {
+    let m = basis.len();
+    let mut a = DMatrix::zeros(lights.len(), m);
+    let mut t = vec![0.0; m];
+    for (i, d) in lights.dirs.iter().enumerate() {
+        let (u, v) = uv.of_dir(*d);
+        basis.terms(u, v, &mut t);
+        for j in 0..m {
+            a[(i, j)] = t[j];
+        }
+    }
+    a
+}
+
+pub(super) fn solver_words(opts: &FitOptions, f: &Factor, per_texel: bool) -> String {
+    let how = match opts.regularize {
+        Some(l) => format!("ridge lambda={l:e} x mean eigenvalue"),
+        None => format!(
+            "truncated at rcond={:e} (cutoff {:.3e})",
+            opts.rcond, f.cutoff
+        ),
+    };
+    if per_texel {
+        format!(
+            "per-texel f64 eigen-solve of the weighted normal matrix, {how}, weight={}",
+            opts.weight.name()
+        )
+    } else {
+        format!(
+            "svd-pinv f64 of the shared design matrix, {how}, weight={}, applied in f32",
+            opts.weight.name()
+        )
+    }
+}
+
+/// Shared preparation of a distant-light fit.
+pub(super) struct Prepared {
+    pub a: DMatrix<f64>,
+    pub w: Vec<f64>,
+    pub held: Vec<usize>,
+    pub factor: Factor,
+    pub warnings: Vec<String>,
+}
+
+pub(super) fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {
+    if lights.is_empty() {
+        return Err(Error::Invalid("no lights to fit".into()));
+    }
+    if !(0.0..1.0).contains(&opts.rcond) {
+        return Err(Error::Invalid(format!(
+            "rcond {} must lie in [0, 1): singular values below rcond·σmax are dropped",
+            opts.rcond
+        )));
+    }
+    if let Some(l) = opts.regularize.filter(|l| !(l.is_finite() && *l >= 0.0)) {
+        return Err(Error::Invalid(format!(
+            "regularize λ = {l} must be finite and ≥ 0 (a negative ridge makes the normal \
+             equations indefinite)"
+        )));
+    }
+    let (w, held) = light_weights(lights, opts)?;
+    let a = design(opts.basis, opts.uv, lights);
+    // The logistic link's λ is its own ridge; its factorisation (diagnostics, warm start) is the
+    // identity link's truncated one.
+    let ridge = match opts.link {
+        Link::Identity => opts.regularize,
+        Link::Logistic => None,
+    };
+    let factor = Factor::from_design(&a, &w, opts.rcond, ridge);
+    let warnings = diagnose(opts.basis, lights, &w, &factor, opts);
+    check_strict(opts, &warnings)?;
+    Ok(Prepared {
+        a,
+        w,
+        held,
+        factor,
+        warnings,
+    })
+}
+
+pub(super) fn unpack(packed: &[f64], m: usize) -> DMatrix<f64> {
+    let mut g = DMatrix::zeros(m, m);
+    let mut q = 0;
+    for i in 0..m {
+        for j in i..m {
+            g[(i, j)] = packed[q];
+            g[(j, i)] = packed[q];
+            q += 1;
+        }
+    }
+    g
+}
+
+pub(super) fn remove_light(g: &mut DMatrix<f64>, a: &DMatrix<f64>, l: usize, w: f64) {
+    let row = a.row(l);
+    *g -= w * row.transpose() * row;
+}

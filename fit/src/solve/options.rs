@@ -1,0 +1,216 @@
+//! What a fit is asked for ([`FitOptions`], [`Weight`]) and what it reports beside the PTM
+//! ([`FitReport`], [`ErrorStats`], [`LogisticStats`]).
+use crate::logistic::{self, Kernel};
+use crate::{Basis, Error, Link, Result, UvMap};
+
+/// How each light's squared error counts in the fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Weight {
+    /// Every light counts the same.
+    Uniform,
+    /// Weight = l_z = sin(elevation): grazing lights carry less light, so their errors matter
+    /// less for shading. Lights at or below the horizon get weight 0 (left out).
+    Cosine,
+}
+
+impl Weight {
+    pub fn name(self) -> &'static str {
+        match self {
+            Weight::Uniform => "uniform",
+            Weight::Cosine => "cosine",
+        }
+    }
+}
+
+/// Options of a fit. Defaults live in the CLI; [`FitOptions::new`] gives the documented ones.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitOptions {
+    pub basis: Basis,
+    /// K = p (least squares) or K = σ(p) (maximum likelihood, [`crate::logistic`]).
+    pub link: Link,
+    /// How light directions map to (u, v).
+    pub uv: UvMap,
+    pub weight: Weight,
+    /// Ridge λ, relative to the mean eigenvalue trace(AᵀWA)/terms: minimises
+    /// |W½(Ac − k)|² + λ·trace(AᵀWA)/terms·|c|². `None`: truncated SVD (minimum norm) for the
+    /// identity link, [`logistic::DEFAULT_RIDGE`] for the logistic link.
+    pub regularize: Option<f64>,
+    /// Logistic link: Newton stops when the decrement per unit light weight is below this.
+    pub tolerance: f64,
+    /// Logistic link: at most this many Newton iterations per texel.
+    pub max_iterations: u32,
+    /// Also fit MIP levels (each to the box-filtered K of its footprint) for the file.
+    pub mips: bool,
+    /// Logistic link: force a kernel build (tests and benchmarks); `None` = the widest.
+    pub kernel: Option<Kernel>,
+    /// Singular values below `rcond · σ_max` are treated as zero (their directions undetermined).
+    pub rcond: f64,
+    /// Any warning about the light set becomes an error.
+    pub strict: bool,
+    /// Drop non-finite samples (counted) instead of failing.
+    pub skip_bad: bool,
+    /// Number of lights kept out of the fit to measure the error honestly (0 = none).
+    pub holdout: usize,
+}
+
+/// Default relative singular-value cutoff. Well-spread domes have condition numbers of 6 (ptm6)
+/// to 25 (ptm11), domes above 60° about 400 (ptm11): all kept. A dome 1e-3 off a single ring has
+/// about 2400; fitting that direction amplified bake noise into a held-out RMS error of K of 0.50
+/// on the plain weave, against 0.32 with it dropped (`ptm report`, stability tables).
+pub const DEFAULT_RCOND: f64 = 1e-3;
+
+/// Condition number above which the fit is reported as ill-conditioned.
+pub const COND_WARN: f64 = 100.0;
+
+impl FitOptions {
+    pub fn new(basis: Basis) -> Self {
+        FitOptions {
+            basis,
+            link: Link::Identity,
+            uv: UvMap::Projected,
+            weight: Weight::Uniform,
+            regularize: None,
+            tolerance: logistic::DEFAULT_TOLERANCE,
+            max_iterations: logistic::DEFAULT_MAX_ITERATIONS,
+            mips: false,
+            kernel: None,
+            rcond: DEFAULT_RCOND,
+            strict: false,
+            skip_bad: false,
+            holdout: 0,
+        }
+    }
+}
+
+/// Mean, 99th percentile and maximum of a per-texel error over the unmasked texels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ErrorStats {
+    pub mean: f64,
+    pub p99: f64,
+    pub max: f64,
+}
+
+impl ErrorStats {
+    /// Over the texels whose `mask` is false; p99 by selection (O(texels)).
+    pub(crate) fn of(values: &[f32], mask: &[bool]) -> Self {
+        let mut v: Vec<f32> = values
+            .iter()
+            .zip(mask)
+            .filter(|(_, &m)| !m)
+            .map(|(&x, _)| x)
+            .collect();
+        if v.is_empty() {
+            return ErrorStats::default();
+        }
+        let mean = v.iter().map(|&x| x as f64).sum::<f64>() / v.len() as f64;
+        let max = v.iter().copied().fold(f32::MIN, f32::max);
+        // Selection, not a sort: O(texels).
+        let i99 = ((v.len() as f64 * 0.99).ceil() as usize).clamp(1, v.len()) - 1;
+        let (_, p99, _) = v.select_nth_unstable_by(i99, f32::total_cmp);
+        ErrorStats {
+            mean,
+            p99: *p99 as f64,
+            max: max as f64,
+        }
+    }
+}
+
+/// Diagnostics of a fit, returned beside the PTM.
+#[derive(Clone, Debug, Default)]
+pub struct FitReport {
+    pub basis: Option<Basis>,
+    pub link: Option<Link>,
+    pub uv: Option<UvMap>,
+    /// Logistic link: Newton iterations per fitted texel (mean, max), texels stopped by the
+    /// iteration cap, texels whose samples a polynomial separates exactly (optimum at infinity
+    /// without the ridge) and texels whose samples are all 0 or all 1 (a special separable case).
+    pub logistic: Option<LogisticStats>,
+    /// MIP levels fitted beside level 0 (0 = none).
+    pub mip_levels: usize,
+    /// Lights in the set, lights that entered the fit (weight > 0, not held out).
+    pub lights: usize,
+    pub lights_fit: usize,
+    /// Indices of held-out lights.
+    pub holdout_lights: Vec<usize>,
+    pub texels: usize,
+    /// Texels with coverage 0: coefficients 0, left out of the statistics.
+    pub masked: usize,
+    pub coefficients: usize,
+    /// Numerical rank of W½A (for per-texel directions: the lowest over texels).
+    pub rank: usize,
+    /// σ_max / σ_min of W½A (for per-texel directions: the worst texel); `inf` when singular.
+    pub cond: f64,
+    /// Absolute singular-value cutoff used (rcond · σ_max), and rcond.
+    pub cutoff: f64,
+    pub rcond: f64,
+    /// Singular values of W½A, descending (distant lights).
+    pub singular_values: Vec<f64>,
+    /// Solver in words, e.g. `svd-pinv f64 (truncated at 1e-4·σmax), applied in f32`.
+    pub solver: String,
+    /// Plain-word warnings about the light set and the data.
+    pub warnings: Vec<String>,
+    /// Per-texel weighted RMS residual over the fitting lights.
+    pub rms: ErrorStats,
+    /// Per-texel max |residual| over the fitting lights (None when streaming: needs the samples).
+    pub max: Option<ErrorStats>,
+    /// Per-texel RMS error of clamped K on the held-out lights.
+    pub holdout: Option<ErrorStats>,
+    /// Non-finite samples dropped (`skip_bad`).
+    pub skipped_samples: usize,
+    /// Texels solved individually (dropped samples) whose rank fell below `coefficients`.
+    pub rank_deficient_texels: usize,
+    /// Per-texel coverage (fraction of the footprint that saw the swatch) when some texel is
+    /// not fully covered; empty when every texel is (nothing to record).
+    pub coverage: Vec<f32>,
+    /// Per-texel maps: weighted RMS and max residual (max empty when streaming).
+    pub rms_map: Vec<f32>,
+    pub max_map: Vec<f32>,
+    /// Seconds per stage, in order.
+    pub seconds: Vec<(&'static str, f64)>,
+}
+
+/// What the logistic fit did, over the fitted texels of level 0.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LogisticStats {
+    pub iterations_mean: f64,
+    pub iterations_max: u32,
+    pub not_converged: usize,
+    pub separable: usize,
+    pub constant: usize,
+    /// Ridge λ (relative) and ρ (absolute, λ·mean eigenvalue of AᵀΩA).
+    pub lambda: f64,
+    pub ridge: f64,
+    pub tolerance: f64,
+    pub max_iterations: u32,
+    /// The kernel build that ran (`avx512f`, `avx2+fma`, `portable`).
+    pub kernel: &'static str,
+}
+
+/// `coverage` when some texel is not fully covered, else nothing (a file needs no channel of 1s).
+pub(super) fn partial_coverage(coverage: &[f32]) -> Vec<f32> {
+    if coverage.iter().any(|&c| c < 1.0) {
+        coverage.to_vec()
+    } else {
+        Vec::new()
+    }
+}
+
+/// The coverage a fitted [`Ptm`](crate::Ptm) carries: the map when some texel is not fully
+/// covered.
+pub(crate) fn ptm_coverage(coverage: &[f32]) -> Option<Vec<f32>> {
+    coverage.iter().any(|&c| c < 1.0).then(|| coverage.to_vec())
+}
+
+/// Evenly spread hold-out lights: index ⌊(j + ½)·n / h⌋ for j < h.
+pub fn holdout_indices(n: usize, h: usize) -> Vec<usize> {
+    (0..h.min(n))
+        .map(|j| ((j as f64 + 0.5) * n as f64 / h as f64) as usize)
+        .collect()
+}
+
+pub(super) fn check_strict(opts: &FitOptions, warnings: &[String]) -> Result<()> {
+    if opts.strict && !warnings.is_empty() {
+        return Err(Error::Strict(warnings.join("; ")));
+    }
+    Ok(())
+}
