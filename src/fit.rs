@@ -169,6 +169,10 @@ pub struct Args {
     /// Tile size W,H in swatch units for --images.
     #[arg(long, value_name = "W,H", value_delimiter = ',', default_values_t = [1.0, 1.0])]
     pub tile: Vec<f64>,
+    /// File layout: channels (one `ptm.<monomial>` channel each) or rgba (the renderer layout:
+    /// RGB(A) parts NAME.ptm.c0.exr, … that texture systems, OSL, MaterialX and Blender read).
+    #[arg(long, value_name = "channels|rgba", default_value = "channels", value_parser = crate::convert::parse_layout)]
+    pub layout: ptm_fit::Layout,
     /// Also write a 6-term map in HP's PTM 1.2 LRGB format (visibility 1 − K, 8-bit).
     #[arg(long, value_name = "OUT.ptm")]
     pub export_hp: Option<PathBuf>,
@@ -263,7 +267,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         report: Some(&report),
         error_map: args.error_map,
     };
-    ptm.save(&args.output, &save)
+    let files = ptm_fit::layout::save(&ptm, &args.output, &save, args.layout)
         .with_context(|| format!("writing {}", args.output.display()))?;
     let t_write = t1.elapsed().as_secs_f64();
     let half_bound = args.half.then(|| ptm.half_error_bound());
@@ -293,6 +297,8 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     Ok(json!({
         "input": source,
         "output": args.output,
+        "layout": args.layout.name(),
+        "files": files,
         "basis": basis.name(),
         "link": ptm.link.name(),
         "uv": ptm.uv.name(),

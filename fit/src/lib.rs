@@ -31,6 +31,7 @@ pub mod basis;
 mod exrio;
 pub mod hp;
 pub mod images;
+pub mod layout;
 pub mod lights;
 pub mod logistic;
 pub mod ptm;
@@ -40,6 +41,7 @@ pub mod solve;
 pub mod stack;
 
 pub use basis::{Basis, Link, Monomial, UvMap};
+pub use layout::{Layout, PtmFile};
 pub use lights::LightSet;
 pub use ptm::{Level, Ptm, PtmInfo, SaveOptions};
 pub use solve::{fit_stack, Accumulator, ErrorStats, FitOptions, FitReport, Weight};
