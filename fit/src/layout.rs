@@ -398,7 +398,10 @@ fn tmp_of(path: &Path) -> PathBuf {
 
 /// Writes every `(path, write)` to a temporary file, then renames them all; on any failure no
 /// target is touched and every temporary file is removed.
-fn write_set(jobs: Vec<(PathBuf, Box<dyn FnOnce(&Path) -> Result<()> + '_>)>) -> Result<()> {
+/// One file of a set: its path and the writer that fills a temporary file for it.
+type WriteJob<'a> = (PathBuf, Box<dyn FnOnce(&Path) -> Result<()> + 'a>);
+
+fn write_set(jobs: Vec<WriteJob<'_>>) -> Result<()> {
     let mut done: Vec<(PathBuf, PathBuf)> = Vec::new();
     let mut failed = None;
     for (path, write) in jobs {
@@ -554,8 +557,7 @@ impl PtmFile {
                     .next()
                     .is_some_and(|m| m.levels.len() > 1);
                 let ones = self.ones(mipped);
-                let mut jobs: Vec<(PathBuf, Box<dyn FnOnce(&Path) -> Result<()> + '_>)> =
-                    Vec::new();
+                let mut jobs: Vec<WriteJob<'_>> = Vec::new();
                 let mut out = Vec::new();
                 for (i, slots) in parts.iter().enumerate() {
                     let p = part_path(path, i);
@@ -651,7 +653,7 @@ fn errs_absent(maps: &BTreeMap<String, Map>) -> bool {
 /// The `ptm:link` and `ptm:uv` of a header (absent = the plain PTM's); unknown values are refused
 /// by name.
 fn link_and_uv(attrs: &BTreeMap<String, AttributeValue>, path: &Path) -> Result<(Link, UvMap)> {
-    let link = match attr_text(&attrs, "ptm:link") {
+    let link = match attr_text(attrs, "ptm:link") {
         None => Link::Identity,
         Some(name) => Link::from_name(&name).ok_or_else(|| {
             format_err(
@@ -663,7 +665,7 @@ fn link_and_uv(attrs: &BTreeMap<String, AttributeValue>, path: &Path) -> Result<
             )
         })?,
     };
-    let uv = match attr_text(&attrs, "ptm:uv") {
+    let uv = match attr_text(attrs, "ptm:uv") {
         None => UvMap::Projected,
         Some(name) if name == UvMap::Projected.formula() => UvMap::Projected,
         Some(name) => UvMap::from_name(&name).ok_or_else(|| {

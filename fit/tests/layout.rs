@@ -155,7 +155,7 @@ fn conversion_is_lossless_both_ways() {
         ptm.save(&a, &opts(&report, half)).unwrap();
         let (fa, la) = PtmFile::load(&a).unwrap();
         assert_eq!(la, Layout::Channels);
-        assert_eq!(fa.maps.contains_key("coverage"), true);
+        assert!(fa.maps.contains_key("coverage"));
         assert!(fa.maps.values().all(|m| m.half == half));
         // channels → rgba: what fit --layout rgba writes equals the converted file.
         let b = dir.join(format!("{i}.rgba.ptm.exr"));
