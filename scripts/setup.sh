@@ -9,7 +9,7 @@ say() { printf 'setup: %s\n' "$*" >&2; }
 
 # --- system packages -------------------------------------------------------------------------
 need_pkgs=()
-for p in libclang-dev mesa-vulkan-drivers libvulkan1 fonts-dejavu-core; do
+for p in libclang-dev mesa-vulkan-drivers libvulkan1 fonts-dejavu-core python3-venv python3-pip glslang-tools; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
 done
 if ((${#need_pkgs[@]})); then
@@ -55,4 +55,17 @@ PYEOF
         rm -rf "$dest" && mv "$dest.tmp" "$dest"
         say "Embree 4.4 in $dest/lib"
     fi
+fi
+
+# --- Python tooling of the test suite (MaterialX, OpenEXR, OpenImageIO) -----------------------
+# One ignored venv, pinned versions; reinstalled only when scripts/requirements-clients.txt changes.
+venv=.deps/py
+req=scripts/requirements-clients.txt
+stamp="$venv/.installed-$(sha256sum "$req" | cut -c1-16)"
+if [ ! -e "$stamp" ]; then
+    say "installing $(grep -v '^#' "$req" | tr '\n' ' ')into $venv"
+    "${PYTHON:-python3}" -m venv "$venv"
+    "$venv/bin/pip" install -q --disable-pip-version-check -r "$req"
+    rm -f "$venv"/.installed-*
+    touch "$stamp"
 fi

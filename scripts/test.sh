@@ -27,5 +27,15 @@ cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warning
 echo "== cargo test" >&2
 cargo test --workspace
 
+echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL (integrations/materialx)" >&2
+mx_work=$(mktemp -d)
+.deps/py/bin/python integrations/materialx/test_materialx.py "$mx_work"
+rm -rf "$mx_work"
+
+if [ "${PTM_TEST_CLIENTS:-0}" = 1 ]; then
+    echo "== Blender (PyPI bpy, Cycles CPU): OSL and node-group K against Ptm::eval (scripts/test-clients.sh)" >&2
+    bash scripts/test-clients.sh
+fi
+
 echo "== farm bake on a real single-node Slurm (scripts/test-slurm.sh)" >&2
 bash scripts/test-slurm.sh
