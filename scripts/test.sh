@@ -27,6 +27,11 @@ cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warning
 echo "== cargo test" >&2
 cargo test --workspace
 
+echo "== every file we write opened by Python OpenEXR and OpenImageIO, compared with our reader (tests/clients)" >&2
+rd_work=$(mktemp -d)
+.deps/py/bin/python tests/clients/test_readers.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$rd_work"
+rm -rf "$rd_work"
+
 echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL (integrations/materialx)" >&2
 mx_work=$(mktemp -d)
 .deps/py/bin/python integrations/materialx/test_materialx.py "$mx_work"
