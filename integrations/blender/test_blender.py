@@ -109,6 +109,20 @@ def main():
             worst[f"{basis} {link} {uv} {mode}"] = err
             print(f"blender: {basis} {link} {uv} {mode}: max |K - Ptm::eval| = {err:.2e} over {len(DIRS)} lights", flush=True)
     bad = {k: v for k, v in worst.items() if not v <= TOL}
+    # The README's Blender example, run as written (a scene with an active plane and a "Sun").
+    readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "README.md")).read()
+    block = readme.split("<!-- readme-blender -->\n```python\n", 1)[1].split("```", 1)[0]
+    sc, plane, sun = scene_setup()
+    sun.name = "Sun"
+    bpy.context.view_layer.objects.active = plane
+    subprocess.run([PTM, "convert", os.path.join(WORK, "ptm11-logistic.ptm.exr"), "-o",
+                    os.path.join(WORK, "w.ptm.exr"), "--layout", "rgba"], check=True, capture_output=True)
+    cwd = os.getcwd()
+    os.chdir(WORK)
+    exec(compile(block, "README.md (Blender example)", "exec"), {})
+    os.chdir(cwd)
+    assert plane.data.materials and plane.data.materials[0].node_tree, "README example made no material"
+    print("blender: README example builds its material")
     if LIT_PNG:
         sc, plane, sun = scene_setup()
         name = os.path.join(WORK, "lit.ptm.exr")
