@@ -12,8 +12,10 @@ say() { printf 'setup: %s\n' "$*" >&2; }
 need_pkgs=()
 # xvfb + xauth: a virtual X server and xvfb-run (which needs xauth, only recommended by xvfb).
 # winit dlopens libX11, libX11-xcb, libXcursor, libXi and libxkbcommon-x11 at run time.
+# python3-venv/pip: the pinned client venv (.deps/py); glslang-tools: MaterialX's GLSL compiled.
 for p in libclang-dev mesa-vulkan-drivers libvulkan1 fonts-dejavu-core \
-    xvfb xauth libx11-6 libx11-xcb1 libxcursor1 libxi6 libxkbcommon-x11-0; do
+    xvfb xauth libx11-6 libx11-xcb1 libxcursor1 libxi6 libxkbcommon-x11-0 \
+    python3-venv python3-pip glslang-tools; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
 done
 if ((${#need_pkgs[@]})); then
@@ -59,4 +61,17 @@ PYEOF
         rm -rf "$dest" && mv "$dest.tmp" "$dest"
         say "Embree 4.4 in $dest/lib"
     fi
+fi
+
+# --- Python tooling of the test suite (MaterialX, OpenEXR, OpenImageIO) -----------------------
+# One ignored venv, pinned versions; reinstalled only when scripts/requirements-clients.txt changes.
+venv=.deps/py
+req=scripts/requirements-clients.txt
+stamp="$venv/.installed-$(sha256sum "$req" | cut -c1-16)"
+if [ ! -e "$stamp" ]; then
+    say "installing $(grep -v '^#' "$req" | tr '\n' ' ')into $venv"
+    "${PYTHON:-python3}" -m venv "$venv"
+    "$venv/bin/pip" install -q --disable-pip-version-check -r "$req"
+    rm -f "$venv"/.installed-*
+    touch "$stamp"
 fi

@@ -43,5 +43,20 @@ PTM_REQUIRE_DISPLAY=1 xvfb-run -a -s "-screen 0 1024x768x24" \
 echo "== mutation fuzzing of the readers, 2000 mutants each (scripts/fuzz.sh N for more)" >&2
 bash scripts/fuzz.sh 2000
 
+echo "== every file we write opened by Python OpenEXR and OpenImageIO, compared with our reader (tests/clients)" >&2
+rd_work=$(mktemp -d)
+.deps/py/bin/python tests/clients/test_readers.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$rd_work"
+rm -rf "$rd_work"
+
+echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL (integrations/materialx)" >&2
+mx_work=$(mktemp -d)
+.deps/py/bin/python integrations/materialx/test_materialx.py "$mx_work"
+rm -rf "$mx_work"
+
+if [ "${PTM_TEST_CLIENTS:-0}" = 1 ]; then
+    echo "== Blender (PyPI bpy, Cycles CPU): OSL and node-group K against Ptm::eval (scripts/test-clients.sh)" >&2
+    bash scripts/test-clients.sh
+fi
+
 echo "== farm bake on a real single-node Slurm (scripts/test-slurm.sh)" >&2
 bash scripts/test-slurm.sh

@@ -62,6 +62,9 @@ pub struct Args {
     /// With --fit: ridge λ relative to the mean eigenvalue (see `ptm fit --regularize`).
     #[arg(long, value_name = "LAMBDA", requires = "fit")]
     pub regularize: Option<f64>,
+    /// With --fit: file layout, channels or rgba (the renderer layout; see `ptm fit --layout`).
+    #[arg(long, value_name = "channels|rgba", default_value = "channels", value_parser = crate::convert::parse_layout, requires = "fit")]
+    pub layout: ptm_fit::Layout,
     /// Worker threads (0: one per core).
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -146,6 +149,9 @@ fn resolve_rows(args: &Args) -> anyhow::Result<([usize; 2], Range<usize>)> {
             "--shard with --fit and --light-distance is not supported (the per-texel fit's rank \
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
+    }
+    if args.shard.is_some() && args.layout != ptm_fit::Layout::Channels {
+        bail!("--shard writes part files: merge them, then `ptm convert` to --layout rgba");
     }
     Ok((res, rows))
 }
@@ -420,8 +426,8 @@ fn write_outputs(
                         report: Some(&fit),
                         error_map: false,
                     };
-                    ptm.save(&args.output, &save)
-                        .with_context(|| format!("writing {}", args.output.display()))?
+                    ptm_fit::layout::save(&ptm, &args.output, &save, args.layout)
+                        .with_context(|| format!("writing {}", args.output.display()))?;
                 }
             }
             summary

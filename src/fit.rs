@@ -175,6 +175,10 @@ pub struct Args {
     /// Tile size W,H in swatch units for --images.
     #[arg(long, value_name = "W,H", value_delimiter = ',', default_values_t = [1.0, 1.0], allow_hyphen_values = true)]
     pub tile: Vec<f64>,
+    /// File layout: channels (one `ptm.<monomial>` channel each) or rgba (the renderer layout:
+    /// RGB(A) parts NAME.ptm.c0.exr, … that texture systems, OSL, MaterialX and Blender read).
+    #[arg(long, value_name = "channels|rgba", default_value = "channels", value_parser = crate::convert::parse_layout)]
+    pub layout: ptm_fit::Layout,
     /// Also write a 6-term map in HP's PTM 1.2 LRGB format (visibility 1 − K, 8-bit).
     #[arg(long, value_name = "OUT.ptm")]
     pub export_hp: Option<PathBuf>,
@@ -219,7 +223,10 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             );
         }
     }
-    let mut outputs = vec![args.output.clone()];
+    let mut outputs = match args.layout {
+        ptm_fit::Layout::Channels => vec![args.output.clone()],
+        ptm_fit::Layout::Rgba => ptm_fit::layout::rgba_paths(&args.output, args.basis.into()),
+    };
     outputs.extend(args.export_hp.iter().cloned());
     let mut tx = Transaction::new(&outputs)?;
     let t0 = Instant::now();
@@ -303,11 +310,13 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         report: Some(&report),
         error_map: args.error_map,
     };
-    let bytes = ptm
-        .encode(&args.output, &save)
+    let files = ptm_fit::layout::encode(&ptm, &args.output, &save, args.layout)
         .with_context(|| format!("writing {}", args.output.display()))?;
-    tx.stage_bytes(&args.output, &bytes)?;
-    drop(bytes);
+    for (p, bytes) in &files {
+        tx.add(p)?; // the renderer layout's error-map file, when there is one
+        tx.stage_bytes(p, bytes)?;
+    }
+    let files: Vec<PathBuf> = files.into_iter().map(|(p, _)| p).collect();
     let hp = match &args.export_hp {
         Some(p) => {
             let (bytes, e) = encode_hp_lrgb(&ptm, p, None)
@@ -318,6 +327,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         None => None,
     };
     tx.commit()?;
+    ptm_fit::layout::remove_stale_errors(&args.output, args.layout, &files);
     let t_write = t1.elapsed().as_secs_f64();
     let half_bound = args.half.then(|| ptm.half_error_bound());
     print_summary(&report, args, half_bound);
@@ -344,6 +354,8 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     Ok(json!({
         "input": source,
         "output": args.output,
+        "layout": args.layout.name(),
+        "files": files,
         "basis": basis.name(),
         "link": ptm.link.name(),
         "uv": ptm.uv.name(),

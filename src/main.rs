@@ -6,6 +6,7 @@
 
 mod bake;
 mod batch;
+mod convert;
 mod fit;
 mod merge;
 mod preview;
@@ -47,6 +48,8 @@ enum Command {
     Merge(merge::Args),
     /// Run a manifest of bakes locally, or write a Slurm array job for them (--slurm DIR).
     Batch(batch::Args),
+    /// Rewrite a PTM in the other layout (renderer RGB(A) parts ↔ named channels), losslessly.
+    Convert(convert::Args),
 }
 
 fn main() -> ExitCode {
@@ -68,6 +71,7 @@ fn main() -> ExitCode {
         Command::Report(a) => report::run(a),
         Command::Merge(a) => merge::run(a),
         Command::Batch(a) => batch::run(a),
+        Command::Convert(a) => convert::run(a),
     };
     match result {
         Ok(report) => {

@@ -243,3 +243,55 @@ fn bad_inputs_are_refused_and_nothing_is_written() {
         .collect();
     assert_eq!(before.len(), after.len(), "a refused bake wrote {after:?}");
 }
+
+#[test]
+fn bake_fit_writes_the_renderer_layout_and_convert_round_trips_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (ok, _, err) = ptm(
+        &[
+            "bake",
+            "--res",
+            "16",
+            "--spp",
+            "2",
+            "--dirs",
+            "24",
+            "--fit",
+            "ptm11",
+            "--link",
+            "logistic",
+            "--layout",
+            "rgba",
+            "-o",
+            "w.ptm.exr",
+        ],
+        d,
+    );
+    assert!(ok, "{err}");
+    for k in 0..3 {
+        assert!(d.join(format!("w.ptm.c{k}.exr")).exists());
+    }
+    assert!(!d.join("w.ptm.exr").exists());
+    let (ok, out, err) = ptm(&["convert", "w.ptm.exr", "-o", "c.ptm.exr", "--json"], d);
+    assert!(ok, "{err}");
+    assert!(out.contains("\"to\":\"channels\""), "{out}");
+    let direct = ptm_fit::layout::load(&d.join("w.ptm.c0.exr")).unwrap();
+    assert_eq!(Ptm::load(&d.join("c.ptm.exr")).unwrap(), direct);
+    let (ok, _, err) = ptm(&["convert", "c.ptm.exr", "-o", "r.ptm.exr"], d);
+    assert!(ok, "{err}");
+    for k in 0..3 {
+        let a = std::fs::read(d.join(format!("w.ptm.c{k}.exr"))).unwrap();
+        let b = std::fs::read(d.join(format!("r.ptm.c{k}.exr"))).unwrap();
+        assert!(a == b, "part c{k} differs after channels → rgba");
+    }
+    // A missing part is an error naming it; nothing is written.
+    std::fs::remove_file(d.join("w.ptm.c2.exr")).unwrap();
+    let (ok, _, err) = ptm(&["convert", "w.ptm.c0.exr", "-o", "x.ptm.exr"], d);
+    assert!(!ok);
+    assert!(
+        err.contains("w.ptm.c2.exr") && err.contains("part c2"),
+        "{err}"
+    );
+    assert!(!d.join("x.ptm.exr").exists());
+}

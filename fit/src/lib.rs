@@ -28,6 +28,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod images;
+pub mod layout;
 pub mod lights;
 pub mod logistic;
 pub mod shard;
@@ -41,6 +42,7 @@ pub use ptm_format::{atomic, basis, exrio, hp, ptm};
 pub use ptm_format::{Error as FormatError, FileFacts, ToFileFacts};
 
 pub use basis::{Basis, Link, Monomial, UvMap};
+pub use layout::{Layout, PtmFile};
 pub use lights::LightSet;
 pub use ptm::{Level, Ptm, PtmInfo, SaveOptions};
 pub use solve::{fit_stack, Accumulator, ErrorStats, FitOptions, FitReport, Weight};

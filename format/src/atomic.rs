@@ -344,6 +344,28 @@ impl Transaction {
         Ok(Transaction { outputs })
     }
 
+    /// Adds an output known only after the work (an optional file), checked as
+    /// [`Transaction::new`] checks its paths; a path already in the transaction is left as is.
+    pub fn add(&mut self, path: &Path) -> Result<()> {
+        if self.outputs.iter().any(|o| o.path == path) {
+            return Ok(());
+        }
+        let kind = classify(path)?;
+        if let Some(o) = self.outputs.iter().find(|o| same_file(&o.path, path)) {
+            return Err(Error::Invalid(format!(
+                "{} and {} are the same file: give each output its own name",
+                o.path.display(),
+                path.display()
+            )));
+        }
+        self.outputs.push(Output {
+            path: path.to_path_buf(),
+            kind,
+            staged: None,
+        });
+        Ok(())
+    }
+
     fn output(&mut self, path: &Path) -> Result<&mut Output> {
         self.outputs
             .iter_mut()

@@ -1,0 +1,885 @@
+//! The two on-disk layouts of a PTM and the lossless conversion between them.
+//!
+//! - [`Layout::Channels`]: the single-part PTM EXR with one channel per coefficient, named
+//!   `ptm.<monomial>` (docs/FORMAT.md, "The PTM EXR"); what [`Ptm::save`] writes.
+//! - [`Layout::Rgba`]: the **renderer layout**, one plain RGB(A) EXR per group of coefficients
+//!   (`w.ptm.c0.exr`, `w.ptm.c1.exr`, …), so that any texture system, OSL's `texture()`,
+//!   MaterialX's `image` node and Blender's Image Texture node reach every coefficient by file
+//!   name and colour channel. ptm6: c0 = (u², u, uv), c1 = (v, v², 1, coverage) — the patent's
+//!   two images of three channels; ptm11: c0 = (u³, v³, u²v², u²v), c1 = (uv², u², v², uv),
+//!   c2 = (u, v, 1, coverage). Coverage is always the A of the last part. Error maps, when
+//!   present, go to `w.ptm.err.exr` (channels `err.rms`, `err.max`).
+//!   Every part carries the file's `ptm:*` header plus `ptm:layout`, `ptm:part`, `ptm:parts`,
+//!   `ptm:partChannels` and `wrapmodes` = `periodic,periodic`; MIP-mapped files are tiled
+//!   64×64 `MIPMAP_LEVELS` `ROUND_DOWN`, as `maketx` writes.
+//!
+//! This module is self-contained (the `exr` crate and ptm-fit's public [`Ptm`] / [`Basis`]
+//! types only): a [`PtmFile`] holds every map with all its levels and stored sample type and
+//! every header attribute verbatim, so converting either way and back gives the same samples,
+//! types and attributes. Writes are atomic per file and all-or-nothing per set: every part is
+//! written to a temporary file first and renamed only when all are complete.
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use exr::math::RoundingMode;
+use exr::meta::attribute::AttributeValue;
+use exr::prelude::*;
+
+use crate::ptm::{mip_sizes, Level};
+use crate::{Basis, Error, Link, Ptm, Result, SaveOptions, UvMap};
+
+/// Value of `ptm:layout` in every part of the renderer layout.
+pub const RGBA_LAYOUT: &str = "rgba/1";
+
+/// The value of `wrapmodes` (OpenImageIO / `maketx`'s attribute): the maps tile.
+pub const WRAPMODES: &str = "periodic,periodic";
+
+/// How a PTM is laid out on disk.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Layout {
+    /// One single-part EXR, one channel `ptm.<monomial>` per coefficient.
+    Channels,
+    /// One RGB(A) EXR per group of coefficients (`<stem>.c0.exr`, …): the renderer layout.
+    Rgba,
+}
+
+impl Layout {
+    pub const ALL: [Layout; 2] = [Layout::Channels, Layout::Rgba];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Layout::Channels => "channels",
+            Layout::Rgba => "rgba",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Layout> {
+        Layout::ALL.into_iter().find(|l| l.name() == name)
+    }
+}
+
+/// What one slot of a renderer-layout part holds.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Slot {
+    /// Coefficient of this monomial (its name, e.g. `u2`).
+    Coeff(&'static str),
+    /// The coverage map (1 where the file has none).
+    Coverage,
+}
+
+impl Slot {
+    /// Name of the map in the channel layout (`ptm.u2`, `coverage`).
+    pub fn map_name(self) -> String {
+        match self {
+            Slot::Coeff(m) => format!("ptm.{m}"),
+            Slot::Coverage => "coverage".into(),
+        }
+    }
+
+    /// Short name in `ptm:partChannels` (`u2`, `coverage`).
+    pub fn short(self) -> &'static str {
+        match self {
+            Slot::Coeff(m) => m,
+            Slot::Coverage => "coverage",
+        }
+    }
+}
+
+/// EXR channel names of a part's slots, in slot order.
+pub const RGBA: [&str; 4] = ["R", "G", "B", "A"];
+
+/// The parts of the renderer layout of `basis`: slots in R, G, B(, A) order. Coefficients fill
+/// them in basis order, three per part for ptm6 and four for ptm11; coverage is the last slot.
+pub fn parts(basis: Basis) -> Vec<Vec<Slot>> {
+    let per = match basis {
+        Basis::Ptm6 => 3,
+        Basis::Ptm11 => 4,
+    };
+    let mut slots: Vec<Slot> = basis
+        .monomials()
+        .iter()
+        .map(|m| Slot::Coeff(m.name))
+        .collect();
+    slots.push(Slot::Coverage);
+    let mut out: Vec<Vec<Slot>> = slots.chunks(per).map(<[Slot]>::to_vec).collect();
+    // ptm6: 7 slots in chunks of 3 leave coverage alone; it becomes the A of the last part.
+    if out.last().is_some_and(|p| p.len() == 1) && out.len() > 1 {
+        let last = out.pop().unwrap();
+        out.last_mut().unwrap().extend(last);
+    }
+    out
+}
+
+/// The stem shared by a layout's files: `w.ptm.exr`, `w.ptm.c1.exr` and `w.ptm.err.exr` all
+/// give `w.ptm`.
+pub fn stem(path: &Path) -> PathBuf {
+    let s = path.to_string_lossy();
+    let mut s: &str = s.strip_suffix(".exr").unwrap_or(&s);
+    if let Some((head, tail)) = s.rsplit_once('.') {
+        let is_part = tail.len() > 1
+            && tail.starts_with('c')
+            && tail[1..].bytes().all(|b| b.is_ascii_digit());
+        if is_part || tail == "err" {
+            s = head;
+        }
+    }
+    PathBuf::from(s)
+}
+
+/// File of part `i` of the renderer layout named by `path` (`w.ptm.exr` → `w.ptm.c{i}.exr`).
+pub fn part_path(path: &Path, i: usize) -> PathBuf {
+    let mut s = stem(path).into_os_string();
+    s.push(format!(".c{i}.exr"));
+    PathBuf::from(s)
+}
+
+/// File of the error maps of the renderer layout named by `path` (`w.ptm.err.exr`).
+pub fn err_path(path: &Path) -> PathBuf {
+    let mut s = stem(path).into_os_string();
+    s.push(".err.exr");
+    PathBuf::from(s)
+}
+
+/// Every file the renderer layout of `basis` named by `path` consists of (without the optional
+/// error maps).
+pub fn rgba_paths(path: &Path, basis: Basis) -> Vec<PathBuf> {
+    (0..parts(basis).len())
+        .map(|i| part_path(path, i))
+        .collect()
+}
+
+/// One map (coefficient, coverage or error) with all its resolution levels as stored.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Map {
+    /// Level 0 first, then the coarser MIP levels (sizes as [`mip_sizes`]).
+    pub levels: Vec<Vec<f32>>,
+    /// Stored as half floats (else float32).
+    pub half: bool,
+}
+
+/// Everything a PTM file set holds, layout-independent: every map by its channel-layout name
+/// (`ptm.u2`, `coverage`, `err.rms`, …) and every header attribute verbatim (without the
+/// renderer layout's own `ptm:layout`, `ptm:part*` and `wrapmodes`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct PtmFile {
+    pub width: usize,
+    pub height: usize,
+    pub maps: BTreeMap<String, Map>,
+    pub attrs: BTreeMap<String, AttributeValue>,
+}
+
+/// Attributes that belong to a part of the renderer layout, not to the PTM.
+const PART_ATTRS: [&str; 5] = [
+    "ptm:layout",
+    "ptm:part",
+    "ptm:parts",
+    "ptm:partChannels",
+    "wrapmodes",
+];
+
+fn format_err(path: &Path, reason: impl Into<String>) -> Error {
+    Error::Format {
+        path: path.display().to_string(),
+        reason: reason.into(),
+    }
+}
+
+/// Header text as written: UTF-8, read leniently (bytes that are not UTF-8 are Latin-1, as
+/// files before UTF-8 headers wrote them).
+pub fn text_of(t: &Text) -> String {
+    match std::str::from_utf8(t.bytes()) {
+        Ok(s) => s.to_string(),
+        Err(_) => t.bytes().iter().map(|&b| b as char).collect(),
+    }
+}
+
+fn utf8(s: &str) -> Text {
+    Text::from_bytes_unchecked(s.as_bytes().into())
+}
+
+/// One single-part EXR as read: its maps by channel name and its attributes.
+struct Single {
+    width: usize,
+    height: usize,
+    maps: BTreeMap<String, Map>,
+    attrs: BTreeMap<String, AttributeValue>,
+}
+
+fn read_single(path: &Path) -> Result<Single> {
+    if let Err(e) = std::fs::metadata(path) {
+        return Err(Error::Io {
+            path: path.display().to_string(),
+            source: e,
+        });
+    }
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .all_resolution_levels()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| format_err(path, format!("not a readable OpenEXR file: {e}")))?;
+    let layer = image.layer_data;
+    let (width, height) = (layer.size.0, layer.size.1);
+    let sizes = mip_sizes(width, height);
+    let mut maps = BTreeMap::new();
+    for ch in layer.channel_data.list {
+        let name = text_of(&ch.name);
+        let list: Vec<FlatSamples> = match ch.sample_data {
+            Levels::Singular(s) => vec![s],
+            Levels::Mip { level_data, .. } => level_data,
+            Levels::Rip { level_data, .. } => level_data.map_data.into_iter().take(1).collect(),
+        };
+        let half = list.iter().any(|s| matches!(s, FlatSamples::F16(_)));
+        let levels: Vec<Vec<f32>> = list
+            .into_iter()
+            .map(|s| match s {
+                FlatSamples::F32(v) => v,
+                FlatSamples::F16(v) => v.into_iter().map(f16::to_f32).collect(),
+                FlatSamples::U32(v) => v.into_iter().map(|x| x as f32).collect(),
+            })
+            .collect();
+        if levels.len() > 1 && levels.len() != sizes.len() + 1 {
+            return Err(format_err(
+                path,
+                format!(
+                    "channel `{name}` has {} resolution levels; a {width}×{height} MIP chain to 1×1 has {}",
+                    levels.len(),
+                    sizes.len() + 1
+                ),
+            ));
+        }
+        maps.insert(name, Map { levels, half });
+    }
+    let attrs = layer
+        .attributes
+        .other
+        .iter()
+        .chain(&image.attributes.other)
+        .map(|(k, v)| (text_of(k), v.clone()))
+        .collect();
+    Ok(Single {
+        width,
+        height,
+        maps,
+        attrs,
+    })
+}
+
+fn attr_text(attrs: &BTreeMap<String, AttributeValue>, name: &str) -> Option<String> {
+    match attrs.get(name) {
+        Some(AttributeValue::Text(t)) => Some(text_of(t)),
+        _ => None,
+    }
+}
+
+/// Writes one single-part EXR (maps with one level: scanline ZIP; with a MIP chain: tiled 64×64
+/// ZIP `MIPMAP_LEVELS` `ROUND_DOWN`) to `tmp`, attributes sorted so the bytes are deterministic.
+fn write_single(
+    tmp: &Path,
+    shown: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, &Map)>,
+    attrs: &BTreeMap<String, AttributeValue>,
+) -> Result<()> {
+    let mipped = channels.first().is_some_and(|(_, m)| m.levels.len() > 1);
+    if channels.iter().any(|(_, m)| (m.levels.len() > 1) != mipped) {
+        return Err(format_err(
+            shown,
+            "maps with and without MIP levels cannot share a file",
+        ));
+    }
+    let flat = |v: &[f32], half: bool| {
+        if half {
+            FlatSamples::F16(v.iter().map(|&x| f16::from_f32(x)).collect())
+        } else {
+            FlatSamples::F32(v.to_vec())
+        }
+    };
+    let list: SmallVec<[AnyChannel<Levels<FlatSamples>>; 4]> = channels
+        .iter()
+        .map(|(name, m)| {
+            let data = if mipped {
+                Levels::Mip {
+                    rounding_mode: RoundingMode::Down,
+                    level_data: m.levels.iter().map(|l| flat(l, m.half)).collect(),
+                }
+            } else {
+                Levels::Singular(flat(&m.levels[0], m.half))
+            };
+            AnyChannel::new(utf8(name), data)
+        })
+        .collect();
+    let mut la = LayerAttributes::default();
+    for (name, value) in attrs {
+        match (name.as_str(), value) {
+            // A standard attribute the `exr` crate keeps in a field of its own.
+            ("wrapmodes", AttributeValue::Text(t)) => la.wrap_mode_name = Some(t.clone()),
+            _ => {
+                la.other.insert(utf8(name), value.clone());
+            }
+        }
+    }
+    let encoding = if mipped {
+        Encoding {
+            compression: Compression::ZIP16,
+            blocks: Blocks::Tiles(Vec2(64, 64)),
+            line_order: LineOrder::Increasing,
+        }
+    } else {
+        Encoding::SMALL_LOSSLESS
+    };
+    let layer = Layer::new((width, height), la, encoding, AnyChannels::sort(list));
+    Image::from_layer(layer)
+        .write()
+        .to_file(tmp)
+        .map_err(|e| format_err(shown, format!("writing EXR: {e}")))?;
+    sort_header_attributes(tmp).map_err(|e| format_err(shown, format!("writing EXR: {e}")))
+}
+
+/// Rewrites the header of the single-part EXR at `path` with its attributes sorted by name (the
+/// `exr` crate writes them in a per-process random order); the header keeps its length, so the
+/// offset table after it stays valid.
+fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
+    let mut bytes = std::fs::read(path)?;
+    let bad = || std::io::Error::other("unexpected header layout");
+    let nul = |b: &[u8], from: usize| -> std::io::Result<usize> {
+        b.get(from..)
+            .and_then(|s| s.iter().position(|&c| c == 0))
+            .map(|p| from + p)
+            .ok_or_else(bad)
+    };
+    let mut pos = 8;
+    let mut records: Vec<(usize, usize)> = Vec::new();
+    loop {
+        let name_end = nul(&bytes, pos)?;
+        if name_end == pos {
+            break;
+        }
+        let size_at = nul(&bytes, name_end + 1)? + 1;
+        let size = i32::from_le_bytes(
+            bytes
+                .get(size_at..size_at + 4)
+                .ok_or_else(bad)?
+                .try_into()
+                .unwrap(),
+        );
+        let end = size_at + 4 + usize::try_from(size).map_err(|_| bad())?;
+        if end > bytes.len() {
+            return Err(bad());
+        }
+        records.push((pos, end));
+        pos = end;
+    }
+    let name = |r: &(usize, usize)| {
+        let b = &bytes[r.0..r.1];
+        b[..b.iter().position(|&c| c == 0).unwrap()].to_vec()
+    };
+    let mut sorted = records.clone();
+    sorted.sort_by_key(|r| name(r));
+    if sorted == records {
+        return Ok(());
+    }
+    let header: Vec<u8> = sorted
+        .iter()
+        .flat_map(|&(a, b)| bytes[a..b].to_vec())
+        .collect();
+    bytes[8..8 + header.len()].copy_from_slice(&header);
+    std::fs::write(path, &bytes)
+}
+
+/// One file of a set: its path and the writer that fills a scratch file for it (the exr crate
+/// and the header sort below write to a path).
+type WriteJob<'a> = (PathBuf, Box<dyn FnOnce(&Path) -> Result<()> + 'a>);
+
+/// Encodes every `(path, write)` into bytes through a unique scratch file beside `path`, which
+/// is removed whatever happens; nothing is published.
+fn encode_set(jobs: Vec<WriteJob<'_>>) -> Result<Vec<(PathBuf, Vec<u8>)>> {
+    let mut files = Vec::with_capacity(jobs.len());
+    for (path, write) in jobs {
+        let scratch = crate::atomic::tmp_path(&path);
+        let bytes = write(&scratch).and_then(|()| {
+            std::fs::read(&scratch).map_err(|source| Error::Io {
+                path: scratch.display().to_string(),
+                source,
+            })
+        });
+        let _ = std::fs::remove_file(&scratch);
+        files.push((path, bytes?));
+    }
+    Ok(files)
+}
+
+/// Publishes encoded files all together (one [`crate::atomic::Transaction`]: every destination
+/// checked first, none replaced unless all were written); returns their paths.
+pub fn publish(files: &[(PathBuf, Vec<u8>)]) -> Result<Vec<PathBuf>> {
+    let paths: Vec<&PathBuf> = files.iter().map(|(p, _)| p).collect();
+    let mut tx = crate::atomic::Transaction::new(&paths)?;
+    for (p, bytes) in files {
+        tx.stage_bytes(p, bytes)?;
+    }
+    tx.commit()?;
+    Ok(files.iter().map(|(p, _)| p.clone()).collect())
+}
+
+impl PtmFile {
+    /// Basis named by `ptm:basis`.
+    pub fn basis(&self, path: &Path) -> Result<Basis> {
+        let name = attr_text(&self.attrs, "ptm:basis")
+            .ok_or_else(|| format_err(path, "not an occlusion PTM (no `ptm:basis` attribute)"))?;
+        Basis::from_name(&name).ok_or_else(|| {
+            format_err(
+                path,
+                format!(
+                    "unknown basis {name:?} (this version reads {})",
+                    Basis::ALL.map(|b| b.name()).join(", ")
+                ),
+            )
+        })
+    }
+
+    /// Reads a PTM in either layout. `path` names the channel-layout file, or any file of the
+    /// renderer layout (`w.ptm.c0.exr`, or `w.ptm.exr` when only the `.c*` files exist).
+    pub fn load(path: &Path) -> Result<(PtmFile, Layout)> {
+        let layout = detect(path)?;
+        let file = match layout {
+            Layout::Channels => {
+                let s = read_single(path)?;
+                PtmFile {
+                    width: s.width,
+                    height: s.height,
+                    maps: s.maps,
+                    attrs: s.attrs,
+                }
+            }
+            Layout::Rgba => read_rgba(path)?,
+        };
+        file.to_ptm(path)?;
+        Ok((file, layout))
+    }
+
+    /// The PTM these maps hold (checks link, (u, v) map, planes and MIP levels).
+    pub fn to_ptm(&self, path: &Path) -> Result<Ptm> {
+        let basis = self.basis(path)?;
+        let (link, uv) = link_and_uv(&self.attrs, path)?;
+        let num = |name: &str| match self.attrs.get(name) {
+            Some(AttributeValue::F64(x)) => Ok(*x),
+            Some(AttributeValue::F32(x)) => Ok(*x as f64),
+            _ => Err(format_err(
+                path,
+                format!("PTM lacks the number attribute `{name}`"),
+            )),
+        };
+        let tile = [num("ptm:tileW")?, num("ptm:tileH")?];
+        let mut planes = Vec::new();
+        let mut levels: Vec<Vec<Vec<f32>>> = Vec::new();
+        for m in basis.monomials() {
+            let name = format!("ptm.{}", m.name);
+            let map = self
+                .maps
+                .get(&name)
+                .ok_or_else(|| format_err(path, format!("PTM lacks channel `{name}`")))?;
+            planes.push(map.levels[0].clone());
+            levels.push(map.levels[1..].to_vec());
+        }
+        let sizes = mip_sizes(self.width, self.height);
+        let n = levels[0].len();
+        if levels.iter().any(|l| l.len() != n) {
+            return Err(format_err(
+                path,
+                "coefficient maps have different numbers of MIP levels",
+            ));
+        }
+        let mips = (0..n)
+            .map(|i| Level {
+                width: sizes[i].0,
+                height: sizes[i].1,
+                planes: levels.iter().map(|l| l[i].clone()).collect(),
+            })
+            .collect();
+        let ptm = Ptm {
+            basis,
+            link,
+            uv,
+            width: self.width,
+            height: self.height,
+            tile,
+            planes,
+            mips,
+            // As a fit leaves it: none when every texel is fully covered (the renderer layout
+            // stores ones then).
+            coverage: self
+                .coverage()
+                .filter(|c| c.iter().any(|&x| x < 1.0))
+                .map(<[f32]>::to_vec),
+        };
+        ptm.validate()
+            .map_err(|e| format_err(path, e.to_string()))?;
+        Ok(ptm)
+    }
+
+    /// Per-texel coverage when the file has it (level 0).
+    pub fn coverage(&self) -> Option<&[f32]> {
+        self.maps.get("coverage").map(|m| m.levels[0].as_slice())
+    }
+
+    /// Writes the maps in `layout` to the file(s) named by `path` (for [`Layout::Rgba`], its
+    /// parts `<stem>.c0.exr`, …, and `<stem>.err.exr` when there are error maps; a stale
+    /// `<stem>.err.exr` of an earlier write is removed). All or nothing. Returns the files.
+    pub fn save(&self, path: &Path, layout: Layout) -> Result<Vec<PathBuf>> {
+        let out = publish(&self.encode(path, layout)?)?;
+        remove_stale_errors(path, layout, &out);
+        Ok(out)
+    }
+
+    /// The files [`PtmFile::save`] writes, encoded: `(path, bytes)` for each, nothing written.
+    pub fn encode(&self, path: &Path, layout: Layout) -> Result<Vec<(PathBuf, Vec<u8>)>> {
+        let basis = self.basis(path)?;
+        self.to_ptm(path)?;
+        match layout {
+            Layout::Channels => {
+                let out = path.to_path_buf();
+                let channels: Vec<(String, &Map)> =
+                    self.maps.iter().map(|(k, m)| (k.clone(), m)).collect();
+                encode_set(vec![(
+                    out,
+                    Box::new(|tmp: &Path| {
+                        write_single(tmp, path, self.width, self.height, channels, &self.attrs)
+                    }),
+                )])
+            }
+            Layout::Rgba => {
+                let parts = parts(basis);
+                let mipped = self
+                    .maps
+                    .values()
+                    .next()
+                    .is_some_and(|m| m.levels.len() > 1);
+                let ones = self.ones(mipped);
+                let mut jobs: Vec<WriteJob<'_>> = Vec::new();
+                for (i, slots) in parts.iter().enumerate() {
+                    let p = part_path(path, i);
+                    let mut attrs = self.attrs.clone();
+                    attrs.insert("ptm:layout".into(), AttributeValue::Text(utf8(RGBA_LAYOUT)));
+                    attrs.insert("ptm:part".into(), AttributeValue::I32(i as i32));
+                    attrs.insert("ptm:parts".into(), AttributeValue::I32(parts.len() as i32));
+                    attrs.insert(
+                        "ptm:partChannels".into(),
+                        AttributeValue::TextVector(slots.iter().map(|s| utf8(s.short())).collect()),
+                    );
+                    attrs.insert("wrapmodes".into(), AttributeValue::Text(utf8(WRAPMODES)));
+                    let mut channels = Vec::new();
+                    for (k, slot) in slots.iter().enumerate() {
+                        let map = match slot {
+                            Slot::Coverage => self.maps.get("coverage").unwrap_or(&ones),
+                            s => self.maps.get(&s.map_name()).ok_or_else(|| {
+                                format_err(path, format!("PTM lacks `{}`", s.map_name()))
+                            })?,
+                        };
+                        channels.push((RGBA[k].to_string(), map));
+                    }
+                    let shown = p.clone();
+                    let (w, h) = (self.width, self.height);
+                    jobs.push((
+                        p.clone(),
+                        Box::new(move |tmp: &Path| {
+                            write_single(tmp, &shown, w, h, channels, &attrs)
+                        }),
+                    ));
+                }
+                let errs: Vec<(String, &Map)> = self
+                    .maps
+                    .iter()
+                    .filter(|(k, _)| k.starts_with("err."))
+                    .map(|(k, m)| (k.clone(), m))
+                    .collect();
+                let ep = err_path(path);
+                if !errs.is_empty() {
+                    let mut attrs = self.attrs.clone();
+                    attrs.insert("ptm:layout".into(), AttributeValue::Text(utf8(RGBA_LAYOUT)));
+                    attrs.insert("ptm:part".into(), AttributeValue::Text(utf8("err")));
+                    let shown = ep.clone();
+                    let (w, h) = (self.width, self.height);
+                    jobs.push((
+                        ep.clone(),
+                        Box::new(move |tmp: &Path| write_single(tmp, &shown, w, h, errs, &attrs)),
+                    ));
+                }
+                let unknown: Vec<&String> = self
+                    .maps
+                    .keys()
+                    .filter(|k| {
+                        !k.starts_with("err.")
+                            && *k != "coverage"
+                            && !parts.iter().flatten().any(|s| s.map_name() == **k)
+                    })
+                    .collect();
+                if !unknown.is_empty() {
+                    return Err(format_err(
+                        path,
+                        format!("channels {unknown:?} have no place in the rgba layout"),
+                    ));
+                }
+                encode_set(jobs)
+            }
+        }
+    }
+
+    /// A map of ones (coverage of a file without holes), with levels when `mipped`.
+    fn ones(&self, mipped: bool) -> Map {
+        let mut levels = vec![vec![1f32; self.width * self.height]];
+        if mipped {
+            for (w, h) in mip_sizes(self.width, self.height) {
+                levels.push(vec![1f32; w * h]);
+            }
+        }
+        let half = self.maps.values().next().is_some_and(|m| m.half);
+        Map { levels, half }
+    }
+}
+
+/// The `ptm:link` and `ptm:uv` of a header (absent = the plain PTM's); unknown values are refused
+/// by name.
+fn link_and_uv(attrs: &BTreeMap<String, AttributeValue>, path: &Path) -> Result<(Link, UvMap)> {
+    let link = match attr_text(attrs, "ptm:link") {
+        None => Link::Identity,
+        Some(name) => Link::from_name(&name).ok_or_else(|| {
+            format_err(
+                path,
+                format!(
+                    "unknown link {name:?} in `ptm:link` (this version reads {})",
+                    Link::ALL.map(|l| l.name()).join(", ")
+                ),
+            )
+        })?,
+    };
+    let uv = match attr_text(attrs, "ptm:uv") {
+        None => UvMap::Projected,
+        Some(name) if name == UvMap::Projected.formula() => UvMap::Projected,
+        Some(name) => UvMap::from_name(&name).ok_or_else(|| {
+            format_err(
+                path,
+                format!(
+                    "unknown (u, v) map {name:?} in `ptm:uv` (this version reads {})",
+                    UvMap::ALL.map(|m| m.name()).join(", ")
+                ),
+            )
+        })?,
+    };
+    Ok((link, uv))
+}
+
+/// Which layout `path` names: a file with `ptm:layout` is a part of the renderer layout; a
+/// missing file whose `<stem>.c0.exr` exists names that layout too.
+pub fn detect(path: &Path) -> Result<Layout> {
+    if path.exists() {
+        let meta = exr::meta::MetaData::read_from_file(path, false)
+            .map_err(|e| format_err(path, format!("not a readable OpenEXR file: {e}")))?;
+        let rgba = meta
+            .headers
+            .iter()
+            .any(|h| h.own_attributes.other.contains_key(&utf8("ptm:layout")));
+        Ok(if rgba { Layout::Rgba } else { Layout::Channels })
+    } else if part_path(path, 0).exists() {
+        Ok(Layout::Rgba)
+    } else {
+        Err(Error::Io {
+            path: path.display().to_string(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::NotFound,
+                "no such file (nor a renderer-layout part .c0.exr beside it)",
+            ),
+        })
+    }
+}
+
+fn read_rgba(path: &Path) -> Result<PtmFile> {
+    let p0 = part_path(path, 0);
+    let first = read_single(&p0)?;
+    let shown = |i: usize| format!("part c{i}");
+    let layout = attr_text(&first.attrs, "ptm:layout");
+    if layout.as_deref() != Some(RGBA_LAYOUT) {
+        return Err(format_err(
+            &p0,
+            format!(
+                "{}: `ptm:layout` is {layout:?}; this version reads {RGBA_LAYOUT:?}",
+                shown(0)
+            ),
+        ));
+    }
+    let mut file = PtmFile {
+        width: first.width,
+        height: first.height,
+        maps: BTreeMap::new(),
+        attrs: first
+            .attrs
+            .iter()
+            .filter(|(k, _)| !PART_ATTRS.contains(&k.as_str()))
+            .map(|(k, v)| (k.clone(), v.clone()))
+            .collect(),
+    };
+    let basis = file.basis(&p0)?;
+    link_and_uv(&file.attrs, &p0)?;
+    let parts = parts(basis);
+    let mut singles = vec![first];
+    for i in 1..parts.len() {
+        let p = part_path(path, i);
+        if !p.exists() {
+            return Err(format_err(
+                &p,
+                format!(
+                    "missing {} of the rgba layout of {} ({} has parts c0..c{})",
+                    shown(i),
+                    stem(path).display(),
+                    basis.name(),
+                    parts.len() - 1
+                ),
+            ));
+        }
+        singles.push(read_single(&p)?);
+    }
+    for (i, (slots, s)) in parts.iter().zip(singles.iter_mut()).enumerate() {
+        let p = part_path(path, i);
+        if (s.width, s.height) != (file.width, file.height) {
+            return Err(format_err(
+                &p,
+                format!(
+                    "{} is {}×{} but part c0 is {}×{}",
+                    shown(i),
+                    s.width,
+                    s.height,
+                    file.width,
+                    file.height
+                ),
+            ));
+        }
+        for key in ["ptm:basis", "ptm:link", "ptm:uv", "ptm:version"] {
+            if attr_text(&s.attrs, key) != attr_text(&file.attrs, key) {
+                return Err(format_err(
+                    &p,
+                    format!(
+                        "{}: `{key}` is {:?} but part c0 says {:?}",
+                        shown(i),
+                        attr_text(&s.attrs, key),
+                        attr_text(&file.attrs, key)
+                    ),
+                ));
+            }
+        }
+        match s.attrs.get("ptm:part") {
+            Some(AttributeValue::I32(k)) if *k as usize == i => {}
+            other => {
+                return Err(format_err(
+                    &p,
+                    format!("{}: `ptm:part` is {other:?}, expected {i}", shown(i)),
+                ))
+            }
+        }
+        for (k, slot) in slots.iter().enumerate() {
+            let map = s.maps.remove(RGBA[k]).ok_or_else(|| {
+                format_err(
+                    &p,
+                    format!(
+                        "{} lacks channel {} ({})",
+                        shown(i),
+                        RGBA[k],
+                        slot.map_name()
+                    ),
+                )
+            })?;
+            file.maps.insert(slot.map_name(), map);
+        }
+    }
+    let levels: Vec<usize> = file.maps.values().map(|m| m.levels.len()).collect();
+    if levels.iter().any(|&n| n != levels[0]) {
+        return Err(format_err(
+            &p0,
+            "parts have different numbers of MIP levels",
+        ));
+    }
+    // Coverage all ones is "no coverage map" (the channel layout leaves it out).
+    if file
+        .maps
+        .get("coverage")
+        .is_some_and(|m| m.levels.iter().flatten().all(|&c| c == 1.0))
+    {
+        file.maps.remove("coverage");
+    }
+    let ep = err_path(path);
+    if ep.exists() {
+        let e = read_single(&ep)?;
+        if (e.width, e.height) != (file.width, file.height) {
+            return Err(format_err(
+                &ep,
+                format!(
+                    "error maps are {}×{} but part c0 is {}×{}",
+                    e.width, e.height, file.width, file.height
+                ),
+            ));
+        }
+        for (k, m) in e.maps {
+            if k.starts_with("err.") {
+                file.maps.insert(k, m);
+            }
+        }
+    }
+    Ok(file)
+}
+
+/// Loads a PTM in either layout (see [`PtmFile::load`]).
+pub fn load(path: &Path) -> Result<Ptm> {
+    let (file, _) = PtmFile::load(path)?;
+    file.to_ptm(path)
+}
+
+/// Saves a PTM as [`Ptm::save`] does, in `layout`, all files or none; returns the files
+/// written.
+pub fn save(ptm: &Ptm, path: &Path, opts: &SaveOptions, layout: Layout) -> Result<Vec<PathBuf>> {
+    let files = publish(&encode(ptm, path, opts, layout)?)?;
+    remove_stale_errors(path, layout, &files);
+    Ok(files)
+}
+
+/// After a renderer-layout write without error maps, removes the error file an earlier write
+/// left (it would describe other coefficients).
+pub fn remove_stale_errors(path: &Path, layout: Layout, written: &[PathBuf]) {
+    let ep = err_path(path);
+    if layout == Layout::Rgba && !written.contains(&ep) && ep.exists() {
+        let _ = std::fs::remove_file(&ep);
+    }
+}
+
+/// The files [`save`] writes, encoded (nothing written): the channel layout's single file, or
+/// the renderer layout's parts, made from the channel layout's encoding (read back through a
+/// scratch file) so both carry the same header and maps.
+pub fn encode(
+    ptm: &Ptm,
+    path: &Path,
+    opts: &SaveOptions,
+    layout: Layout,
+) -> Result<Vec<(PathBuf, Vec<u8>)>> {
+    let single = ptm.encode(path, opts)?;
+    match layout {
+        Layout::Channels => Ok(vec![(path.to_path_buf(), single)]),
+        Layout::Rgba => {
+            let scratch = crate::atomic::tmp_path(path);
+            let s = std::fs::write(&scratch, &single)
+                .map_err(|source| Error::Io {
+                    path: scratch.display().to_string(),
+                    source,
+                })
+                .and_then(|()| read_single(&scratch));
+            let _ = std::fs::remove_file(&scratch);
+            let s = s?;
+            PtmFile {
+                width: s.width,
+                height: s.height,
+                maps: s.maps,
+                attrs: s.attrs,
+            }
+            .encode(path, Layout::Rgba)
+        }
+    }
+}

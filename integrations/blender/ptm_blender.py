@@ -1,0 +1,311 @@
+"""Build Blender materials from an occlusion PTM in the renderer layout (docs/FORMAT.md).
+
+Two ways to evaluate K, both taking the key light's direction from a named light object (its
++Z axis, i.e. the direction towards a sun lamp, through drivers):
+
+- ``mode="osl"``: a Script node running integrations/osl/ptm_occlusion.osl (Cycles, CPU, with
+  Open Shading Language enabled; ``build_material`` switches it on).
+- ``mode="nodes"``: a node group made of Blender's own Image Texture, Separate Color, Vector
+  Math and Math nodes, so EEVEE and GPU Cycles work too.
+
+``output="lit"`` gives a Principled BSDF whose base colour is multiplied by 1 - K (exact for
+the one key light the scene is lit by); ``output="k"`` emits K itself (what the tests render).
+
+Use as a script::
+
+    import sys; sys.path.insert(0, "integrations/blender")
+    import ptm_blender
+    mat = ptm_blender.build_material("w.ptm.c0.exr", light="Sun", mode="nodes")
+    plane.data.materials.append(mat)
+
+Blender's own Python has no OpenEXR module: the header is read here by hand (``read_header``).
+"""
+
+import math
+import os
+import struct
+
+import bpy
+
+def _find_oslquery():
+    """Blender as a Python module (PyPI `bpy`) keeps Cycles' `oslquery` in its own bundled
+    site-packages, which is not on sys.path: add it so OSL script nodes compile."""
+    import glob
+    import sys
+    try:
+        import oslquery  # noqa: F401
+        return
+    except ImportError:
+        pass
+    root = bpy.utils.resource_path("LOCAL")  # …/bpy/5.0
+    for d in glob.glob(os.path.join(root, "python", "lib", "python3*", "site-packages")):
+        if os.path.isdir(os.path.join(d, "oslquery")) and d not in sys.path:
+            sys.path.append(d)
+
+
+_find_oslquery()
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+OSL_SHADER = os.path.join(HERE, "..", "osl", "ptm_occlusion.osl")
+
+# Slots of the renderer layout: (part, channel) of each monomial, in basis order.
+PARTS = {
+    "ptm6": [["u2", "u", "uv"], ["v", "v2", "1", "coverage"]],
+    "ptm11": [
+        ["u3", "v3", "u2v2", "u2v"],
+        ["uv2", "u2", "v2", "uv"],
+        ["u", "v", "1", "coverage"],
+    ],
+}
+POWERS = {
+    "1": (0, 0), "u": (1, 0), "v": (0, 1), "u2": (2, 0), "uv": (1, 1), "v2": (0, 2),
+    "u3": (3, 0), "v3": (0, 3), "u2v": (2, 1), "uv2": (1, 2), "u2v2": (2, 2),
+}
+
+
+def read_header(path):
+    """String, int and double attributes of an OpenEXR file's (first) header."""
+    out = {}
+    with open(path, "rb") as f:
+        if f.read(4) != b"\x76\x2f\x31\x01":
+            raise ValueError(f"{path}: not an OpenEXR file")
+        f.read(4)
+        data = f.read(1 << 20)
+    pos = 0
+    while data[pos] != 0:
+        name_end = data.index(b"\0", pos)
+        type_end = data.index(b"\0", name_end + 1)
+        name = data[pos:name_end].decode("utf-8", "replace")
+        typ = data[name_end + 1:type_end].decode()
+        (size,) = struct.unpack_from("<i", data, type_end + 1)
+        value = data[type_end + 5:type_end + 5 + size]
+        if typ == "string":
+            out[name] = value.decode("utf-8", "replace")
+        elif typ == "int":
+            out[name] = struct.unpack("<i", value)[0]
+        elif typ == "double":
+            out[name] = struct.unpack("<d", value)[0]
+        pos = type_end + 5 + size
+    return out
+
+
+def stem_of(path):
+    """`w.ptm.c0.exr` / `w.ptm.exr` → `w.ptm`."""
+    s = path[:-4] if path.endswith(".exr") else path
+    head, _, tail = s.rpartition(".")
+    if head and tail[:1] == "c" and tail[1:].isdigit():
+        s = head
+    return s
+
+
+def ptm_info(path):
+    """(stem, basis, link, uv) of the renderer-layout PTM that `path` names."""
+    stem = stem_of(path)
+    h = read_header(stem + ".c0.exr")
+    if h.get("ptm:layout") != "rgba/1":
+        raise ValueError(f"{stem}.c0.exr: not a PTM in the renderer layout (ptm fit --layout rgba)")
+    basis, link, uv = h["ptm:basis"], h.get("ptm:link", "identity"), h.get("ptm:uv", "projected")
+    if basis not in PARTS or link not in ("identity", "logistic") or uv not in ("projected", "hemispherical"):
+        raise ValueError(f"{stem}.c0.exr: unknown basis, link or uv: {basis}, {link}, {uv}")
+    return stem, basis, link, uv
+
+
+def _drive_light_dir(socket, light):
+    """Drivers: socket.default_value = the light object's +Z axis (towards a sun) in world space."""
+    for i in range(3):
+        fc = socket.driver_add("default_value", i)
+        d = fc.driver
+        d.type = "SCRIPTED"
+        var = d.variables.new()
+        var.name = "a"
+        var.type = "SINGLE_PROP"
+        var.targets[0].id_type = "OBJECT"
+        var.targets[0].id = light
+        # RNA paths index the matrix as stored, column first: [2][i] is row i of the Z axis.
+        var.targets[0].data_path = f"matrix_world[2][{i}]"
+        d.expression = "a"
+
+
+def light_direction(light):
+    m = light.matrix_world
+    return (m[0][2], m[1][2], m[2][2])
+
+
+class _G:
+    """Small expression builder over a node tree's Math / Vector Math nodes."""
+
+    def __init__(self, tree):
+        self.tree = tree
+        self.x = 0
+
+    def node(self, kind, **props):
+        n = self.tree.nodes.new(kind)
+        for k, v in props.items():
+            setattr(n, k, v)
+        self.x += 1
+        n.location = (200 * (self.x // 20), -120 * (self.x % 20))
+        return n
+
+    def _in(self, n, i, a):
+        if isinstance(a, (int, float)):
+            n.inputs[i].default_value = a
+        else:
+            self.tree.links.new(a, n.inputs[i])
+
+    def math(self, op, a, b=0.0, clamp=False):
+        n = self.node("ShaderNodeMath", operation=op, use_clamp=clamp)
+        self._in(n, 0, a)
+        self._in(n, 1, b)
+        return n.outputs[0]
+
+    def vmath(self, op, a, b):
+        n = self.node("ShaderNodeVectorMath", operation=op)
+        self.tree.links.new(a, n.inputs[0])
+        self.tree.links.new(b, n.inputs[1])
+        return n.outputs["Value"] if op == "DOT_PRODUCT" else n.outputs["Vector"]
+
+    def mul(self, *xs):
+        out = xs[0]
+        for x in xs[1:]:
+            out = self.math("MULTIPLY", out, x)
+        return out
+
+    def add(self, *xs):
+        out = xs[0]
+        for x in xs[1:]:
+            out = self.math("ADD", out, x)
+        return out
+
+
+def occlusion_group(stem, basis, link, uv, interpolation="Linear"):
+    """A node group (inputs Vector = UV, Light; outputs K, Visibility, Coverage) of Blender's
+    own nodes evaluating K = clamp(link(p(u, v)), 0, 1) from the PTM's parts."""
+    name = f"PTM {os.path.basename(stem)} {basis} {link} {uv} {interpolation}"
+    if name in bpy.data.node_groups:
+        return bpy.data.node_groups[name]
+    tree = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    tree.interface.new_socket("Vector", in_out="INPUT", socket_type="NodeSocketVector")
+    tree.interface.new_socket("Light", in_out="INPUT", socket_type="NodeSocketVector")
+    for out in ("K", "Visibility", "Coverage"):
+        tree.interface.new_socket(out, in_out="OUTPUT", socket_type="NodeSocketFloat")
+    g = _G(tree)
+    gin = g.node("NodeGroupInput")
+    gout = g.node("NodeGroupOutput")
+    coeff = {}
+    for k, slots in enumerate(PARTS[basis]):
+        img = bpy.data.images.load(f"{stem}.c{k}.exr", check_existing=True)
+        img.colorspace_settings.name = "Non-Color"
+        img.alpha_mode = "CHANNEL_PACKED"
+        tex = g.node("ShaderNodeTexImage", image=img, interpolation=interpolation, extension="REPEAT")
+        tree.links.new(gin.outputs["Vector"], tex.inputs["Vector"])
+        sep = g.node("ShaderNodeSeparateColor")
+        tree.links.new(tex.outputs["Color"], sep.inputs[0])
+        for i, m in enumerate(slots):
+            coeff[m] = sep.outputs[i] if i < 3 else tex.outputs["Alpha"]
+    geo = g.node("ShaderNodeNewGeometry")
+    tan = g.node("ShaderNodeTangent", direction_type="UV_MAP")
+    n = geo.outputs["Normal"]
+    lnorm = g.vmath("NORMALIZE", gin.outputs["Light"], gin.outputs["Light"])
+    # T = tangent made orthogonal to N, B = N × T.
+    t_raw = tan.outputs["Tangent"]
+    proj = g.vmath("DOT_PRODUCT", t_raw, n)
+    scale_n = g.node("ShaderNodeVectorMath", operation="SCALE")
+    tree.links.new(n, scale_n.inputs[0])
+    tree.links.new(proj, scale_n.inputs["Scale"])
+    t = g.vmath("NORMALIZE", g.vmath("SUBTRACT", t_raw, scale_n.outputs["Vector"]), n)
+    b = g.vmath("CROSS_PRODUCT", n, t)
+    pu = g.vmath("DOT_PRODUCT", lnorm, t)
+    pv = g.vmath("DOT_PRODUCT", lnorm, b)
+    pz = g.vmath("DOT_PRODUCT", lnorm, n)
+    if uv == "hemispherical":
+        r = g.math("SQRT", g.add(g.mul(pu, pu), g.mul(pv, pv)))
+        theta = g.math("ARCTAN2", r, pz)
+        s = g.math("DIVIDE", g.math("DIVIDE", theta, math.pi / 2), r)  # Blender: x / 0 = 0
+        mu, mv = g.mul(pu, s), g.mul(pv, s)
+    else:
+        mu, mv = pu, pv
+    terms = []
+    for slots in PARTS[basis]:
+        for m in slots:
+            if m == "coverage":
+                continue
+            a, bb = POWERS[m]
+            terms.append(g.mul(coeff[m], *([mu] * a + [mv] * bb)) if a + bb else coeff[m])
+    p = g.add(*terms)
+    if link == "logistic":
+        e = g.math("EXPONENT", g.math("MULTIPLY", g.math("ABSOLUTE", p), -1.0))
+        sig = g.math("DIVIDE", 1.0, g.math("ADD", e, 1.0))
+        pos = g.math("GREATER_THAN", p, -1e-30)  # 1 where p >= 0
+        kval = g.add(g.mul(pos, sig), g.mul(g.math("SUBTRACT", 1.0, pos), e, sig))
+    else:
+        kval = p
+    below = g.math("LESS_THAN", pz, 1e-12)  # at or below the horizon: K = 1
+    k = g.math("MAXIMUM", g.math("ADD", kval, 0.0, clamp=True), below)
+    tree.links.new(k, gout.inputs["K"])
+    tree.links.new(g.math("SUBTRACT", 1.0, k), gout.inputs["Visibility"])
+    tree.links.new(coeff["coverage"], gout.inputs["Coverage"])
+    return tree
+
+
+def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.6, 1.0),
+                   repeat=1.0, interpolation="Linear", name=None):
+    """A material evaluating the PTM at `path` (any of its parts, or `w.ptm.exr`) for the key
+    light object named `light` (or the object itself). See the module docstring."""
+    stem, basis, link, uv = ptm_info(path)
+    light_obj = bpy.data.objects[light] if isinstance(light, str) else light
+    mat = bpy.data.materials.new(name or f"PTM {os.path.basename(stem)} ({mode})")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    texco = tree.nodes.new("ShaderNodeTexCoord")
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (repeat, repeat, 1.0)
+    tree.links.new(texco.outputs["UV"], mapping.inputs["Vector"])
+    if mode == "osl":
+        bpy.context.scene.render.engine = "CYCLES"
+        bpy.context.scene.cycles.device = "CPU"
+        bpy.context.scene.cycles.shading_system = True
+        node = tree.nodes.new("ShaderNodeScript")
+        node.mode = "EXTERNAL"
+        node.filepath = os.path.abspath(OSL_SHADER)
+        node.update()
+        if "stem" not in node.inputs:
+            raise RuntimeError(f"{OSL_SHADER}: Blender did not compile the OSL shader")
+        node.inputs["stem"].default_value = os.path.abspath(stem)
+        node.inputs["basis"].default_value = 11 if basis == "ptm11" else 6
+        node.inputs["link"].default_value = 1 if link == "logistic" else 0
+        node.inputs["uvmap"].default_value = 1 if uv == "hemispherical" else 0
+        node.inputs["interp"].default_value = {"Closest": "closest", "Linear": "bilinear",
+                                                "Cubic": "bicubic"}.get(interpolation, "smartcubic")
+        tree.links.new(mapping.outputs["Vector"], node.inputs["UV"])
+        # Cycles' dPdu follows the triangle, not the UV map: pass the UV tangent.
+        tangent = tree.nodes.new("ShaderNodeTangent")
+        tangent.direction_type = "UV_MAP"
+        tree.links.new(tangent.outputs["Tangent"], node.inputs["Tangent"])
+        light_in = node.inputs["light_dir"]
+    elif mode == "nodes":
+        node = tree.nodes.new("ShaderNodeGroup")
+        node.node_tree = occlusion_group(stem, basis, link, uv, interpolation)
+        tree.links.new(mapping.outputs["Vector"], node.inputs["Vector"])
+        light_in = node.inputs["Light"]
+    else:
+        raise ValueError(f"mode {mode!r}: osl or nodes")
+    light_in.default_value = light_direction(light_obj)
+    _drive_light_dir(light_in, light_obj)
+    if output == "k":
+        emit = tree.nodes.new("ShaderNodeEmission")
+        emit.inputs["Strength"].default_value = 1.0
+        tree.links.new(node.outputs["K"], emit.inputs["Color"])
+        tree.links.new(emit.outputs[0], out.inputs["Surface"])
+    else:
+        bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
+        tint = tree.nodes.new("ShaderNodeMix")
+        tint.data_type = "RGBA"
+        tint.blend_type = "MULTIPLY"
+        tint.inputs["Factor"].default_value = 1.0
+        tint.inputs["A"].default_value = albedo
+        tree.links.new(node.outputs["Visibility"], tint.inputs["B"])
+        tree.links.new(tint.outputs["Result"], bsdf.inputs["Base Color"])
+        tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    return mat

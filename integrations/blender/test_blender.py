@@ -1,0 +1,149 @@
+"""Headless Blender (PyPI `bpy`) test of integrations/blender/ptm_blender.py: renders a plane in
+Cycles CPU emitting K (OSL script node and Blender-node group) under several light directions
+and compares every pixel centre with the Rust `Ptm::eval_dir` (fit/examples/ptm_eval.rs).
+Then renders the lit example (plane tiled 4×, micro-shadows from one key sun) to a PNG.
+
+    python test_blender.py PTM_BIN PTM_EVAL WORKDIR [LIT_PNG]
+"""
+import json
+import os
+import subprocess
+import sys
+import time
+
+import bpy
+import mathutils
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import ptm_blender  # noqa: E402
+
+PTM, EVAL, WORK = sys.argv[1:4]
+LIT_PNG = sys.argv[4] if len(sys.argv) > 4 else None
+RES = 16
+TOL = 1e-3
+DIRS = [(0.0, 0.0, 1.0), (0.6, 0.2, 0.5), (-0.5, 0.7, 0.4), (0.3, -0.8, 0.35), (-0.9, -0.3, 0.25)]
+CASES = [
+    ("ptm6", "identity", "projected"),
+    ("ptm6", "logistic", "hemispherical"),
+    ("ptm11", "identity", "hemispherical"),
+    ("ptm11", "logistic", "projected"),
+]
+
+
+def scene_setup():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    sc.render.engine = "CYCLES"
+    sc.cycles.device = "CPU"
+    sc.cycles.samples = 1
+    sc.cycles.use_adaptive_sampling = False
+    sc.cycles.use_denoising = False
+    sc.cycles.pixel_filter_type = "BOX"
+    sc.cycles.filter_width = 1.0
+    sc.render.resolution_x = sc.render.resolution_y = RES
+    sc.render.resolution_percentage = 100
+    sc.view_settings.view_transform = "Standard"
+    sc.render.image_settings.file_format = "OPEN_EXR"
+    sc.render.image_settings.color_depth = "32"
+    world = bpy.data.worlds.new("black")
+    world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.0
+    sc.world = world
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    plane = bpy.context.active_object
+    cam_data = bpy.data.cameras.new("cam")
+    cam_data.type = "ORTHO"
+    cam_data.ortho_scale = 2.0
+    cam = bpy.data.objects.new("cam", cam_data)
+    cam.location = (0, 0, 5)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    sun_data = bpy.data.lights.new("Key", "SUN")
+    sun = bpy.data.objects.new("Key", sun_data)
+    sc.collection.objects.link(sun)
+    return sc, plane, sun
+
+
+def aim(sun, d):
+    v = mathutils.Vector(d).normalized()
+    sun.rotation_euler = v.to_track_quat("Z", "Y").to_euler()
+    bpy.context.view_layer.update()
+
+
+def render_k(sc, path):
+    sc.render.filepath = path
+    bpy.ops.render.render(write_still=True)
+    img = bpy.data.images.load(path)
+    px = list(img.pixels)
+    w, h = img.size
+    bpy.data.images.remove(img)
+    # Blender's pixels run bottom to top; our rows top to bottom.
+    return [[px[((h - 1 - r) * w + c) * 4] for c in range(w)] for r in range(h)]
+
+
+def main():
+    os.makedirs(WORK, exist_ok=True)
+    worst = {}
+    t0 = time.time()
+    for basis, link, uv in CASES:
+        name = os.path.join(WORK, f"{basis}-{link}.ptm.exr")
+        subprocess.run([PTM, "bake", "--res", str(RES), "--spp", "4", "--dirs", "64", "--fit", basis,
+                        "--link", link, "--uv", uv, "--layout", "rgba", "-o", name],
+                       check=True, capture_output=True)
+        ref = json.loads(subprocess.run([EVAL, ptm_blender.stem_of(name) + ".c0.exr"]
+                                        + [",".join(map(str, d)) for d in DIRS],
+                                        check=True, capture_output=True, text=True).stdout)
+        for mode in ("osl", "nodes"):
+            sc, plane, sun = scene_setup()
+            mat = ptm_blender.build_material(name, light="Key", mode=mode, output="k",
+                                             interpolation="Closest")
+            plane.data.materials.append(mat)
+            sc.cycles.shading_system = mode == "osl"
+            err = 0.0
+            for i, d in enumerate(DIRS):
+                aim(sun, d)
+                got = render_k(sc, os.path.join(WORK, f"{basis}-{link}-{mode}-{i}.exr"))
+                err = max(err, max(abs(got[r][c] - ref[i][r][c]) for r in range(RES) for c in range(RES)))
+                spread = max(max(row) for row in ref[i]) - min(min(row) for row in ref[i])
+                assert spread > 0.05 or i == 0, f"{basis} {link}: K is flat for light {d}; the test would prove nothing"
+            worst[f"{basis} {link} {uv} {mode}"] = err
+            print(f"blender: {basis} {link} {uv} {mode}: max |K - Ptm::eval| = {err:.2e} over {len(DIRS)} lights", flush=True)
+    bad = {k: v for k, v in worst.items() if not v <= TOL}
+    # The README's Blender example, run as written (a scene with an active plane and a "Sun").
+    readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "README.md")).read()
+    block = readme.split("<!-- readme-blender -->\n```python\n", 1)[1].split("```", 1)[0]
+    sc, plane, sun = scene_setup()
+    sun.name = "Sun"
+    bpy.context.view_layer.objects.active = plane
+    subprocess.run([PTM, "convert", os.path.join(WORK, "ptm11-logistic.ptm.exr"), "-o",
+                    os.path.join(WORK, "w.ptm.exr"), "--layout", "rgba"], check=True, capture_output=True)
+    cwd = os.getcwd()
+    os.chdir(WORK)
+    exec(compile(block, "README.md (Blender example)", "exec"), {})
+    os.chdir(cwd)
+    assert plane.data.materials and plane.data.materials[0].node_tree, "README example made no material"
+    print("blender: README example builds its material")
+    if LIT_PNG:
+        sc, plane, sun = scene_setup()
+        name = os.path.join(WORK, "lit.ptm.exr")
+        subprocess.run([PTM, "bake", "--swatch", "builtin:twill", "--res", "64", "--spp", "8", "--dirs", "128",
+                        "--fit", "ptm11", "--link", "logistic", "--uv", "hemispherical", "--layout", "rgba",
+                        "-o", name], check=True, capture_output=True)
+        plane.data.materials.append(ptm_blender.build_material(name, light="Key", mode="nodes",
+                                                               output="lit", repeat=4.0))
+        sun.data.energy = 3.0
+        aim(sun, (0.8, 0.35, 0.45))
+        sc.cycles.samples = 16
+        sc.render.resolution_x = sc.render.resolution_y = 256
+        sc.render.image_settings.file_format = "PNG"
+        sc.render.image_settings.color_depth = "8"
+        sc.render.filepath = os.path.abspath(LIT_PNG)
+        bpy.ops.render.render(write_still=True)
+        print(f"blender: lit example → {LIT_PNG}")
+    print(f"blender: {len(worst)} configurations in {time.time() - t0:.1f} s; worst {max(worst.values()):.2e}")
+    if bad:
+        print(f"blender: FAILED (tolerance {TOL}): {bad}")
+        sys.exit(1)
+
+
+main()

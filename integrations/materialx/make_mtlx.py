@@ -1,0 +1,153 @@
+"""Writes ptm_occlusion.mtlx: the MaterialX nodedef ND_ptm_occlusion_float and its
+implementation NG_ptm_occlusion_float, a nodegraph of standard nodes only, reading an
+occlusion PTM in the renderer layout (docs/FORMAT.md): part0..part2 are the files
+w.ptm.c0.exr, w.ptm.c1.exr (, w.ptm.c2.exr for ptm11); basis 6 | 11, link 0 identity |
+1 logistic, uvmap 0 projected | 1 hemispherical are the parts' ptm:basis, ptm:link, ptm:uv.
+light_dir is the direction towards the key light in world space; out is K in [0, 1].
+
+    python make_mtlx.py [OUT.mtlx]     # default: ptm_occlusion.mtlx beside this script
+"""
+import math
+import os
+import sys
+
+import MaterialX as mx
+
+PARTS = {
+    6: [["u2", "u", "uv"], ["v", "v2", "1", "coverage"]],
+    11: [["u3", "v3", "u2v2", "u2v"], ["uv2", "u2", "v2", "uv"], ["u", "v", "1", "coverage"]],
+}
+POWERS = {"1": (0, 0), "u": (1, 0), "v": (0, 1), "u2": (2, 0), "uv": (1, 1), "v2": (0, 2),
+          "u3": (3, 0), "v3": (0, 3), "u2v": (2, 1), "uv2": (1, 2), "u2v2": (2, 2)}
+
+
+LIB = mx.createDocument()
+mx.loadLibraries(mx.getDefaultDataLibraryFolders(), mx.getDefaultDataSearchPath(), LIB)
+# Which standard nodedef a node of (category, type) with these inputs is; ifequal's selector is
+# an integer (ND_ifequal_floatI).
+CHOICE = {("ifequal", "float"): "ND_ifequal_floatI", ("extract", "float"): "ND_extract_color4",
+          ("dotproduct", "float"): "ND_dotproduct_vector3",
+          ("multiply", "vector3"): "ND_multiply_vector3FA"}
+
+
+def nodedef_of(cat, typ, names):
+    if (cat, typ) in CHOICE:
+        return LIB.getNodeDef(CHOICE[(cat, typ)])
+    for nd in LIB.getMatchingNodeDefs(cat):
+        have = {i.getName() for i in nd.getActiveInputs()}
+        if nd.getType() == typ and set(names) <= have:
+            return nd
+    raise LookupError(f"no standard nodedef {cat} {typ} with inputs {names}")
+
+
+class Graph:
+    def __init__(self, ng):
+        self.ng = ng
+        self.n = 0
+
+    def node(self, cat, typ, **inputs):
+        self.n += 1
+        node = self.ng.addNode(cat, f"{cat}{self.n}", typ)
+        nd = nodedef_of(cat, typ, inputs)
+        types = {i.getName(): i.getType() for i in nd.getActiveInputs()}
+        for name, v in inputs.items():
+            self.set(node, name, v, types[name])
+        return node
+
+    def set(self, node, name, v, typ):
+        inp = node.addInput(name, typ)
+        if isinstance(v, mx.Node):
+            inp.setConnectedNode(v)
+        elif isinstance(v, tuple) and v[0] == "if":
+            inp.setInterfaceName(v[1])
+        elif typ == "integer":
+            inp.setValue(int(v), typ)
+        elif typ == "string":
+            inp.setValue(str(v), typ)
+        else:
+            inp.setValue(float(v), typ)
+
+    def f(self, cat, *args):
+        names = {1: ["in"], 2: ["in1", "in2"]}[len(args)]
+        return self.node(cat, "float", **dict(zip(names, args)))
+
+    def mul(self, *xs):
+        out = xs[0]
+        for x in xs[1:]:
+            out = self.f("multiply", out, x)
+        return out
+
+    def add(self, *xs):
+        out = xs[0]
+        for x in xs[1:]:
+            out = self.f("add", out, x)
+        return out
+
+
+def build():
+    doc = mx.createDocument()
+    nd = doc.addNodeDef("ND_ptm_occlusion_float", "float", "ptm_occlusion")
+    nd.setNodeGroup("texture2d")
+    nd.setDocString("Occluded fraction K of an occlusion PTM (renderer layout) for one light")
+    for k in range(3):
+        nd.addInput(f"part{k}", "filename").setValueString("")
+    for name, v in (("basis", 6), ("link", 0), ("uvmap", 0)):
+        nd.addInput(name, "integer").setValue(v, "integer")
+    nd.addInput("light_dir", "vector3").setValue(mx.Vector3(0, 0, 1), "vector3")
+    nd.addInput("texcoord", "vector2").setAttribute("defaultgeomprop", "UV0")
+    nd.addInput("normal", "vector3").setAttribute("defaultgeomprop", "Nworld")
+    nd.addInput("tangent", "vector3").setAttribute("defaultgeomprop", "Tworld")
+    nd.addInput("filtertype", "string").setValueString("linear")
+
+    ng = doc.addNodeGraph("NG_ptm_occlusion_float")
+    ng.setNodeDefString("ND_ptm_occlusion_float")
+    g = Graph(ng)
+    iface = lambda name: ("if", name)  # noqa: E731
+    imgs = [g.node("image", "color4", file=iface(f"part{k}"), texcoord=iface("texcoord"),
+                   uaddressmode="periodic", vaddressmode="periodic", filtertype=iface("filtertype"))
+            for k in range(3)]
+    chan = lambda k, i: g.node("extract", "float", **{"in": imgs[k], "index": i})  # noqa: E731
+    n = g.node("normalize", "vector3", **{"in": iface("normal")})
+    l = g.node("normalize", "vector3", **{"in": iface("light_dir")})
+    traw = g.node("normalize", "vector3", **{"in": iface("tangent")})
+    tn = g.node("multiply", "vector3", in1=n, in2=g.node("dotproduct", "float", in1=traw, in2=n))
+    t = g.node("normalize", "vector3", **{"in": g.node("subtract", "vector3", in1=traw, in2=tn)})
+    b = g.node("crossproduct", "vector3", in1=n, in2=t)
+    pu = g.node("dotproduct", "float", in1=l, in2=t)
+    pv = g.node("dotproduct", "float", in1=l, in2=b)
+    pz = g.node("dotproduct", "float", in1=l, in2=n)
+    # Hemispherical (u, v) = (θ/(π/2))/r · (pu, pv), θ = atan2(r, pz); r = 0 gives (0, 0).
+    r = g.f("sqrt", g.add(g.mul(pu, pu), g.mul(pv, pv)))
+    theta = g.node("atan2", "float", iny=r, inx=pz)
+    s = g.f("divide", g.f("divide", theta, math.pi / 2), g.f("max", r, 1e-20))
+    mu = g.node("ifequal", "float", value1=iface("uvmap"), value2=1, in1=g.mul(pu, s), in2=pu)
+    mv = g.node("ifequal", "float", value1=iface("uvmap"), value2=1, in1=g.mul(pv, s), in2=pv)
+    polys = {}
+    for basis, parts in PARTS.items():
+        terms = []
+        for k, slots in enumerate(parts):
+            for i, m in enumerate(slots):
+                if m == "coverage":
+                    continue
+                a, bb = POWERS[m]
+                c = chan(k, i)
+                terms.append(g.mul(c, *([mu] * a + [mv] * bb)) if a + bb else c)
+        polys[basis] = g.add(*terms)
+    p = g.node("ifequal", "float", value1=iface("basis"), value2=11, in1=polys[11], in2=polys[6])
+    # σ(p) from e = exp(−|p|): 1/(1 + e) for p ≥ 0, e/(1 + e) otherwise.
+    e = g.f("exp", g.f("multiply", g.f("absval", p), -1.0))
+    inv = g.f("divide", 1.0, g.f("add", e, 1.0))
+    sig = g.node("ifgreatereq", "float", value1=p, value2=0.0, in1=inv, in2=g.mul(e, inv))
+    kval = g.node("ifequal", "float", value1=iface("link"), value2=1, in1=sig, in2=p)
+    k = g.node("clamp", "float", low=0.0, high=1.0, **{"in": kval})
+    # At or below the horizon: K = 1.
+    k = g.node("ifgreater", "float", value1=pz, value2=0.0, in1=k, in2=1.0)
+    ng.addOutput("out", "float").setConnectedNode(k)
+    return doc
+
+
+if __name__ == "__main__":
+    out = sys.argv[1] if len(sys.argv) > 1 else os.path.join(os.path.dirname(os.path.abspath(__file__)), "ptm_occlusion.mtlx")
+    doc = build()
+    mx.writeToXmlFile(doc, out)
+    print(f"wrote {out}")

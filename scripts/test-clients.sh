@@ -1,0 +1,26 @@
+#!/usr/bin/env bash
+# Client test that needs Blender: PyPI `bpy` 5.0.1 (Blender as a Python module, for Python 3.11,
+# ~1 GB installed) into the ignored folder .deps/bpy on first use, then a headless Cycles CPU
+# render of a plane emitting K through the OSL script node and through the Blender-node group,
+# compared with Ptm::eval at every pixel centre (ptm6 and ptm11, both links, both (u, v) maps),
+# and the lit example picture. Run by scripts/test.sh when PTM_TEST_CLIENTS=1.
+#   LIT_PNG=docs/blender_lit.png bash scripts/test-clients.sh   # also re-render the README picture
+set -euo pipefail
+cd "$(dirname "$0")/.."
+say() { printf 'test-clients: %s\n' "$*" >&2; }
+PY=${PYTHON:-python3}
+if [ ! -e .deps/bpy/.installed-5.0.1 ]; then
+    "$PY" -c 'import sys; assert sys.version_info[:2] == (3, 11), "bpy 5.0 needs Python 3.11"' \
+        || { say "bpy 5.0.1 is built for Python 3.11 only; set PYTHON=python3.11"; exit 1; }
+    say "installing bpy==5.0.1 into .deps/bpy (about 1 GB)"
+    "$PY" -m venv .deps/bpy
+    .deps/bpy/bin/pip install -q bpy==5.0.1
+    touch .deps/bpy/.installed-5.0.1
+fi
+cargo build --release -q -p ptm
+cargo build --release -q -p ptm-fit --example ptm_eval
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+.deps/bpy/bin/python integrations/blender/test_blender.py target/release/ptm \
+    target/release/examples/ptm_eval "$work" ${LIT_PNG:+"$LIT_PNG"} 2>&1 \
+    | grep -E '^(blender|Traceback|  File|[A-Za-z]*Error)' || { say "Blender test failed"; exit 1; }
