@@ -20,7 +20,7 @@ pub struct Args {
 }
 
 /// The full spec: NAME's own `?k=v` parameters followed by the `--param` ones.
-fn spec(args: &Args) -> String {
+pub fn spec(args: &Args) -> String {
     let mut spec = args.name.clone();
     for (k, p) in args.params.iter().enumerate() {
         let sep = if k == 0 && !spec.contains('?') {
