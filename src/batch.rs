@@ -214,7 +214,8 @@ fn run_here(jobs: &[Job], dir: &Path) -> anyhow::Result<Value> {
         crate::merge::run(&merge).with_context(|| format!("merging bake {n}"))?;
         done.push(dir.join(&job.output));
     }
-    Ok(json!({ "outputs": done, "seconds": t0.elapsed().as_secs_f64() }))
+    let outputs: Vec<_> = done.iter().map(|p| crate::outputs::json_path(p)).collect();
+    Ok(json!({ "outputs": outputs, "seconds": t0.elapsed().as_secs_f64() }))
 }
 
 /// Writes the Slurm job files and prints the command that submits them.

@@ -3,7 +3,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_fit::atomic::{same_file, Transaction};
+use ptm_fit::atomic::Transaction;
 use ptm_fit::hp::encode_hp_lrgb;
 use ptm_fit::images::read_image_stack;
 use ptm_fit::solve::{fit_stack, ErrorStats, FitOptions, FitReport, Weight};
@@ -207,16 +207,12 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     }
     // Every output is checked before the work (an output that is an input, two outputs that
     // are one file, a missing directory) and all are published together at the end.
-    if let Some(input) = &args.input {
-        if same_file(input, &args.output) {
-            bail!(
-                "the output {} is the input stack: give the PTM another name",
-                args.output.display()
-            );
-        }
-    }
-    let mut outputs = vec![args.output.clone()];
-    outputs.extend(args.export_hp.iter().cloned());
+    let mut outputs = vec![args.output.as_path()];
+    outputs.extend(args.export_hp.as_deref());
+    let mut inputs = Vec::new();
+    inputs.extend(args.input.as_deref().map(|p| ("input stack", p)));
+    inputs.extend(args.lights.as_deref().map(|p| ("light file", p)));
+    crate::outputs::refuse_inputs(&outputs, &inputs)?;
     let mut tx = Transaction::new(&outputs)?;
     let t0 = Instant::now();
     let (stack, source) = match (&args.input, &args.images) {
@@ -305,21 +301,14 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 e.max_error,
                 e.mean_error
             );
-            json!({ "path": p, "quantisation_error_max": e.max_error, "quantisation_error_mean": e.mean_error,
+            json!({ "path": crate::outputs::json_path(p), "quantisation_error_max": e.max_error, "quantisation_error_mean": e.mean_error,
                     "scales": e.scales, "biases": e.biases })
         }
         None => Value::Null,
     };
-    let mut seconds = serde_json::Map::new();
-    seconds.insert("read".into(), json!(t_read));
-    for (k, v) in &report.seconds {
-        seconds.insert((*k).into(), json!(v));
-    }
-    seconds.insert("write".into(), json!(t_write));
-    seconds.insert("total".into(), json!(t_all.elapsed().as_secs_f64()));
-    Ok(json!({
+    let mut out = json!({
         "input": source,
-        "output": args.output,
+        "output": crate::outputs::json_path(&args.output),
         "basis": basis.name(),
         "link": ptm.link.name(),
         "uv": ptm.uv.name(),
@@ -349,8 +338,20 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "storage": if args.half { "half" } else { "float32" },
         "half_error_bound": half_bound,
         "hp_export": hp,
-        "seconds": seconds,
-    }))
+        "seconds": t_all.elapsed().as_secs_f64(),
+        "seconds_read": t_read,
+    });
+    stage_seconds(&mut out, &report.seconds);
+    out["seconds_write"] = json!(t_write);
+    Ok(out)
+}
+
+/// Adds the fit's stages to a JSON object as `seconds_<stage>` (spaces as `_`: `"mip levels"`
+/// → `seconds_mip_levels`), the one naming every subcommand's timings use.
+pub fn stage_seconds(out: &mut Value, stages: &[(&str, f64)]) {
+    for (stage, s) in stages {
+        out[format!("seconds_{}", stage.replace(' ', "_"))] = json!(s);
+    }
 }
 
 fn print_summary(r: &FitReport, args: &Args, half_bound: Option<f64>) {
