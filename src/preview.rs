@@ -508,7 +508,7 @@ fn render(
 ) -> anyhow::Result<Image> {
     let Some(n) = args.turntable else {
         let (img, t) = gpu::render(gpu, prepared)?;
-        report["timings"] = timings_json(&t);
+        report["seconds_passes"] = timings_json(&t);
         return Ok(img);
     };
     if n == 0 {
@@ -523,7 +523,7 @@ fn render(
         frames.push(img);
     }
     let columns = (n as f64).sqrt().ceil() as usize;
-    report["turntable"] = json!({ "frames": n, "columns": columns, "timings": per_frame });
+    report["turntable"] = json!({ "frames": n, "columns": columns, "seconds_passes": per_frame });
     Ok(Image::contact_sheet(&frames, columns).expect("frames share one size"))
 }
 

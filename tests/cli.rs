@@ -318,6 +318,27 @@ fn timings_are_seconds_everywhere() {
             "b.ptm.exr",
         ],
         &["--json", "fit", "s.exr", "-o", "f.ptm.exr"],
+        // Renders on whatever adapter wgpu finds (lavapipe in CI), as tests/preview.rs does.
+        &[
+            "--json",
+            "preview",
+            "--ptm",
+            "f.ptm.exr",
+            "--size",
+            "16,16",
+            "-o",
+            "p.png",
+        ],
+        &[
+            "--json",
+            "preview",
+            "--size",
+            "16,16",
+            "--turntable",
+            "2",
+            "-o",
+            "t.png",
+        ],
     ] {
         let o = ptm(args, d);
         assert!(
@@ -332,6 +353,12 @@ fn timings_are_seconds_everywhere() {
     assert!(reports[1]["seconds_shadow"].is_f64());
     let fit = reports[2]["fit"].as_object().unwrap();
     assert!(fit.contains_key("seconds_newton"), "{fit:?}");
+    assert!(reports[4]["seconds_device"].is_f64(), "{}", reports[4]);
+    assert!(
+        reports[4]["seconds_passes"]["shade"].is_f64(),
+        "{}",
+        reports[4]
+    );
     for j in &reports {
         let mut all = Vec::new();
         keys(j, &mut all);
