@@ -308,7 +308,7 @@ fn write_slurm(args: &Args, jobs: &[Job], dir: &Path, out: &Path) -> anyhow::Res
     Ok(json!({
         "bakes": jobs.len(),
         "tasks": n_tasks,
-        "dir": out,
+        "dir": crate::outputs::json_path(&out),
         "submit": cmd,
     }))
 }

@@ -204,6 +204,13 @@ fn a_failed_output_publishes_none() {
         .map(|e| e.unwrap().file_name())
         .collect();
     assert_eq!(names.len(), 1, "{names:?}");
+    // ptm merge: the .lp beside the merged file is a directory, so the merge does not run.
+    let o = bake(&["--dirs", "4", "--shard", "0/1", "-o", "s.exr"], d);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::create_dir(d.join("m.lp")).unwrap();
+    let o = ptm(&["merge", "s.part-0000-of-0001.exr", "-o", "m.exr"], d);
+    refused(&o, "m.lp");
+    assert!(!d.join("m.exr").exists());
 }
 
 #[cfg(unix)]
@@ -230,6 +237,18 @@ fn a_device_output_is_written_through_with_nothing_beside_it() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let o = ptm(&["swatch", "twill", "-o", null_arg], dir.path());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // A farm part merged into the device: no .lp beside it either.
+    let work = tempfile::tempdir().unwrap();
+    let o = bake(
+        &["--dirs", "4", "--shard", "0/1", "-o", "s.exr"],
+        work.path(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = ptm(
+        &["merge", "s.part-0000-of-0001.exr", "-o", null_arg],
+        work.path(),
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let meta = std::fs::metadata(&null).unwrap();
     assert!(meta.file_type().is_char_device(), "{null:?} was replaced");
