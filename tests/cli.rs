@@ -164,6 +164,17 @@ fn no_output_may_be_an_input() {
         d,
     );
     refused(&o, "is the light file cap.lp");
+    // A Slurm job written over its own manifest.
+    let manifest = "[[bake]]\nswatch = \"builtin:plain-weave\"\nres = 16\noutput = \"o.exr\"\n";
+    std::fs::create_dir(d.join("job")).unwrap();
+    std::fs::write(d.join("job/tasks.txt"), manifest).unwrap();
+    let o = ptm(&["batch", "job/tasks.txt", "--slurm", "job"], d);
+    refused(&o, "is the manifest");
+    assert_eq!(
+        std::fs::read_to_string(d.join("job/tasks.txt")).unwrap(),
+        manifest
+    );
+    assert_eq!(std::fs::read_dir(d.join("job")).unwrap().count(), 1);
     assert_eq!(snapshot(&names), before, "an input was rewritten");
     assert!(!d.join("x.png").exists());
 
