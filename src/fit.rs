@@ -212,6 +212,12 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let mut inputs = Vec::new();
     inputs.extend(args.input.as_deref().map(|p| ("input stack", p)));
     inputs.extend(args.lights.as_deref().map(|p| ("light file", p)));
+    // A bad pattern is left for the reader to explain.
+    let images: Vec<PathBuf> = match args.images.as_deref().map(glob::glob) {
+        Some(Ok(paths)) => paths.filter_map(Result::ok).collect(),
+        _ => Vec::new(),
+    };
+    inputs.extend(images.iter().map(|p| ("image", p.as_path())));
     crate::outputs::refuse_inputs(&outputs, &inputs)?;
     let mut tx = Transaction::new(&outputs)?;
     let t0 = Instant::now();

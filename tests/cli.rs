@@ -164,6 +164,13 @@ fn no_output_may_be_an_input() {
         d,
     );
     refused(&o, "is the light file cap.lp");
+    let o = ptm(
+        &[
+            "fit", "--images", "*.obj", "--lights", "cap.lp", "-o", "pw.obj",
+        ],
+        d,
+    );
+    refused(&o, "is the image");
     // A Slurm job written over its own manifest.
     let manifest = "[[bake]]\nswatch = \"builtin:plain-weave\"\nres = 16\noutput = \"o.exr\"\n";
     std::fs::create_dir(d.join("job")).unwrap();
