@@ -8,6 +8,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use ptm_bake::{dome, BakeConfig, BakeReport, Baker, Swatch};
+use ptm_fit::atomic::{same_file, Transaction};
 use ptm_fit::shard::PartMeta;
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, SampleStack, SaveOptions};
 use serde_json::{json, Value};
@@ -15,6 +16,7 @@ use serde_json::{json, Value};
 // `--fit BASIS` takes the same basis argument as `ptm fit --basis`; `FitArg` is its name here.
 use crate::fit::finite;
 use crate::fit::BasisArg as FitArg;
+use crate::outputs::json_path;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -65,8 +67,8 @@ pub struct Args {
     /// With --fit: file layout, channels or rgba (the renderer layout; see `ptm fit --layout`).
     #[arg(long, value_name = "channels|rgba", default_value = "channels", value_parser = crate::convert::parse_layout, requires = "fit")]
     pub layout: ptm_fit::Layout,
-    /// Worker threads (0: one per core).
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads (0: one per core; at most 1024).
+    #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     pub threads: usize,
     /// Trace shadow rays one by one instead of in 16-ray packets (same result, slower).
     #[arg(long, hide = true)]
@@ -80,34 +82,57 @@ pub struct Args {
     pub shard: Option<ptm_fit::shard::Shard>,
 }
 
+/// The most `--threads` a bake starts: more only costs thread start-up and memory (each
+/// thread holds Embree and rayon state), never speed.
+pub const MAX_THREADS: usize = 1024;
+
+/// `--threads N`: 0 (one per core) up to [`MAX_THREADS`].
+fn parse_threads(s: &str) -> Result<usize, String> {
+    let n: usize = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a whole number of threads"))?;
+    if n > MAX_THREADS {
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        return Err(format!(
+            "at most {MAX_THREADS} threads (this machine has {cores} cores; 0 uses one per core)"
+        ));
+    }
+    Ok(n)
+}
+
 /// `samples.exr` → `samples.lp`, `weave.ptm.exr` → `weave.lp`.
+/// Works on the name as an `OsStr`: a name that is not UTF-8 keeps its bytes.
 pub fn lp_path(out: &Path) -> PathBuf {
-    let name = out
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let stem = name.strip_suffix(".exr").unwrap_or(&name);
-    let stem = stem.strip_suffix(".ptm").unwrap_or(stem);
-    out.with_file_name(format!("{stem}.lp"))
+    let name = Path::new(out.file_name().unwrap_or_default());
+    let strip = |p: &Path, ext: &str| match p.extension() {
+        Some(e) if e == ext => PathBuf::from(p.file_stem().unwrap_or_default()),
+        _ => p.to_path_buf(),
+    };
+    let stem = strip(&strip(name, "exr"), "ptm");
+    let mut lp = stem.into_os_string();
+    lp.push(".lp");
+    out.with_file_name(lp)
 }
 
 /// `ptm bake`: checks the input, traces the dome light by light into the fit or the stack,
 /// writes it (or a farm part) and the `.lp`; returns the JSON that `--json` prints.
 pub fn run(args: &Args) -> anyhow::Result<Value> {
     let t_all = Instant::now();
-    // Everything that can refuse the input runs before any output is written.
+    // Everything that can refuse the input runs before any output is written; outputs that
+    // are inputs are refused before any input is read.
+    let destinations = destinations(args)?;
     let (swatch, t_load) = resolve_swatch(args)?;
     let (res, rows) = resolve_rows(args)?;
     let lights = build_dome(args, [res[0], rows.len()])?;
     let part = match check_outputs(args, res, &swatch, &lights)? {
-        Output::Complete(path) => return Ok(json!({ "part": path, "skipped": true })),
+        Output::Complete(path) => return Ok(json!({ "part": json_path(&path), "skipped": true })),
         Output::Whole => None,
         Output::Part(meta, path) => Some((meta, path)),
     };
     let (accumulator, shard_mips) = fit_accumulator(args, &lights, res[0], rows.len())?;
     announce(args, &swatch, res, &lights);
     let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, accumulator)?;
-    let written = write_outputs(args, &swatch, &lights, kept, &part, shard_mips)?;
+    let written = write_outputs(&swatch, &lights, kept, &part, destinations, shard_mips)?;
     print_summary(&report, &written);
     Ok(bake_json(
         args, &swatch, res, rows, &lights, &report, written, t_load, t_all,
@@ -203,6 +228,64 @@ fn check_outputs(
         return Ok(Output::Complete(path));
     }
     Ok(Output::Part(meta, path))
+}
+
+/// Where a bake's files go, checked before any work.
+struct Destinations {
+    /// `--output` and the `.lp` beside it, published together; for a farm part, the part
+    /// alone (it carries its lights).
+    tx: Transaction,
+    output: PathBuf,
+    /// The `.lp` written beside the output: none for a part or a device (`-o /dev/null`), and
+    /// none when it is the `--lights` file itself, which already holds exactly these lights
+    /// and is left as the user wrote it.
+    lp: Option<PathBuf>,
+    /// The `.lp` that describes the output's lights (written, or the user's `--lights`).
+    lights_file: Option<PathBuf>,
+    /// The PTM's file layout (`--layout`; the renderer layout writes parts beside `output`).
+    layout: ptm_fit::Layout,
+}
+
+/// Refuses an output that is an input (the swatch OBJ, its draft, the `--lights` file) and checks
+/// every destination (an existing directory, a directory that does not exist) before the work.
+fn destinations(args: &Args) -> anyhow::Result<Destinations> {
+    let mut inputs: Vec<(&str, PathBuf)> = Vec::new();
+    match args.swatch.strip_prefix("builtin:") {
+        Some(spec) => inputs.extend(
+            crate::swatch::spec_files(spec)
+                .into_iter()
+                .map(|p| ("swatch draft", p)),
+        ),
+        None => inputs.push(("swatch", PathBuf::from(&args.swatch))),
+    }
+    if let Some(lp) = &args.lights {
+        inputs.push(("light file", lp.clone()));
+    }
+    let inputs: Vec<(&str, &Path)> = inputs.iter().map(|(w, p)| (*w, p.as_path())).collect();
+    let (output, beside) = match args.shard {
+        Some(s) => (s.part_path(&args.output), None),
+        None => (args.output.clone(), crate::outputs::lp_beside(&args.output)),
+    };
+    let user_lp = |p: &Path| args.lights.as_deref().is_some_and(|l| same_file(p, l));
+    let lp = beside.clone().filter(|p| !user_lp(p));
+    // The renderer layout's parts replace the one file (not for a farm part: refused above).
+    let rgba = match (args.fit, args.layout) {
+        (Some(f), ptm_fit::Layout::Rgba) if args.shard.is_none() => {
+            ptm_fit::layout::rgba_paths(&output, f.into())
+        }
+        _ => vec![output.clone()],
+    };
+    let mut outputs: Vec<&Path> = rgba.iter().map(PathBuf::as_path).collect();
+    outputs.extend(lp.as_deref());
+    crate::outputs::refuse_inputs(&outputs, &inputs)?;
+    let tx = Transaction::new(&outputs)?;
+    Ok(Destinations {
+        tx,
+        output,
+        lp,
+        lights_file: beside,
+        layout: args.layout,
+    })
 }
 
 /// With `--fit`, the streaming fit of `width × height` texels that takes each light's K as it
@@ -359,22 +442,25 @@ fn trace(
 struct Written {
     /// The fit's summary for the JSON (null without `--fit`).
     fit: Value,
-    /// The file written (the part, for a farm shard), and the `.lp` beside a whole bake.
+    /// The file written (the part, for a farm shard).
     output: PathBuf,
+    /// The `.lp` written beside a whole bake.
     lp: Option<PathBuf>,
+    /// The `.lp` holding the output's lights: `lp`, or the user's `--lights` file.
+    lights_file: Option<PathBuf>,
     t_fit: f64,
     t_write: f64,
 }
 
-/// Solves the fit (if any) and writes the PTM or sample stack to `--output` or the farm part,
-/// then the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes
-/// the `.lp` beside the merged output).
+/// Solves the fit (if any) and stages the PTM or sample stack for `--output` or the farm part,
+/// and the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes
+/// the `.lp` beside the merged output); publishes them together.
 fn write_outputs(
-    args: &Args,
     swatch: &Swatch,
     lights: &LightSet,
     kept: Kept,
     part: &Option<(PartMeta, PathBuf)>,
+    dest: Destinations,
     shard_mips: bool,
 ) -> anyhow::Result<Written> {
     let Kept {
@@ -382,8 +468,16 @@ fn write_outputs(
         coverage,
         size,
     } = kept;
+    let Destinations {
+        mut tx,
+        output,
+        lp,
+        lights_file,
+        layout,
+    } = dest;
     let mut t_fit = 0.0;
     let mut t1 = Instant::now();
+    let writing = || crate::outputs::Named::new("writing", &output);
     let fit_json = match samples {
         Samples::Fit(acc) => {
             let (ptm, fit) = acc.finish(swatch.tile)?;
@@ -394,20 +488,20 @@ fn write_outputs(
                 eprintln!("ptm bake: fit warning: {w}");
             }
             crate::fit::print_logistic("ptm bake", &fit);
-            let summary = json!({
+            let mut summary = json!({
                 "basis": fit.basis.map(|b| b.name()),
                 "link": ptm.link.name(),
                 "uv": ptm.uv.name(),
                 "mip_levels": fit.mip_levels,
                 "logistic": crate::fit::logistic_json(&fit),
                 "solver": fit.solver,
-                "fit_seconds": fit.seconds.iter().map(|(k, v)| ((*k).to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
                 "rank": fit.rank,
                 "condition_number": finite(fit.cond),
                 "rms_error_mean": fit.rms.mean,
                 "rms_error_p99": fit.rms.p99,
                 "warnings": fit.warnings,
             });
+            crate::fit::stage_seconds(&mut summary, &fit.seconds);
             match part {
                 // The part takes the fit itself: no copy of its planes.
                 Some((meta, path)) => crate::shard::write_ptm(
@@ -419,15 +513,19 @@ fn write_outputs(
                     lights,
                     shard_mips,
                 )
-                .with_context(|| format!("writing {}", path.display()))?,
+                .with_context(writing)?,
                 None => {
                     let save = SaveOptions {
                         half: false,
                         report: Some(&fit),
                         error_map: false,
                     };
-                    ptm_fit::layout::save(&ptm, &args.output, &save, args.layout)
-                        .with_context(|| format!("writing {}", args.output.display()))?;
+                    let files = ptm_fit::layout::encode(&ptm, &output, &save, layout)
+                        .with_context(writing)?;
+                    for (p, bytes) in &files {
+                        tx.add(p).with_context(writing)?;
+                        tx.stage_bytes(p, bytes).with_context(writing)?;
+                    }
                 }
             }
             summary
@@ -443,27 +541,29 @@ fn write_outputs(
                 uv: planes.uv,
             };
             match part {
-                Some((meta, path)) => crate::shard::write_stack(path, meta, stack)
-                    .with_context(|| format!("writing {}", path.display()))?,
-                None => stack
-                    .write_into(&args.output)
-                    .with_context(|| format!("writing {}", args.output.display()))?,
+                Some((meta, path)) => {
+                    crate::shard::write_stack(path, meta, stack).with_context(writing)?
+                }
+                None => {
+                    let bytes = stack.encode_into(&output).with_context(writing)?;
+                    tx.stage_bytes(&output, &bytes).with_context(writing)?;
+                }
             }
             Value::Null
         }
     };
-    // A part carries its lights; `ptm merge` writes the .lp beside the merged output.
-    let (output, lp) = match part {
-        Some((_, path)) => (path.clone(), None),
-        None => (args.output.clone(), Some(lp_path(&args.output))),
-    };
-    if let Some(lp) = &lp {
-        lights.write_lp(lp)?;
+    if part.is_none() {
+        if let Some(lp) = &lp {
+            tx.stage_bytes(lp, lights.to_lp().as_bytes())
+                .with_context(|| crate::outputs::Named::new("writing", lp))?;
+        }
+        tx.commit()?;
     }
     Ok(Written {
         fit: fit_json,
         output,
         lp,
+        lights_file: if part.is_none() { lights_file } else { None },
         t_fit,
         t_write: t1.elapsed().as_secs_f64(),
     })
@@ -483,13 +583,18 @@ fn print_summary(report: &BakeReport, written: &Written) {
         2 * max_rings + 1,
         2 * max_rings + 1
     );
-    match &written.lp {
-        Some(lp) => eprintln!(
+    match (&written.lp, &written.lights_file) {
+        (Some(lp), _) => eprintln!(
             "ptm bake: wrote {} and {}",
             written.output.display(),
             lp.display()
         ),
-        None => eprintln!("ptm bake: wrote part {}", written.output.display()),
+        (None, Some(user)) => eprintln!(
+            "ptm bake: wrote {}; its lights are in {} (the --lights file, left as it is)",
+            written.output.display(),
+            user.display()
+        ),
+        (None, None) => eprintln!("ptm bake: wrote {}", written.output.display()),
     }
 }
 
@@ -510,10 +615,10 @@ fn bake_json(
     let t_trace = report.seconds_primary + report.seconds_shadow;
     json!({
         "swatch": swatch.origin,
-        "output": written.output,
+        "output": json_path(&written.output),
         "shard": args.shard.map(|s| s.to_string()),
         "rows": [rows.start, rows.end],
-        "lights_file": written.lp,
+        "lights_file": written.lights_file.as_deref().map(json_path),
         "triangles": swatch.triangles.len(),
         "degenerate_triangles": swatch.degenerate,
         "tile": swatch.tile,
@@ -537,15 +642,13 @@ fn bake_json(
         "below_horizon": report.below_horizon,
         "capped": report.capped,
         "fit": written.fit,
-        "seconds": {
-            "load": t_load,
-            "scene": report.seconds_scene,
-            "primary": report.seconds_primary,
-            "shadow": report.seconds_shadow,
-            "fit": written.t_fit,
-            "write": written.t_write,
-            "total": t_all.elapsed().as_secs_f64(),
-        },
+        "seconds": t_all.elapsed().as_secs_f64(),
+        "seconds_load": t_load,
+        "seconds_scene": report.seconds_scene,
+        "seconds_primary": report.seconds_primary,
+        "seconds_shadow": report.seconds_shadow,
+        "seconds_fit": written.t_fit,
+        "seconds_write": written.t_write,
     })
 }
 

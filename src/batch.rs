@@ -214,7 +214,8 @@ fn run_here(jobs: &[Job], dir: &Path) -> anyhow::Result<Value> {
         crate::merge::run(&merge).with_context(|| format!("merging bake {n}"))?;
         done.push(dir.join(&job.output));
     }
-    Ok(json!({ "outputs": done, "seconds": t0.elapsed().as_secs_f64() }))
+    let outputs: Vec<_> = done.iter().map(|p| crate::outputs::json_path(p)).collect();
+    Ok(json!({ "outputs": outputs, "seconds": t0.elapsed().as_secs_f64() }))
 }
 
 /// Writes the Slurm job files and prints the command that submits them.
@@ -283,16 +284,22 @@ fn write_slurm(args: &Args, jobs: &[Job], dir: &Path, out: &Path) -> anyhow::Res
         quote(&out.to_string_lossy()),
         n_tasks - 1
     );
-    let write = |name: &str, text: &str| -> anyhow::Result<()> {
-        let p = out.join(name);
-        ptm_fit::atomic::write_atomic(&p, |w| std::io::Write::write_all(w, text.as_bytes()))?;
-        Ok(())
-    };
-    write("tasks.txt", &tasks)?;
-    write("merges.txt", &merges)?;
-    write("bake.sbatch", &bake)?;
-    write("merge.sbatch", &merge)?;
-    write("submit.sh", &submit)?;
+    // The job's five files are published together, none of them the manifest.
+    let files = [
+        ("tasks.txt", &tasks),
+        ("merges.txt", &merges),
+        ("bake.sbatch", &bake),
+        ("merge.sbatch", &merge),
+        ("submit.sh", &submit),
+    ]
+    .map(|(name, text)| (out.join(name), text));
+    let paths: Vec<&Path> = files.iter().map(|(p, _)| p.as_path()).collect();
+    crate::outputs::refuse_inputs(&paths, &[("manifest", args.manifest.as_path())])?;
+    let mut tx = ptm_fit::atomic::Transaction::new(&paths)?;
+    for (path, text) in &files {
+        tx.stage_bytes(path, text.as_bytes())?;
+    }
+    tx.commit()?;
     // The output directories must exist before the tasks write parts into them.
     for job in jobs {
         if let Some(parent) = job.output.parent().filter(|p| !p.as_os_str().is_empty()) {
@@ -307,7 +314,7 @@ fn write_slurm(args: &Args, jobs: &[Job], dir: &Path, out: &Path) -> anyhow::Res
     Ok(json!({
         "bakes": jobs.len(),
         "tasks": n_tasks,
-        "dir": out,
+        "dir": crate::outputs::json_path(&out),
         "submit": cmd,
     }))
 }

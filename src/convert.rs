@@ -38,17 +38,31 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         Layout::Channels => Layout::Rgba,
         Layout::Rgba => Layout::Channels,
     });
-    let written = file
-        .save(&args.output, to)
+    let files = file
+        .encode(&args.output, to)
         .with_context(|| format!("writing {}", args.output.display()))?;
+    // The input's files (one, or the renderer layout's parts) must survive the conversion.
+    let mut inputs = vec![args.input.clone()];
+    if from == Layout::Rgba {
+        let basis = file.basis(&args.input)?;
+        inputs.extend(ptm_fit::layout::rgba_paths(&args.input, basis));
+        inputs.push(ptm_fit::layout::err_path(&args.input));
+    }
+    let inputs: Vec<(&str, &std::path::Path)> =
+        inputs.iter().map(|p| ("PTM", p.as_path())).collect();
+    let outputs: Vec<&std::path::Path> = files.iter().map(|(p, _)| p.as_path()).collect();
+    crate::outputs::refuse_inputs(&outputs, &inputs)?;
+    let written = ptm_fit::layout::publish(&files)
+        .with_context(|| format!("writing {}", args.output.display()))?;
+    ptm_fit::layout::remove_stale_errors(&args.output, to, &written);
     for p in &written {
         eprintln!("ptm convert: wrote {}", p.display());
     }
     Ok(json!({
-        "input": args.input,
+        "input": crate::outputs::json_path(&args.input),
         "from": from.name(),
         "to": to.name(),
-        "files": written,
+        "files": written.iter().map(|p| crate::outputs::json_path(p)).collect::<Vec<_>>(),
         "width": file.width,
         "height": file.height,
         "maps": file.maps.keys().collect::<Vec<_>>(),

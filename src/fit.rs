@@ -3,7 +3,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_fit::atomic::{same_file, Transaction};
+use ptm_fit::atomic::Transaction;
 use ptm_fit::hp::encode_hp_lrgb;
 use ptm_fit::images::{read_image_stack, Decoding};
 use ptm_fit::solve::{fit_stack, ErrorStats, FitOptions, FitReport, Weight};
@@ -215,19 +215,22 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     }
     // Every output is checked before the work (an output that is an input, two outputs that
     // are one file, a missing directory) and all are published together at the end.
-    if let Some(input) = &args.input {
-        if same_file(input, &args.output) {
-            bail!(
-                "the output {} is the input stack: give the PTM another name",
-                args.output.display()
-            );
-        }
-    }
     let mut outputs = match args.layout {
         ptm_fit::Layout::Channels => vec![args.output.clone()],
         ptm_fit::Layout::Rgba => ptm_fit::layout::rgba_paths(&args.output, args.basis.into()),
     };
     outputs.extend(args.export_hp.iter().cloned());
+    let mut inputs = Vec::new();
+    inputs.extend(args.input.as_deref().map(|p| ("input stack", p)));
+    inputs.extend(args.lights.as_deref().map(|p| ("light file", p)));
+    // A bad pattern is left for the reader to explain.
+    let image_paths: Vec<PathBuf> = match args.images.as_deref().map(glob::glob) {
+        Some(Ok(paths)) => paths.filter_map(Result::ok).collect(),
+        _ => Vec::new(),
+    };
+    inputs.extend(image_paths.iter().map(|p| ("image", p.as_path())));
+    let output_paths: Vec<&std::path::Path> = outputs.iter().map(PathBuf::as_path).collect();
+    crate::outputs::refuse_inputs(&output_paths, &inputs)?;
     let mut tx = Transaction::new(&outputs)?;
     let t0 = Instant::now();
     let mut images = Value::Null;
@@ -339,23 +342,16 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
                 e.max_error,
                 e.mean_error
             );
-            json!({ "path": p, "quantisation_error_max": e.max_error, "quantisation_error_mean": e.mean_error,
+            json!({ "path": crate::outputs::json_path(p), "quantisation_error_max": e.max_error, "quantisation_error_mean": e.mean_error,
                     "scales": e.scales, "biases": e.biases })
         }
         None => Value::Null,
     };
-    let mut seconds = serde_json::Map::new();
-    seconds.insert("read".into(), json!(t_read));
-    for (k, v) in &report.seconds {
-        seconds.insert((*k).into(), json!(v));
-    }
-    seconds.insert("write".into(), json!(t_write));
-    seconds.insert("total".into(), json!(t_all.elapsed().as_secs_f64()));
-    Ok(json!({
+    let mut out = json!({
         "input": source,
-        "output": args.output,
+        "output": crate::outputs::json_path(&args.output),
         "layout": args.layout.name(),
-        "files": files,
+        "files": files.iter().map(|p| crate::outputs::json_path(p)).collect::<Vec<_>>(),
         "basis": basis.name(),
         "link": ptm.link.name(),
         "uv": ptm.uv.name(),
@@ -386,8 +382,20 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "half_error_bound": half_bound,
         "hp_export": hp,
         "images": images,
-        "seconds": seconds,
-    }))
+        "seconds": t_all.elapsed().as_secs_f64(),
+        "seconds_read": t_read,
+    });
+    stage_seconds(&mut out, &report.seconds);
+    out["seconds_write"] = json!(t_write);
+    Ok(out)
+}
+
+/// Adds the fit's stages to a JSON object as `seconds_<stage>` (spaces as `_`: `"mip levels"`
+/// → `seconds_mip_levels`), the one naming every subcommand's timings use.
+pub fn stage_seconds(out: &mut Value, stages: &[(&str, f64)]) {
+    for (stage, s) in stages {
+        out[format!("seconds_{}", stage.replace(' ', "_"))] = json!(s);
+    }
 }
 
 fn print_summary(r: &FitReport, args: &Args, half_bound: Option<f64>) {

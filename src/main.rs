@@ -9,6 +9,7 @@ mod batch;
 mod convert;
 mod fit;
 mod merge;
+mod outputs;
 mod preview;
 mod report;
 mod shard;
@@ -62,7 +63,15 @@ fn main() -> ExitCode {
     {
         std::env::set_var("NODEVICE_SELECT", "1");
     }
-    let cli = Cli::parse();
+    // `--json` is global: seen before parsing so that argument errors are JSON too.
+    let json = std::env::args_os()
+        .skip(1)
+        .take_while(|a| a != "--")
+        .any(|a| a == "--json");
+    let cli = match Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return usage_error(e, json),
+    };
     let result = match &cli.command {
         Command::Bake(a) => bake::run(a),
         Command::Fit(a) => fit::run(a),
@@ -81,8 +90,174 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("ptm: error: {e:#}");
+            let message = chain(&e);
+            eprintln!("ptm: error: {message}");
+            if cli.json {
+                let input = error_input(&e).or_else(|| cli.command.input());
+                println!(
+                    "{}",
+                    serde_json::json!({
+                        "error": { "message": message, "kind": error_kind(&e), "input": input }
+                    })
+                );
+            }
             ExitCode::FAILURE
+        }
+    }
+}
+
+/// A clap error: help and version print as usual (exit 0); an argument error prints clap's
+/// message on stderr and, with `--json`, one `error` object on stdout; exit code 2.
+fn usage_error(e: clap::Error, json: bool) -> ExitCode {
+    use clap::error::{ContextKind, ContextValue};
+    if !e.use_stderr() {
+        let _ = e.print();
+        return ExitCode::SUCCESS;
+    }
+    if json {
+        let text = e.render().to_string();
+        // clap's message is the paragraph before the usage line.
+        let message = text
+            .lines()
+            .take_while(|l| !l.trim().is_empty())
+            .map(str::trim)
+            .collect::<Vec<_>>()
+            .join(" ")
+            .trim_start_matches("error: ")
+            .to_string();
+        let input = [
+            ContextKind::InvalidArg,
+            ContextKind::InvalidSubcommand,
+            ContextKind::InvalidValue,
+        ]
+        .into_iter()
+        .find_map(|k| match e.get(k) {
+            Some(ContextValue::String(s)) => Some(s.clone()),
+            Some(ContextValue::Strings(v)) => Some(v.join(" ")),
+            _ => None,
+        });
+        println!(
+            "{}",
+            serde_json::json!({ "error": { "message": message, "kind": "usage", "input": input } })
+        );
+    }
+    let _ = e.print();
+    ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
+}
+
+/// The error and its causes joined by ": ", each cause once: library errors that show their
+/// source in their own message (`path: No such file or directory`) and also return it as
+/// `source()` would otherwise print the OS error twice.
+fn chain(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let s = cause.to_string();
+        if s.is_empty() || out.ends_with(&s) {
+            continue;
+        }
+        if !out.is_empty() {
+            out += ": ";
+        }
+        out += &s;
+    }
+    out
+}
+
+/// What failed, in one word for `--json`: `io` (an OS error reading or writing a file), `gpu`
+/// (no adapter, device or shader trouble), `embree` (the ray tracer), or `invalid` (an input
+/// file or argument that ptm refuses; the message says which and why).
+fn error_kind(e: &anyhow::Error) -> &'static str {
+    for cause in e.chain() {
+        if cause.is::<std::io::Error>() {
+            return "io";
+        }
+        if let Some(r) = cause.downcast_ref::<ptm_runtime::Error>() {
+            use ptm_runtime::Error as R;
+            if matches!(
+                r,
+                R::NoAdapter(_) | R::Device { .. } | R::Gpu { .. } | R::Shader { .. }
+            ) {
+                return "gpu";
+            }
+        }
+        if let Some(ptm_bake::Error::Embree(_)) = cause.downcast_ref::<ptm_bake::Error>() {
+            return "embree";
+        }
+    }
+    "invalid"
+}
+
+/// The file (or swatch spec) a library error names, innermost first.
+fn error_input(e: &anyhow::Error) -> Option<String> {
+    e.chain()
+        .rev()
+        .find_map(|cause| {
+            if let Some(x) = cause.downcast_ref::<ptm_fit::FormatError>() {
+                use ptm_fit::FormatError as F;
+                return match x {
+                    F::Io { path, .. } | F::Format { path, .. } => Some(path.clone()),
+                    F::Invalid(_) => None,
+                };
+            }
+            if let Some(x) = cause.downcast_ref::<ptm_fit::Error>() {
+                use ptm_fit::Error as F;
+                return match x {
+                    F::Io { path, .. } | F::LightFile { path, .. } | F::Format { path, .. } => {
+                        Some(path.clone())
+                    }
+                    _ => None,
+                };
+            }
+            if let Some(x) = cause.downcast_ref::<ptm_bake::Error>() {
+                use ptm_bake::Error as B;
+                return match x {
+                    B::Io { path, .. } | B::InvalidMesh { path, .. } => Some(path.clone()),
+                    _ => None,
+                };
+            }
+            if let Some(x) = cause.downcast_ref::<ptm_swatches::Error>() {
+                use ptm_swatches::Error as S;
+                return match x {
+                    S::InvalidMesh { path, .. } | S::Io { path, .. } => {
+                        Some(path.display().to_string())
+                    }
+                    S::Draft { source_name, .. } => Some(source_name.clone()),
+                    S::BadSpec { spec, .. } => Some(spec.clone()),
+                    S::UnknownSwatch { name, .. } => Some(name.clone()),
+                    S::InvalidParameter { swatch, .. }
+                    | S::UnknownParameter { swatch, .. }
+                    | S::Overlap { swatch, .. } => Some(swatch.clone()),
+                    _ => None,
+                };
+            }
+            if let Some(ptm_runtime::Error::Image { path, .. }) =
+                cause.downcast_ref::<ptm_runtime::Error>()
+            {
+                return Some(path.clone());
+            }
+            None
+        })
+        // anyhow finds a context of this type anywhere in the chain.
+        .or_else(|| e.downcast_ref::<outputs::Named>().map(|n| n.path.clone()))
+}
+
+impl Command {
+    /// The subcommand's main input, named in a `--json` error when the error itself names none.
+    fn input(&self) -> Option<String> {
+        let path = |p: &std::path::Path| Some(p.display().to_string());
+        match self {
+            Command::Bake(a) => Some(a.swatch.clone()),
+            Command::Fit(a) => match (&a.input, &a.images) {
+                (Some(p), _) => path(p),
+                (None, Some(g)) => Some(g.clone()),
+                (None, None) => None,
+            },
+            Command::Preview(a) => a.ptm.as_deref().and_then(path),
+            Command::Swatch(a) => Some(swatch::spec(a)),
+            Command::Report(a) => path(&a.out),
+            Command::Merge(a) => a.parts.first().and_then(|p| path(p)),
+            Command::Batch(a) => path(&a.manifest),
+            Command::Convert(a) => path(&a.input),
         }
     }
 }

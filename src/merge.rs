@@ -4,7 +4,10 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use ptm_fit::atomic::Transaction;
 use ptm_fit::shard;
+
+use crate::outputs::json_path;
 use serde_json::{json, Value};
 
 #[derive(clap::Args)]
@@ -40,17 +43,17 @@ pub fn part_files(args: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
 pub fn run(args: &Args) -> anyhow::Result<Value> {
     let t0 = Instant::now();
     let files = part_files(&args.parts)?;
-    let lp = crate::bake::lp_path(&args.output);
-    if let Some(p) = files
-        .iter()
-        .find(|p| ptm_fit::atomic::same_file(p, &args.output) || ptm_fit::atomic::same_file(p, &lp))
-    {
-        bail!(
-            "the output {} (or its light file) is the part {}: give the merged file another name",
-            args.output.display(),
-            p.display()
-        );
-    }
+    // No .lp beside a device (-o /dev/null).
+    let lp = crate::outputs::lp_beside(&args.output);
+    let mut outputs = vec![args.output.as_path()];
+    outputs.extend(lp.as_deref());
+    let parts: Vec<(&str, &std::path::Path)> =
+        files.iter().map(|p| ("part", p.as_path())).collect();
+    crate::outputs::refuse_inputs(&outputs, &parts).context("give the merged file another name")?;
+    // Both destinations are checked before the merge. The merge publishes the output itself
+    // (it streams chunks into it); the .lp is published right after.
+    drop(Transaction::new(&outputs)?);
+    let mut tx = Transaction::new(lp.as_slice())?;
     let bytes: u64 = files
         .iter()
         .filter_map(|p| std::fs::metadata(p).ok())
@@ -60,31 +63,38 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         .with_context(|| format!("merging into {}", args.output.display()))?;
     let (lights, width, height, kind) = (&merged.lights, merged.width, merged.height, &merged.kind);
     let t1 = Instant::now();
-    lights.write_lp(&lp)?;
+    if let Some(lp) = &lp {
+        tx.stage_bytes(lp, lights.to_lp().as_bytes())?;
+    }
+    tx.commit()?;
     let t_write = t1.elapsed().as_secs_f64();
     let total = t0.elapsed().as_secs_f64();
     let out_bytes = std::fs::metadata(&args.output)
         .map(|m| m.len())
         .unwrap_or(0);
     eprintln!(
-        "ptm merge: {} parts ({:.1} MB) → {} ({width}×{height}, {} lights) and {} in {total:.2} s",
+        "ptm merge: {} parts ({:.1} MB) → {} ({width}×{height}, {} lights){} in {total:.2} s",
         files.len(),
         bytes as f64 / 1e6,
         args.output.display(),
         lights.len(),
-        lp.display()
+        lp.as_ref()
+            .map(|p| format!(" and {}", p.display()))
+            .unwrap_or_default()
     );
     Ok(json!({
-        "output": args.output,
-        "lights_file": lp,
+        "output": json_path(&args.output),
+        "lights_file": lp.as_deref().map(json_path),
         "kind": kind,
-        "parts": files,
+        "parts": files.iter().map(|p| json_path(p)).collect::<Vec<_>>(),
         "width": width,
         "height": height,
         "lights": lights.len(),
         "bytes_in": bytes,
         "bytes_out": out_bytes,
         "mb_per_s": bytes as f64 / 1e6 / total.max(1e-9),
-        "seconds": { "merge": total - t_write, "lp": t_write, "total": total },
+        "seconds": total,
+        "seconds_merge": total - t_write,
+        "seconds_lp": t_write,
     }))
 }

@@ -4,6 +4,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
+use ptm_fit::atomic::Transaction;
+use ptm_fit::exrio::{self, Samples};
 use ptm_fit::Ptm;
 use ptm_runtime::scene::{Perspective, Prepared};
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
@@ -207,6 +209,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     }
     scene.albedo = args.albedo;
     if let Some(path) = &args.albedo_texture {
+        check_image_size(path, "--albedo-texture")?;
         let (w, h, texels) = output::read_rgba8(path)?;
         let lin = texels
             .iter()
@@ -250,6 +253,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
         .collect();
 
     if let Some(path) = &args.caster {
+        check_image_size(path, "--caster")?;
         let (w, h, rgba) = output::read_rgba8(path)?;
         let (cw, ch) = args.caster_size.unwrap_or((
             0.5 * (scene.view[2] - scene.view[0]),
@@ -283,6 +287,37 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     Ok(scene)
 }
 
+/// Refuses an image the decoder would refuse for its size with what the limit is and what to
+/// do, instead of the decoder's bare "Memory limit exceeded".
+fn check_image_size(path: &Path, flag: &str) -> anyhow::Result<()> {
+    use image::ImageDecoder;
+    let named = || crate::outputs::Named::new("reading", path);
+    let decoder = image::ImageReader::open(path)
+        .with_context(named)?
+        .with_guessed_format()
+        .with_context(named)?
+        .into_decoder();
+    // Not decodable at all: read_rgba8 says why.
+    let Ok(decoder) = decoder else {
+        return Ok(());
+    };
+    let (w, h) = decoder.dimensions();
+    let bytes = decoder.total_bytes();
+    let Some(limit) = image::Limits::default().max_alloc else {
+        return Ok(());
+    };
+    if bytes > limit {
+        let side = ptm_runtime::scene::MAX_CASTER_SIDE;
+        bail!(
+            "{}: {flag} image is {w}×{h} ({:.1} GiB decoded), over the image decoder's limit of              {} MiB: downscale it (the renderer box-downsamples anything larger than {side}×{side}              anyway, so {side}×{side} as an 8-bit PNG loses nothing)",
+            path.display(),
+            bytes as f64 / (1u64 << 30) as f64,
+            limit >> 20
+        );
+    }
+    Ok(())
+}
+
 /// Seconds per render pass, by pass name.
 fn timings_json(t: &ptm_runtime::Timings) -> Value {
     Value::Object(
@@ -313,7 +348,7 @@ fn run_window(args: &Args) -> anyhow::Result<Value> {
         "surface_format": report.surface_format,
         "frames": report.frames,
         "renders": report.renders,
-        "last_render_s": report.last_render_s,
+        "seconds_last_render": report.last_render_s,
         "blur": report.blur,
         "ptm_on": report.ptm_on,
         "light": report.light,
@@ -340,6 +375,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let start = Instant::now();
     // clap requires -o unless --window.
     let output = args.output.as_deref().context("--output is required")?;
+    let tx = check_outputs(args, output)?;
     let scene = build_scene(args)?;
     let prepared = scene.prepare()?;
     let (gpu, device_s) = open_gpu(&prepared)?;
@@ -350,24 +386,50 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "view": scene.view,
         "lights": scene.lights.len(),
         "blur": scene.caster.as_ref().map(|_| scene.blur.name()),
-        "device_s": device_s,
+        "seconds_device": device_s,
     });
     diagnose(&scene, &prepared, &mut report);
     let image = render(args, &gpu, &scene, &prepared, &mut report)?;
     if args.compare_blur {
         compare_blur(args, &gpu, &scene, &mut report)?;
     }
-    write_outputs(args, output, &image, &mut report)?;
-    report["total_s"] = json!(start.elapsed().as_secs_f64());
+    write_outputs(args, output, tx, &image, &mut report)?;
+    report["seconds"] = json!(start.elapsed().as_secs_f64());
     Ok(report)
 }
 
-/// Refuses an `--exposure` that is not a finite number of stops.
+/// The largest side of `--size` (wgpu's guaranteed texture limit on desktop GPUs).
+pub const MAX_SIDE: u32 = 16384;
+/// The most pixels a run holds as linear RGBA f32 (`--size` × `--turntable` frames): 4 GiB.
+pub const MAX_PIXELS: u64 = 1 << 28;
+/// The most `--mc-samples` per pixel and light.
+pub const MAX_MC_SAMPLES: u32 = 1 << 16;
+
+/// Refuses an `--exposure` that is not a finite number of stops, and counts that would allocate
+/// more than any run needs (`--size`, `--turntable` frames) or run for hours (`--mc-samples`),
+/// before anything is allocated.
 fn check_exposure(args: &Args) -> anyhow::Result<()> {
     if !args.exposure.is_finite() {
         bail!(
             "--exposure {} must be a finite number of stops",
             args.exposure
+        );
+    }
+    let (w, h) = args.size;
+    if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
+        bail!("--size {w},{h}: each side must be 1 to {MAX_SIDE} pixels");
+    }
+    let frames = args.turntable.unwrap_or(1) as u64;
+    let pixels = w as u64 * h as u64 * frames;
+    if pixels > MAX_PIXELS {
+        bail!(
+            "--size {w},{h} × {frames} turntable frames is {pixels} pixels, more than the {MAX_PIXELS}              (4 GiB of linear RGBA) one run holds: lower --size or --turntable"
+        );
+    }
+    if args.mc_samples == 0 || args.mc_samples > MAX_MC_SAMPLES {
+        bail!(
+            "--mc-samples {} must be 1 to {MAX_MC_SAMPLES}",
+            args.mc_samples
         );
     }
     Ok(())
@@ -458,7 +520,7 @@ fn render(
 ) -> anyhow::Result<Image> {
     let Some(n) = args.turntable else {
         let (img, t) = gpu::render(gpu, prepared)?;
-        report["timings"] = timings_json(&t);
+        report["seconds_passes"] = timings_json(&t);
         return Ok(img);
     };
     if n == 0 {
@@ -473,7 +535,7 @@ fn render(
         frames.push(img);
     }
     let columns = (n as f64).sqrt().ceil() as usize;
-    report["turntable"] = json!({ "frames": n, "columns": columns, "timings": per_frame });
+    report["turntable"] = json!({ "frames": n, "columns": columns, "seconds_passes": per_frame });
     Ok(Image::contact_sheet(&frames, columns).expect("frames share one size"))
 }
 
@@ -489,31 +551,72 @@ fn compare_blur(args: &Args, gpu: &Gpu, scene: &Scene, report: &mut Value) -> an
         .iter()
         .map(|r| json!({
             "method": r.method, "max_abs_error": r.max_abs_error,
-            "mean_abs_error": r.mean_abs_error, "shade_s": r.shade_s, "setup_s": r.setup_s,
+            "mean_abs_error": r.mean_abs_error, "seconds_shade": r.shade_s, "seconds_setup": r.setup_s,
         }))
         .collect::<Vec<_>>());
     Ok(())
 }
 
-/// Writes the PNG (at `--exposure`) and, with `--exr`, the linear EXR; records their paths.
+/// Refuses an output that is an input (`--ptm`, `--caster`, `--albedo-texture`) or the other
+/// output, and checks both destinations before any work; the PNG and the EXR are then
+/// published together.
+fn check_outputs(args: &Args, output: &Path) -> anyhow::Result<Transaction> {
+    let mut outputs = vec![output];
+    outputs.extend(args.exr.as_deref());
+    let mut inputs = Vec::new();
+    inputs.extend(args.ptm.as_deref().map(|p| ("PTM", p)));
+    inputs.extend(args.caster.as_deref().map(|p| ("caster", p)));
+    inputs.extend(
+        args.albedo_texture
+            .as_deref()
+            .map(|p| ("albedo texture", p)),
+    );
+    crate::outputs::refuse_inputs(&outputs, &inputs)?;
+    Ok(Transaction::new(&outputs)?)
+}
+
+/// Writes the PNG (at `--exposure`) and, with `--exr`, the linear EXR, both or neither;
+/// records their paths.
 fn write_outputs(
     args: &Args,
     output: &Path,
+    mut tx: Transaction,
     image: &Image,
     report: &mut Value,
 ) -> anyhow::Result<()> {
-    image.write_png(output, args.exposure)?;
-    eprintln!("ptm preview: wrote {}", output.display());
-    report["png"] = json!(path_str(output));
+    let png = png_bytes(image.width, image.height, image.to_srgb8(args.exposure))
+        .with_context(|| crate::outputs::Named::new("writing", output))?;
+    tx.stage_bytes(output, &png)?;
     if let Some(exr) = &args.exr {
-        image.write_exr(exr)?;
+        // R, G, B as f32, row 0 the top of the image.
+        let channel = |c: usize| {
+            let plane = image.pixels.iter().map(|p| p[c]).collect();
+            (["R", "G", "B"][c].to_string(), Samples::F32(plane))
+        };
+        let bytes = exrio::encode(
+            exr,
+            image.width,
+            image.height,
+            (0..3).map(channel).collect(),
+            Vec::new(),
+        )?;
+        tx.stage_bytes(exr, &bytes)?;
+    }
+    tx.commit()?;
+    eprintln!("ptm preview: wrote {}", output.display());
+    report["png"] = crate::outputs::json_path(output);
+    if let Some(exr) = &args.exr {
         eprintln!("ptm preview: wrote {}", exr.display());
-        report["exr"] = json!(path_str(exr));
+        report["exr"] = crate::outputs::json_path(exr);
     }
     Ok(())
 }
 
-/// A path as the JSON shows it.
-fn path_str(p: &Path) -> String {
-    p.display().to_string()
+/// The bytes of an 8-bit RGBA PNG.
+pub fn png_bytes(width: usize, height: usize, rgba: Vec<u8>) -> anyhow::Result<Vec<u8>> {
+    let img = image::RgbaImage::from_raw(width as u32, height as u32, rgba)
+        .context("the pixels do not make an RGBA image of this size")?;
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)?;
+    Ok(bytes.into_inner())
 }

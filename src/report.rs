@@ -7,12 +7,15 @@
 mod plot;
 mod sheet;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use ptm_report::{g3, Options, Report, Table};
+use ptm_fit::atomic::Transaction;
+use ptm_report::{g3, Options, Report};
 use serde_json::json;
+
+use crate::outputs::json_path;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -40,17 +43,6 @@ fn load_average() -> String {
         .unwrap_or_else(|| "unknown".into())
 }
 
-/// Writes `<dir>/<name>.csv` atomically.
-fn write_csv(dir: &Path, t: &Table) -> Result<()> {
-    let path = dir.join(format!("{}.csv", t.name));
-    ptm_fit::atomic::write_atomic(&path, |f| {
-        use std::io::Write;
-        f.write_all(t.csv().as_bytes())
-    })
-    .with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
-}
-
 /// `ptm report`: runs the study, then writes its figures, CSVs and `report.md` into `--out`;
 /// returns the JSON that `--json` prints.
 pub fn run(args: &Args) -> Result<serde_json::Value> {
@@ -58,6 +50,12 @@ pub fn run(args: &Args) -> Result<serde_json::Value> {
     let load_at_start = load_average();
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
+    let md_path = args.out.join("report.md");
+    let plot_path = args.out.join("error_vs_time.png");
+    let sheet_path = args.out.join("contact_sheet.png");
+    // The fixed names are checked before the study (minutes); every file is published at the
+    // end, all or none.
+    drop(Transaction::new(&[&md_path, &plot_path, &sheet_path])?);
     let scratch = args.out.join(".scratch");
     std::fs::create_dir_all(&scratch)?;
     let opts = Options {
@@ -69,13 +67,19 @@ pub fn run(args: &Args) -> Result<serde_json::Value> {
     let _ = std::fs::remove_dir_all(&scratch);
     let report = report?;
 
-    plot::error_vs_time(&args.out.join("error_vs_time.png"), &report.swatches)?;
-    sheet::contact_sheet(&args.out.join("contact_sheet.png"), &report.contact_sheet)?;
     let tables = report.tables();
-    for t in tables.all() {
-        write_csv(&args.out, t)?;
+    let csv_paths: Vec<PathBuf> = tables
+        .all()
+        .map(|t| args.out.join(format!("{}.csv", t.name)))
+        .collect();
+    let mut paths = vec![md_path.clone(), plot_path.clone(), sheet_path.clone()];
+    paths.extend(csv_paths.iter().cloned());
+    let mut tx = Transaction::new(&paths)?;
+    tx.stage_bytes(&plot_path, &plot::error_vs_time(&report.swatches)?)?;
+    tx.stage_bytes(&sheet_path, &sheet::contact_sheet(&report.contact_sheet)?)?;
+    for (t, path) in tables.all().zip(&csv_paths) {
+        tx.stage_bytes(path, t.csv().as_bytes())?;
     }
-    let md_path = args.out.join("report.md");
     let mut md = markdown(args, &report, &tables);
     md += &format!(
         "\n_Generated in {:.0} s; load average {} at the start, {} at the end (other work on the \
@@ -84,19 +88,18 @@ pub fn run(args: &Args) -> Result<serde_json::Value> {
         load_at_start,
         load_average()
     );
-    ptm_fit::atomic::write_atomic(&md_path, |f| {
-        use std::io::Write;
-        f.write_all(md.as_bytes())
-    })?;
+    tx.stage_bytes(&md_path, md.as_bytes())?;
+    tx.commit()?;
     eprintln!(
         "report: wrote {} ({:.0} s)",
         md_path.display(),
         started.elapsed().as_secs_f64()
     );
     Ok(json!({
-        "report": md_path,
-        "plot": args.out.join("error_vs_time.png"),
-        "csv": tables.all().map(|t| args.out.join(format!("{}.csv", t.name))).collect::<Vec<_>>(),
+        "report": json_path(&md_path),
+        "plot": json_path(&plot_path),
+        "contact_sheet": json_path(&sheet_path),
+        "csv": csv_paths.iter().map(|p| json_path(p)).collect::<Vec<_>>(),
         "seconds": started.elapsed().as_secs_f64(),
         "swatches": report.swatches.iter().map(|s| {
             let best = s.best();

@@ -20,7 +20,7 @@ pub struct Args {
 }
 
 /// The full spec: NAME's own `?k=v` parameters followed by the `--param` ones.
-fn spec(args: &Args) -> String {
+pub fn spec(args: &Args) -> String {
     let mut spec = args.name.clone();
     for (k, p) in args.params.iter().enumerate() {
         let sep = if k == 0 && !spec.contains('?') {
@@ -34,9 +34,23 @@ fn spec(args: &Args) -> String {
     spec
 }
 
+/// The files a swatch spec reads: the `path=` of a `draft` (a WIF or 0/1 grid).
+pub fn spec_files(spec: &str) -> Vec<PathBuf> {
+    let query = spec.split_once('?').map_or("", |(_, q)| q);
+    query
+        .split('&')
+        .filter_map(|kv| kv.split_once('='))
+        .filter(|(k, _)| k.trim() == "path")
+        .map(|(_, v)| PathBuf::from(v.trim()))
+        .collect()
+}
+
 pub fn run(args: &Args) -> anyhow::Result<serde_json::Value> {
     let spec = spec(args);
     let start = std::time::Instant::now();
+    let drafts = spec_files(&spec);
+    let inputs: Vec<_> = drafts.iter().map(|p| ("draft", p.as_path())).collect();
+    crate::outputs::refuse_inputs(&[&args.output], &inputs)?;
     let swatch =
         ptm_swatches::build(&spec).with_context(|| format!("generating swatch {spec:?}"))?;
     let mesh = &swatch.mesh;
@@ -62,7 +76,7 @@ pub fn run(args: &Args) -> anyhow::Result<serde_json::Value> {
     Ok(json!({
         "swatch": swatch.name,
         "spec": spec,
-        "output": args.output,
+        "output": crate::outputs::json_path(&args.output),
         "triangles": mesh.triangles.len(),
         "vertices": mesh.positions.len(),
         "yarns": swatch.cloth.yarns.len(),

@@ -180,7 +180,7 @@ fn bad_inputs_are_refused_and_nothing_is_written() {
         ),
         (
             vec!["--swatch", "ok.obj", "--threads", "100000"],
-            "--threads 100000",
+            "'100000' for '--threads",
             "at most 1024",
         ),
         (

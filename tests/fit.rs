@@ -118,7 +118,16 @@ fn fit_command_recovers_polynomials_and_reports_json() {
     assert!(j["condition_number"].as_f64().unwrap() < 20.0);
     assert!(j["rms_error"]["p99"].as_f64().unwrap() < 1e-5);
     assert!(j["holdout_rms_error"]["mean"].as_f64().unwrap() < 1e-5);
-    assert!(j["seconds"]["total"].as_f64().unwrap() > 0.0);
+    // Timings: `seconds` in all, `seconds_<stage>` per stage, as in every subcommand.
+    assert!(j["seconds"].as_f64().unwrap() > 0.0);
+    for stage in ["seconds_read", "seconds_write"] {
+        assert!(j[stage].as_f64().is_some_and(|s| s >= 0.0), "{stage}: {j}");
+    }
+    let stages = j.as_object().unwrap().keys();
+    assert!(
+        stages.filter(|k| k.starts_with("seconds_")).count() >= 3,
+        "{j}"
+    );
     assert!(j["warnings"].as_array().unwrap().is_empty());
     let (ptm, info) = Ptm::load_with_info(&out).unwrap();
     assert_eq!(ptm.basis, Basis::Ptm6);

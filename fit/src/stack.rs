@@ -39,6 +39,9 @@ pub fn k_channel(i: usize) -> String {
     format!("K.{i:04}")
 }
 
+/// Named EXR channels, as `exrio` takes them.
+type Channels = Vec<(String, Samples)>;
+
 impl SampleStack {
     /// Texel count.
     pub fn texels(&self) -> usize {
@@ -99,7 +102,34 @@ impl SampleStack {
         self.write_planes(path, k)
     }
 
+    /// The bytes [`SampleStack::write_into`] writes (`path` names the file in errors only), to
+    /// stage in an [`atomic::Transaction`](crate::atomic::Transaction) with other outputs.
+    pub fn encode_into(mut self, path: &Path) -> Result<Vec<u8>> {
+        self.validate()?;
+        let k = std::mem::take(&mut self.k);
+        let (channels, attrs) = self.channels(k);
+        Ok(exrio::encode(
+            path,
+            self.width,
+            self.height,
+            channels,
+            attrs,
+        )?)
+    }
+
     fn write_planes(&self, path: &Path, k: Vec<Vec<f32>>) -> Result<()> {
+        let (channels, attrs) = self.channels(k);
+        Ok(exrio::write(
+            path,
+            self.width,
+            self.height,
+            channels,
+            attrs,
+        )?)
+    }
+
+    /// The EXR channels (K planes taken, not copied) and header attributes of the stack.
+    fn channels(&self, k: Vec<Vec<f32>>) -> (Channels, Vec<(&'static str, Attr)>) {
         let mut channels = Vec::with_capacity(k.len() * 3 + 1);
         for (i, plane) in k.into_iter().enumerate() {
             channels.push((k_channel(i), Samples::F32(plane)));
@@ -113,14 +143,7 @@ impl SampleStack {
                 channels.push((format!("v.{i:04}"), Samples::F32(v)));
             }
         }
-        let attrs = self.header_attrs();
-        Ok(exrio::write(
-            path,
-            self.width,
-            self.height,
-            channels,
-            attrs,
-        )?)
+        (channels, self.header_attrs())
     }
 
     /// The `stack:*` header attributes of this stack (also written into farm parts, whose

@@ -1,6 +1,5 @@
 //! PNG plots of the report (plotters, bitmap backend). Text is drawn with ab_glyph from the
 //! system's DejaVu Sans (`fonts-dejavu-core`, installed by `scripts/setup.sh`).
-use std::path::Path;
 use std::sync::OnceLock;
 
 use anyhow::{anyhow, Context, Result};
@@ -56,8 +55,9 @@ fn marker<'a, C: 'static + Clone>(
 
 /// Scatter (log time, linear error) of RMS error of K against bake + fit seconds: one colour per
 /// swatch, one marker per (link, uv) model; each swatch's Pareto front over every setting is the
-/// solid line, the front of the plain PTM alone (identity, projected) the dashed one.
-pub fn error_vs_time(path: &Path, series: &[SwatchStudy]) -> Result<()> {
+/// solid line, the front of the plain PTM alone (identity, projected) the dashed one. Returns
+/// the PNG's bytes.
+pub fn error_vs_time(series: &[SwatchStudy]) -> Result<Vec<u8>> {
     register_font()?;
     let pts = series.iter().flat_map(|s| s.outcomes.iter());
     let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, 0f64, f64::MAX, 0f64);
@@ -78,9 +78,10 @@ pub fn error_vs_time(path: &Path, series: &[SwatchStudy]) -> Result<()> {
             .position(|&m| m == (o.setting.link, o.setting.uv))
             .unwrap_or(0)
     };
-    let tmp = ptm_fit::atomic::tmp_path(path).with_extension("png");
+    let size = (1040u32, 680u32);
+    let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
     {
-        let root = BitMapBackend::new(&tmp, (1040, 680)).into_drawing_area();
+        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(
@@ -159,8 +160,16 @@ pub fn error_vs_time(path: &Path, series: &[SwatchStudy]) -> Result<()> {
             .label_font(("sans-serif", 14))
             .draw()?;
         root.present()
-            .with_context(|| format!("writing {}", tmp.display()))?;
+            .context("drawing the error against time plot")?;
     }
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    png_bytes(size, rgb)
+}
+
+/// The bytes of an 8-bit RGB PNG of `size` (plotters' bitmap buffer), for an atomic write.
+pub fn png_bytes(size: (u32, u32), rgb: Vec<u8>) -> Result<Vec<u8>> {
+    let img = image::RgbImage::from_raw(size.0, size.1, rgb)
+        .context("the plot's buffer does not match its size")?;
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    img.write_to(&mut bytes, image::ImageFormat::Png)?;
+    Ok(bytes.into_inner())
 }

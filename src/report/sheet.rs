@@ -1,25 +1,23 @@
 //! The contact sheet: every builtin swatch's visibility 1 − K under one low light (baked by
 //! `ptm_report::ContactSheet`), each shown as 2×2 tiles so that a seam would show, with its name.
-use std::path::Path;
-
 use anyhow::{Context, Result};
 use plotters::prelude::*;
 use ptm_report::ContactSheet;
 
-/// Draws `sheet` into the PNG `path` (atomically).
-pub fn contact_sheet(path: &Path, sheet: &ContactSheet) -> Result<()> {
+/// Draws `sheet` as a PNG; returns its bytes.
+pub fn contact_sheet(sheet: &ContactSheet) -> Result<Vec<u8>> {
     super::plot::register_font()?;
     let texels = sheet.texels;
     let cell = 2 * texels;
     let (cols, label) = (4usize, 26usize);
     let rows = sheet.cells.len().div_ceil(cols);
-    let tmp = ptm_fit::atomic::tmp_path(path).with_extension("png");
+    let size = (
+        (cols * (cell + 8)) as u32,
+        (rows * (cell + label + 8)) as u32,
+    );
+    let mut rgb = vec![0u8; size.0 as usize * size.1 as usize * 3];
     {
-        let size = (
-            (cols * (cell + 8)) as u32,
-            (rows * (cell + label + 8)) as u32,
-        );
-        let root = BitMapBackend::new(&tmp, size).into_drawing_area();
+        let root = BitMapBackend::with_buffer(&mut rgb, size).into_drawing_area();
         root.fill(&WHITE)?;
         for (n, c) in sheet.cells.iter().enumerate() {
             let (x0, y0) = (
@@ -54,9 +52,7 @@ pub fn contact_sheet(path: &Path, sheet: &ContactSheet) -> Result<()> {
                 }
             }
         }
-        root.present()
-            .with_context(|| format!("writing {}", tmp.display()))?;
+        root.present().context("drawing the contact sheet")?;
     }
-    std::fs::rename(&tmp, path).with_context(|| format!("writing {}", path.display()))?;
-    Ok(())
+    super::plot::png_bytes(size, rgb)
 }

@@ -1,0 +1,66 @@
+//! What every subcommand checks about its outputs before any work — none may be one of its
+//! inputs (the same file after resolving links), a light file is written beside an output only
+//! where that makes a file of its own — and how a path appears in messages and `--json` (as
+//! text, lossily: a file name need not be UTF-8).
+use std::path::{Path, PathBuf};
+
+use anyhow::bail;
+use ptm_fit::atomic::same_file;
+use serde_json::Value;
+
+/// Refuses an output that is one of the inputs: `inputs` are (what it is, its path), e.g.
+/// `("swatch", "pw.obj")`.
+pub fn refuse_inputs(outputs: &[&Path], inputs: &[(&str, &Path)]) -> anyhow::Result<()> {
+    for out in outputs {
+        if let Some((what, input)) = inputs.iter().find(|(_, i)| same_file(out, i)) {
+            bail!(
+                "the output {} is the {what} {}: give the output another name (the input would \
+                 be overwritten)",
+                out.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Whether `path` exists and is neither a regular file nor a directory (`/dev/null`, a FIFO):
+/// written through, so nothing may be created beside it.
+pub fn is_special(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// The light file written beside `out` (`samples.exr` → `samples.lp`, `weave.ptm.exr` →
+/// `weave.lp`), or none when `out` is a device or FIFO (`-o /dev/null` creates no
+/// `/dev/null.lp`).
+pub fn lp_beside(out: &Path) -> Option<PathBuf> {
+    (!is_special(out)).then(|| crate::bake::lp_path(out))
+}
+
+/// A path for `--json`: its text, with bytes that are not UTF-8 replaced (never a panic).
+pub fn json_path(p: &Path) -> Value {
+    Value::String(p.to_string_lossy().into_owned())
+}
+
+/// An error context naming the file an error is about, which `--json` reports as the error's
+/// `input`: shown as "`action` `path`" (e.g. "reading cap.lp").
+#[derive(Debug)]
+pub struct Named {
+    pub action: &'static str,
+    pub path: String,
+}
+
+impl Named {
+    pub fn new(action: &'static str, path: &Path) -> Named {
+        Named {
+            action,
+            path: path.display().to_string(),
+        }
+    }
+}
+
+impl std::fmt::Display for Named {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {}", self.action, self.path)
+    }
+}
