@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Mutation fuzzing of every reader (OBJ, .lp, WIF, sample-stack EXR, PTM EXR, caster PNG) on
-# stable Rust: `scripts/fuzz.sh N [SEED]` runs N mutants per reader (default 10000, seed 1).
+# Mutation fuzzing of every reader (OBJ, .lp, WIF, sample-stack EXR, PTM EXR, renderer-layout
+# parts, caster PNG) on stable Rust: `scripts/fuzz.sh N [SEED]` runs N mutants per reader (default 10000, seed 1).
 # Findings (panics, aborts, hangs, memory above the bound) are saved under fuzz/findings/ and
 # fail the run; each must become a regression input in fuzz/corpus/<reader>/ or a unit test.
 set -euo pipefail

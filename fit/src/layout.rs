@@ -206,12 +206,17 @@ struct Single {
 }
 
 fn read_single(path: &Path) -> Result<Single> {
-    if let Err(e) = std::fs::metadata(path) {
-        return Err(Error::Io {
-            path: path.display().to_string(),
-            source: e,
-        });
-    }
+    let len = match std::fs::metadata(path) {
+        Ok(m) => m.len(),
+        Err(e) => {
+            return Err(Error::Io {
+                path: path.display().to_string(),
+                source: e,
+            })
+        }
+    };
+    // A corrupt header must be refused before the exr crate allocates what it claims.
+    crate::exrio::check_claimed_size(path, len)?;
     let image = exr::prelude::read()
         .no_deep_data()
         .all_resolution_levels()

@@ -227,8 +227,9 @@ pub struct Contents {
 /// and the exr crate allocates whatever it claims: a mutated data window asked for 500 PB.
 const MAX_COMPRESSION_RATIO: f64 = 4096.0;
 
-/// Refuses a file whose headers claim more pixel data than `file_len` bytes can hold.
-fn check_claimed_size(path: &Path, file_len: u64) -> Result<()> {
+/// Refuses a file whose headers claim more pixel data than `file_len` bytes can hold; every
+/// reader of EXR files calls it before the exr crate allocates what a header claims.
+pub fn check_claimed_size(path: &Path, file_len: u64) -> Result<()> {
     use exr::meta::attribute::LevelMode;
     use exr::meta::BlockDescription;
     let bad = |reason: String| Error::Format {

@@ -1,6 +1,6 @@
 //! Mutation fuzzing of ptm's readers on stable Rust (cargo-fuzz needs nightly).
 //!
-//! Per reader (OBJ, `.lp`, WIF, sample-stack EXR, PTM EXR, caster PNG) a seeded mutator (bit
+//! Per reader (OBJ, `.lp`, WIF, sample-stack EXR, PTM EXR, renderer-layout parts, caster PNG) a seeded mutator (bit
 //! flips, byte inserts and deletes, splices, interesting numbers and tokens) turns the files of
 //! `fuzz/corpus/<reader>/` into mutants, and each runs in-process on the reader's
 //! parse-and-validate path. A case fails when it panics, aborts (a memory allocation above the
@@ -119,6 +119,12 @@ const READERS: &[Reader] = &[
         run: run_ptm,
     },
     Reader {
+        name: "layout",
+        ext: "exr",
+        text: false,
+        run: run_layout,
+    },
+    Reader {
         name: "caster",
         ext: "png",
         text: false,
@@ -203,6 +209,24 @@ fn run_ptm(bytes: &[u8], tmp: &Path) -> Result<(), String> {
     let path = tmp.join("case.ptm.exr");
     std::fs::write(&path, bytes).map_err(err)?;
     let p = ptm_fit::Ptm::load(&path).map_err(err)?;
+    if p.width > 0 && p.height > 0 {
+        let _ = p.eval(0, 0, 0.3, -0.2) + p.eval(p.width - 1, p.height - 1, 0.0, 0.9);
+    }
+    Ok(())
+}
+
+/// Part c1 of the renderer-layout ptm6 whose part c0 seeds the `layout` corpus (written by
+/// `gen_corpus`): the partner every mutated c0 is read with.
+const LAYOUT_C1: &[u8] = include_bytes!("../pair/ptm6.ptm.c1.exr");
+
+/// Renderer layout (`ptm convert`'s and `Ptm` loading's reader of RGB(A) parts): the mutant is
+/// part c0 beside a valid part c1, loaded, turned into a `Ptm` and evaluated at its corners.
+fn run_layout(bytes: &[u8], tmp: &Path) -> Result<(), String> {
+    let path = tmp.join("case.ptm.exr");
+    std::fs::write(ptm_fit::layout::part_path(&path, 0), bytes).map_err(err)?;
+    std::fs::write(ptm_fit::layout::part_path(&path, 1), LAYOUT_C1).map_err(err)?;
+    let (file, _) = ptm_fit::PtmFile::load(&path).map_err(err)?;
+    let p = file.to_ptm(&path).map_err(err)?;
     if p.width > 0 && p.height > 0 {
         let _ = p.eval(0, 0, 0.3, -0.2) + p.eval(p.width - 1, p.height - 1, 0.0, 0.9);
     }
@@ -684,6 +708,18 @@ fn gen_corpus() {
         ..SaveOptions::default()
     };
     p.save(&dir.join("ptm/ptm6-half.exr"), &half).unwrap();
+    // The renderer layout of the same PTM: part c0 seeds the corpus, part c1 is its partner.
+    std::fs::create_dir_all(dir.join("layout")).unwrap();
+    let pair = dir.join("../pair");
+    std::fs::create_dir_all(&pair).unwrap();
+    let files = ptm_fit::layout::save(
+        &p,
+        &pair.join("ptm6.ptm.exr"),
+        &SaveOptions::default(),
+        ptm_fit::Layout::Rgba,
+    )
+    .unwrap();
+    std::fs::rename(&files[0], dir.join("layout/ptm6.ptm.c0.exr")).unwrap();
     std::fs::create_dir_all(dir.join("caster")).unwrap();
     image::RgbaImage::from_fn(6, 5, |x, y| {
         image::Rgba([x as u8 * 40, y as u8 * 50, 90, 200])
