@@ -127,6 +127,7 @@ fn bake(
                 coverage,
                 lights: job.lights.clone(),
                 mips: false,
+                levels: Default::default(),
             };
             shard::write_ptm_part(&path, &meta, &part)?;
             path
