@@ -199,7 +199,7 @@ pub(crate) fn local_levels(
     let mut out = Vec::new();
     for fp in &chain[1..] {
         span *= fp.fy;
-        if ROW_BLOCK % span != 0 {
+        if !ROW_BLOCK.is_multiple_of(span) {
             return (out, true);
         }
         // rows.start is a multiple of the span: level rows [start/span, end/span).
