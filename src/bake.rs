@@ -300,20 +300,9 @@ fn fit_accumulator(
     let Some(f) = args.fit else {
         return Ok((None, false));
     };
-    let mut shard_mips = false;
-    let mut opts = fit_options(args, f);
-    if args.shard.is_some() {
-        if opts.link != ptm_fit::Link::Identity {
-            bail!(
-                "--shard with --fit needs --link identity (the logistic fit's MIP levels \
-                 and iteration statistics span all texels): add --link identity, or bake \
-                 the sample stack in shards, merge, then `ptm fit`"
-            );
-        }
-        // The merge computes the MIP levels of the whole image.
-        shard_mips = opts.mips;
-        opts.mips = false;
-    }
+    let opts = fit_options(args, f);
+    // A part's MIP levels are finished by the merge (`Accumulator::finish_part`).
+    let shard_mips = args.shard.is_some() && opts.mips;
     let mut acc = Accumulator::new(lights, width, height, &opts)?;
     acc.set_spp(args.spp)?;
     for w in acc.warnings() {
@@ -480,7 +469,13 @@ fn write_outputs(
     let writing = || crate::outputs::Named::new("writing", &output);
     let fit_json = match samples {
         Samples::Fit(acc) => {
-            let (ptm, fit) = acc.finish(swatch.tile)?;
+            let (ptm, fit, levels) = match part {
+                Some((meta, _)) => acc.finish_part(swatch.tile, meta.rows.clone(), meta.height)?,
+                None => {
+                    let (ptm, fit) = acc.finish(swatch.tile)?;
+                    (ptm, fit, Default::default())
+                }
+            };
             // The per-light accumulation ran inside the shadow stage; this is the solve.
             t_fit = t1.elapsed().as_secs_f64();
             t1 = Instant::now();
@@ -512,6 +507,7 @@ fn write_outputs(
                     coverage.clone(),
                     lights,
                     shard_mips,
+                    levels,
                 )
                 .with_context(writing)?,
                 None => {

@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use ptm_bake::Swatch;
-use ptm_fit::shard::{self, PartMeta, PtmPart, Shard};
+use ptm_fit::shard::{self, PartLevels, PartMeta, PtmPart, Shard};
 use ptm_fit::{FitReport, LightSet, Ptm, SampleStack};
 
 use crate::bake::Args;
@@ -115,7 +115,9 @@ pub fn write_stack(path: &Path, meta: &PartMeta, stack: SampleStack) -> anyhow::
     Ok(shard::write_stack_part(path, meta, stack)?)
 }
 
-/// Writes the fitted rows of a shard as its part (the coverage of its rows included).
+/// Writes the fitted rows of a shard as its part (the coverage of its rows included, and a
+/// logistic fit's MIP levels and pooled counts of its rows).
+#[allow(clippy::too_many_arguments)]
 pub fn write_ptm(
     path: &Path,
     meta: &PartMeta,
@@ -124,6 +126,7 @@ pub fn write_ptm(
     coverage: Vec<f32>,
     lights: &LightSet,
     mips: bool,
+    levels: PartLevels,
 ) -> anyhow::Result<()> {
     let part = PtmPart {
         ptm,
@@ -131,6 +134,7 @@ pub fn write_ptm(
         coverage,
         lights: lights.clone(),
         mips,
+        levels,
     };
     Ok(shard::write_ptm_part(path, meta, &part)?)
 }

@@ -1,6 +1,6 @@
 //! Integration tests of farm bakes: `ptm bake --shard I/N` parts merged by `ptm merge` are
 //! byte for byte the one-machine file (stack, ptm6, ptm11; N = 1, 3, 4; a swatch with holes),
-//! refusals of bad shards and bad part sets name the files, and `ptm batch` runs a manifest
+//! logistic ptm6 and ptm11 with and without MIP levels; refusals of bad shards and bad part sets name the files, and `ptm batch` runs a manifest
 //! and writes a Slurm job.
 use std::path::Path;
 use std::process::Command;
@@ -31,8 +31,8 @@ fn refused(args: &[&str], dir: &Path) -> String {
 }
 
 /// Bakes `bake` whole and as N shards for each N, merges, and compares the bytes of the output
-/// and of the `.lp`.
-fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) {
+/// and of the `.lp`. Returns the whole file's bytes.
+fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let whole = format!("whole-{out}");
@@ -74,6 +74,7 @@ fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) {
             "{n} shards: .lp"
         );
     }
+    want
 }
 
 const BAKE: &[&str] = &[
@@ -110,6 +111,66 @@ fn sharded_ptm11_is_byte_identical() {
     sharded_equals_whole(&[BAKE, &fit].concat(), "w.ptm.exr", &[1, 3, 4]);
 }
 
+/// Logistic link, hemispherical (u, v), MIP levels: levels 1–4 are fitted by the parts (their
+/// footprints lie in one 16-row block), level 5 (1×1) by the merge from the parts' pooled
+/// counts; at N = 4 the last part holds no row of level 4.
+#[test]
+fn sharded_logistic_ptm6_with_mips_is_byte_identical() {
+    let fit = [
+        "--fit",
+        "ptm6",
+        "--link",
+        "logistic",
+        "--uv",
+        "hemispherical",
+    ];
+    sharded_equals_whole(&[BAKE, &fit].concat(), "w.ptm.exr", &[1, 3, 4]);
+}
+
+/// Logistic link without MIP levels, ptm11 over projected (u, v); and a taller image whose
+/// chain has two levels past the parts' (1×3 and 1×1), and a zero ridge (counted texels
+/// raise a warning the merge words from the parts' sums).
+#[test]
+fn sharded_logistic_ptm11_is_byte_identical() {
+    let fit = [
+        "--fit",
+        "ptm11",
+        "--link",
+        "logistic",
+        "--uv",
+        "projected",
+        "--no-mips",
+    ];
+    sharded_equals_whole(&[BAKE, &fit].concat(), "w.ptm.exr", &[1, 3, 4]);
+    let tall = [
+        "--res",
+        "32,96",
+        "--dirs",
+        "10",
+        "--spp",
+        "3",
+        "--fit",
+        "ptm11",
+        "--link",
+        "logistic",
+        "--regularize",
+        "0",
+        "--max-iterations",
+        "4",
+    ];
+    let whole = sharded_equals_whole(&tall, "t.ptm.exr", &[3, 5]);
+    for says in [
+        &b"stopped at the logistic iteration cap"[..],
+        b"are separable",
+    ] {
+        assert!(
+            whole.windows(says.len()).any(|w| w == says),
+            "the whole file warns {:?}",
+            String::from_utf8_lossy(says)
+        );
+    }
+}
+
 /// A floor over the lower 60 % of a 1×1 tile with a box on it: rows near y = H see no swatch
 /// (coverage 0) and one row has partial coverage.
 const HALF_FLOOR_OBJ: &str = "\
@@ -132,6 +193,11 @@ fn sharded_bakes_with_holes_and_point_lights_are_byte_identical() {
     sharded_equals_whole(
         &[&holes[..], &["--fit", "ptm6", "--link", "identity"]].concat(),
         "h.ptm.exr",
+        &[3],
+    );
+    sharded_equals_whole(
+        &[&holes[..], &["--fit", "ptm6", "--link", "logistic"]].concat(),
+        "l.ptm.exr",
         &[3],
     );
     sharded_equals_whole(
@@ -180,24 +246,6 @@ fn bad_shards_are_refused_clearly() {
         dir.path(),
     );
     assert!(e.contains("not supported"), "{e}");
-    let e = refused(
-        &[
-            "bake",
-            "--res",
-            "32",
-            "--fit",
-            "ptm6",
-            "-o",
-            "s.ptm.exr",
-            "--shard",
-            "0/2",
-        ],
-        dir.path(),
-    );
-    assert!(
-        e.contains("needs --link identity"),
-        "the logistic link is not sharded yet: {e}"
-    );
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),
         0,

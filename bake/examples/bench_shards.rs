@@ -30,6 +30,9 @@ struct Stages {
     /// CPU seconds of the whole process over the bake (user + system, all threads): what farm
     /// slots pay, and much less disturbed than wall time by neighbours on a shared machine.
     cpu: f64,
+    /// CPU seconds of the stages: swatch load, baker setup (thread pool, Embree device,
+    /// scenes, primary hits), tracing + accumulating, solve, part or file write.
+    cpu_stage: [f64; 5],
 }
 
 impl Stages {
@@ -45,17 +48,30 @@ impl Stages {
         self.solve += o.solve;
         self.write += o.write;
         self.cpu += o.cpu;
+        for (a, b) in self.cpu_stage.iter_mut().zip(o.cpu_stage) {
+            *a += b;
+        }
     }
 }
 
-/// User + system CPU seconds of this process so far (/proc/self/stat, clock ticks of 1/100 s).
+/// User + system CPU seconds of this process so far, all threads (`CLOCK_PROCESS_CPUTIME_ID`,
+/// nanosecond resolution: per-stage figures of a shard are a few hundredths of a second).
 fn cpu_seconds() -> f64 {
-    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
-    // After the parenthesised command name come fields 3, 4, …: utime and stime are 14 and 15.
-    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let tick = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
-    (tick(11) + tick(12)) / 100.0
+    #[repr(C)]
+    struct Timespec {
+        sec: i64,
+        nsec: i64,
+    }
+    extern "C" {
+        fn clock_gettime(clock: i32, ts: *mut Timespec) -> i32;
+    }
+    const CLOCK_PROCESS_CPUTIME_ID: i32 = 2;
+    let mut ts = Timespec { sec: 0, nsec: 0 };
+    // SAFETY: clock_gettime writes one timespec (two i64 on 64-bit Linux) to `ts`.
+    if unsafe { clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &mut ts) } != 0 {
+        return 0.0;
+    }
+    ts.sec as f64 + ts.nsec as f64 * 1e-9
 }
 
 struct Job<'a> {
@@ -77,6 +93,13 @@ fn bake(
     let t = Instant::now();
     let swatch = Swatch::load(job.spec, None)?;
     st.load = t.elapsed().as_secs_f64();
+    let mut mark = cpu0;
+    let mut stage = |st: &mut Stages, i: usize| {
+        let now = cpu_seconds();
+        st.cpu_stage[i] = now - mark;
+        mark = now;
+    };
+    stage(&mut st, 0);
     let [w, h] = job.cfg.res;
     let rows = match shard {
         Some(s) => s.rows(h)?,
@@ -84,6 +107,7 @@ fn bake(
     };
     let mut acc = Accumulator::new(job.lights, w, rows.len(), &FitOptions::new(Basis::Ptm6))?;
     let mut baker = Baker::new_rows(&swatch, &job.cfg, rows.clone())?;
+    stage(&mut st, 1);
     let coverage = baker.coverage().to_vec();
     acc.set_coverage(&coverage)?;
     let mut keep = keep;
@@ -96,9 +120,12 @@ fn bake(
     st.scene = rep.seconds_scene;
     st.primary = rep.seconds_primary;
     st.shadow = rep.seconds_shadow;
+    drop(baker);
+    stage(&mut st, 2);
     let t = Instant::now();
     let (ptm, fit) = acc.finish(swatch.tile)?;
     st.solve = t.elapsed().as_secs_f64();
+    stage(&mut st, 3);
     let t = Instant::now();
     let path = match shard {
         None => {
@@ -127,12 +154,14 @@ fn bake(
                 coverage,
                 lights: job.lights.clone(),
                 mips: false,
+                levels: Default::default(),
             };
             shard::write_ptm_part(&path, &meta, &part)?;
             path
         }
     };
     st.write = t.elapsed().as_secs_f64();
+    stage(&mut st, 4);
     st.cpu = cpu_seconds() - cpu0;
     Ok((st, path))
 }
@@ -212,10 +241,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!(
         "least CPU time of {repeats} interleaved runs each (overhead against the one-shot bake):"
     );
+    let cpu_row = |name: &str, s: &Stages| {
+        let c = s.cpu_stage;
+        println!(
+            "{name:>9} | CPU s: load {:.3} | setup (pool, device, scenes, primary) {:.3} | trace+accumulate {:.3} | solve {:.3} | write {:.3}",
+            c[0], c[1], c[2], c[3], c[4]
+        );
+    };
     row("one-shot", &one, None);
+    cpu_row("one-shot", &one);
     for (c, &n) in counts.iter().enumerate() {
         let out = dir.join(format!("n{n}.ptm.exr"));
         row(&format!("N = {n}"), &best[c + 1].unwrap(), Some(&one));
+        cpu_row(&format!("N = {n}"), &best[c + 1].unwrap());
         let parts: Vec<PathBuf> = (0..n)
             .map(|index| Shard { index, count: n }.part_path(&out))
             .collect();

@@ -751,6 +751,13 @@ impl Kernel {
         }
     }
 
+    /// The kernel [`Kernel::name`] names.
+    pub fn from_name(name: &str) -> Option<Kernel> {
+        [Kernel::Portable, Kernel::Avx2, Kernel::Avx512]
+            .into_iter()
+            .find(|k| k.name() == name)
+    }
+
     pub fn name(self) -> &'static str {
         match self {
             Kernel::Portable => "portable",
@@ -929,6 +936,22 @@ pub(crate) enum Pooled {
 }
 
 impl Pooled {
+    /// Pooled counts as (covered per texel, occluded `[light][texel]`), widened to u32; None
+    /// for a pooled stack level.
+    pub fn into_counts(self) -> Option<(Vec<u32>, Vec<Vec<u32>>)> {
+        fn wide<T: Into<u32>>(occ: Vec<Vec<T>>) -> Vec<Vec<u32>> {
+            occ.into_iter()
+                .map(|p| p.into_iter().map(Into::into).collect())
+                .collect()
+        }
+        match self {
+            Pooled::Weighted { .. } => None,
+            Pooled::Counts8 { occ, cov } => Some((cov, wide(occ))),
+            Pooled::Counts16 { occ, cov } => Some((cov, wide(occ))),
+            Pooled::Counts32 { occ, cov } => Some((cov, occ)),
+        }
+    }
+
     pub fn source(&self) -> Source<'_> {
         match self {
             Pooled::Weighted { k, w } => Source::Weighted { k, w },

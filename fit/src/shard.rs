@@ -21,8 +21,11 @@ use exr::meta::attribute::AttributeValue;
 
 use crate::exrio::{self, Attr, Samples};
 use crate::ptm::channel_name;
+use crate::solve::LogisticStats;
 use crate::stack::k_channel;
-use crate::{Basis, Error, ErrorStats, FitReport, LightSet, Link, Ptm, Result, SampleStack, UvMap};
+use crate::{
+    Basis, Error, ErrorStats, FitReport, LightSet, Link, Ptm, Result, SampleStack, UvMap, Weight,
+};
 
 mod chunks;
 
@@ -146,10 +149,69 @@ pub struct PtmPart {
     /// Coverage of the part's rows (always stored, also where it is all 1).
     pub coverage: Vec<f32>,
     pub lights: LightSet,
-    /// The whole bake's PTM carries MIP levels: the merge computes them from the merged
-    /// coefficients (identity link: coverage-weighted box averages, as `Accumulator::finish`).
-    /// A part never stores levels of its own.
+    /// The whole bake's PTM carries MIP levels. Identity link: the merge computes them all
+    /// from the merged coefficients (coverage-weighted box averages, as `Accumulator::finish`).
+    /// Logistic link: see `levels`.
     pub mips: bool,
+    /// Logistic link: the MIP levels of the part's rows fitted by the part, and the pooled
+    /// counts the merge fits the deeper levels from ([`local_levels`]). Empty otherwise.
+    pub levels: PartLevels,
+}
+
+/// A logistic part's share of the MIP chain. A coarse texel is fitted to the pooled counts of
+/// its footprint; the levels whose footprints span at most [`ROW_BLOCK`] rows lie inside one
+/// shard, so the part fits them for its rows exactly as a whole bake does. The deeper levels'
+/// footprints cross shard borders: the part carries the pooled counts of its last level
+/// (1/256 of level 0's texels, exact), and the merge joins them and fits the rest.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PartLevels {
+    /// Levels 1 … S for the part's rows (sizes from [`local_levels`]).
+    pub levels: Vec<crate::Level>,
+    /// Pooled counts of level S for the part's rows, when the chain goes deeper:
+    /// (covered samples per texel, occluded samples `[light][texel]`).
+    pub counts: Option<(Vec<u32>, Vec<Vec<u32>>)>,
+    /// The fit's light weighting (the merge rebuilds the fit's tables with it).
+    pub weight: crate::Weight,
+}
+
+impl Default for PartLevels {
+    fn default() -> Self {
+        PartLevels {
+            levels: Vec::new(),
+            counts: None,
+            weight: Weight::Uniform,
+        }
+    }
+}
+
+/// The MIP levels below level 0 whose every texel pools rows of one [`ROW_BLOCK`] only, for
+/// rows `rows` (a shard's: starting at a multiple of [`ROW_BLOCK`]) of an image
+/// `width × height`: per level, its footprint restricted to those rows (the whole level's
+/// width, the rows of the level that pool them, the pooling factors); and whether the chain
+/// goes deeper (levels whose footprints cross shard borders, left to the merge).
+pub(crate) fn local_levels(
+    width: usize,
+    height: usize,
+    rows: Range<usize>,
+) -> (Vec<crate::logistic::Footprint>, bool) {
+    let chain = crate::logistic::Footprint::chain(width, height);
+    let mut span = 1;
+    let mut out = Vec::new();
+    for fp in &chain[1..] {
+        span *= fp.fy;
+        if !ROW_BLOCK.is_multiple_of(span) {
+            return (out, true);
+        }
+        // rows.start is a multiple of the span: level rows [start/span, end/span).
+        let local = (rows.end / span)
+            .min(fp.height)
+            .saturating_sub(rows.start / span);
+        out.push(crate::logistic::Footprint {
+            height: local,
+            ..*fp
+        });
+    }
+    (out, false)
 }
 
 /// A part's content: rows of a sample stack, or rows of a PTM with its fit facts.
@@ -318,20 +380,18 @@ pub fn write_stack_part(path: &Path, meta: &PartMeta, mut stack: SampleStack) ->
 /// residual and coverage of its rows, and the fit's texel-independent facts.
 pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()> {
     let (ptm, fit) = (&part.ptm, &part.fit);
-    if ptm.link != Link::Identity {
-        return Err(Error::Invalid(format!(
-            "part {}: only identity-link PTMs can be sharded (a {} fit's MIP levels and \
-             statistics span all texels)",
-            meta.shard,
-            ptm.link.name()
-        )));
-    }
     ptm.validate()?;
     check_rows(meta, ptm.width, ptm.height)?;
     let n = ptm.width * ptm.height;
     if fit.rms_map.len() != n || part.coverage.len() != n {
         return Err(Error::Invalid(format!(
             "part {}: the RMS and coverage maps must have {n} texels",
+            meta.shard
+        )));
+    }
+    if !fit.holdout_lights.is_empty() {
+        return Err(Error::Invalid(format!(
+            "part {}: a fit with held-out lights cannot be sharded (its held-out error is not              kept per texel)",
             meta.shard
         )));
     }
@@ -361,10 +421,105 @@ pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()
     if fit.cond.is_finite() {
         attrs.push(("part:cond", Attr::F64(fit.cond)));
     }
-    if !fit.warnings.is_empty() {
-        attrs.push(("part:warnings", Attr::Texts(fit.warnings.clone())));
+    let mut warnings = &fit.warnings[..];
+    if ptm.link == Link::Logistic {
+        let Some(stats) = &fit.logistic else {
+            return Err(Error::Invalid(format!(
+                "part {}: a logistic fit without its statistics",
+                meta.shard
+            )));
+        };
+        // The part keeps the light set's warnings; the merge words the data's from the sums.
+        let data = crate::solve::logistic_warnings(stats);
+        warnings = warnings.strip_suffix(&data[..]).unwrap_or(warnings);
+        logistic_channels(meta, part, stats, &mut channels, &mut attrs)?;
+    }
+    if !warnings.is_empty() {
+        attrs.push(("part:warnings", Attr::Texts(warnings.to_vec())));
     }
     write_sealed(path, ptm.width, ptm.height, channels, attrs)
+}
+
+/// Flat values laid out in channels of `n` texels each (the last one padded with zeros): how a
+/// part stores data of other sizes than its rows (MIP levels, pooled counts).
+fn packed(name: &str, values: &[f32], n: usize) -> Vec<(String, Samples)> {
+    values
+        .chunks(n)
+        .enumerate()
+        .map(|(i, c)| {
+            let mut v = c.to_vec();
+            v.resize(n, 0.0);
+            (format!("{name}.{i:04}"), Samples::F32(v))
+        })
+        .collect()
+}
+
+/// The logistic part's extra channels and attributes: the max-residual map, its MIP levels
+/// and pooled counts ([`PartLevels`]), the fit's options and iteration sums.
+fn logistic_channels(
+    meta: &PartMeta,
+    part: &PtmPart,
+    stats: &LogisticStats,
+    channels: &mut Vec<(String, Samples)>,
+    attrs: &mut Vec<(&'static str, Attr)>,
+) -> Result<()> {
+    let (ptm, fit, lv) = (&part.ptm, &part.fit, &part.levels);
+    let n = ptm.width * ptm.height;
+    let (local, deeper) = local_levels(meta.width, meta.height, meta.rows.clone());
+    let want = if part.mips { local.len() } else { 0 };
+    let sizes_ok = lv.levels.len() == want
+        && lv.levels.iter().zip(&local).all(|(l, f)| {
+            (l.width, l.height) == (f.width, f.height)
+                && l.planes.len() == ptm.planes.len()
+                && l.planes.iter().all(|p| p.len() == f.width * f.height)
+        });
+    let counts_ok = match (&lv.counts, part.mips && deeper) {
+        (None, false) => true,
+        (Some((cov, occ)), true) => {
+            let s = local.last().map_or(0, |f| f.width * f.height);
+            cov.len() == s && occ.len() == part.lights.len() && occ.iter().all(|o| o.len() == s)
+        }
+        _ => false,
+    };
+    if fit.max_map.len() != n || !sizes_ok || !counts_ok {
+        return Err(Error::Invalid(format!(
+            "part {}: the logistic fit's max map, MIP levels or pooled counts do not fit rows              {}..{} of {}×{}",
+            meta.shard, meta.rows.start, meta.rows.end, meta.width, meta.height
+        )));
+    }
+    channels.push(("err.max".into(), Samples::F32(fit.max_map.clone())));
+    for (j, m) in ptm.basis.monomials().iter().enumerate() {
+        let flat: Vec<f32> = lv
+            .levels
+            .iter()
+            .flat_map(|l| l.planes[j].iter().copied())
+            .collect();
+        channels.extend(packed(&format!("mip.{}", m.name), &flat, n));
+    }
+    if let Some((cov, occ)) = &lv.counts {
+        // Counts of at most 256 texels × 65535 samples: exact in f32 (< 2²⁴).
+        let flat: Vec<f32> = cov
+            .iter()
+            .chain(occ.iter().flatten())
+            .map(|&c| c as f32)
+            .collect();
+        channels.extend(packed("pool", &flat, n));
+    }
+    attrs.extend([
+        ("part:weight", Attr::Text(lv.weight.name().into())),
+        ("part:rcond", Attr::F64(fit.rcond)),
+        ("part:lambda", Attr::F64(stats.lambda)),
+        ("part:ridge", Attr::F64(stats.ridge)),
+        ("part:tolerance", Attr::F64(stats.tolerance)),
+        ("part:maxIterations", Attr::I32(stats.max_iterations as i32)),
+        ("part:kernel", Attr::Text(stats.kernel.into())),
+        ("part:iterations", Attr::F64(stats.iterations_total as f64)),
+        ("part:iterationsMax", Attr::I32(stats.iterations_max as i32)),
+        ("part:notConverged", Attr::I32(stats.not_converged as i32)),
+        ("part:separable", Attr::I32(stats.separable as i32)),
+        ("part:constant", Attr::I32(stats.constant as i32)),
+    ]);
+    Ok(())
 }
 
 fn err(path: &Path, reason: impl Into<String>) -> Error {
@@ -521,17 +676,20 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 rms_map: c.take_f32("err.rms", WHAT)?,
                 ..FitReport::default()
             };
+            let mut fit = fit;
             let coverage = c.take_f32("coverage", WHAT)?;
             let link = c.text("part:link", WHAT)?;
             let link = Link::from_name(&link)
-                .filter(|l| *l == Link::Identity)
-                .ok_or_else(|| {
-                    c.error::<Error>(format!("link {link:?}: only identity-link parts merge"))
-                })?;
+                .ok_or_else(|| c.error::<Error>(format!("unknown link {link:?}")))?;
             let uv = c.text("part:uv", WHAT)?;
             let uv = UvMap::from_name(&uv)
                 .ok_or_else(|| c.error::<Error>(format!("unknown uv map {uv:?}")))?;
             let mips = c.f64("part:mips", WHAT)? != 0.0;
+            let levels = if link == Link::Logistic {
+                read_logistic(&mut c, &meta, basis, mips, lights.len(), &mut fit)?
+            } else {
+                PartLevels::default()
+            };
             let ptm = Ptm {
                 basis,
                 link,
@@ -549,6 +707,7 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 coverage,
                 lights,
                 mips,
+                levels,
             }))
         }
         other => return Err(c.error(format!("unknown part kind {other:?}"))),
@@ -558,6 +717,97 @@ pub fn read_part(path: &Path) -> Result<Part> {
         meta,
         data,
     })
+}
+
+/// Takes `len` flat values from the channels `name.0000`, `name.0001`, … (see [`packed`]).
+fn unpacked(c: &mut exrio::Contents, name: &str, len: usize, what: &str) -> Result<Vec<f32>> {
+    let n = c.width * c.height;
+    let mut out = Vec::with_capacity(len);
+    for i in 0..len.div_ceil(n.max(1)) {
+        out.extend(c.take_f32(&format!("{name}.{i:04}"), what)?);
+    }
+    out.truncate(len);
+    Ok(out)
+}
+
+/// The logistic part's max-residual map, statistics, options, MIP levels and pooled counts
+/// (what [`logistic_channels`] wrote).
+fn read_logistic(
+    c: &mut exrio::Contents,
+    meta: &PartMeta,
+    basis: Basis,
+    mips: bool,
+    lights: usize,
+    fit: &mut FitReport,
+) -> Result<PartLevels> {
+    const WHAT: &str = "part";
+    let int =
+        |c: &exrio::Contents, k: &str| -> Result<usize> { Ok(c.f64(k, WHAT)?.max(0.0) as usize) };
+    fit.max_map = c.take_f32("err.max", WHAT)?;
+    fit.rcond = c.f64("part:rcond", WHAT)?;
+    let kernel = c.text("part:kernel", WHAT)?;
+    let kernel = crate::logistic::Kernel::from_name(&kernel)
+        .ok_or_else(|| c.error::<Error>(format!("unknown logistic kernel {kernel:?}")))?;
+    fit.logistic = Some(LogisticStats {
+        iterations_mean: 0.0, // the merge divides the summed iterations
+        iterations_total: c.f64("part:iterations", WHAT)? as u64,
+        iterations_max: int(c, "part:iterationsMax")? as u32,
+        not_converged: int(c, "part:notConverged")?,
+        separable: int(c, "part:separable")?,
+        constant: int(c, "part:constant")?,
+        lambda: c.f64("part:lambda", WHAT)?,
+        ridge: c.f64("part:ridge", WHAT)?,
+        tolerance: c.f64("part:tolerance", WHAT)?,
+        max_iterations: int(c, "part:maxIterations")? as u32,
+        kernel: kernel.name(),
+    });
+    let weight = match c.text("part:weight", WHAT)?.as_str() {
+        "uniform" => Weight::Uniform,
+        "cosine" => Weight::Cosine,
+        w => return Err(c.error(format!("unknown light weighting {w:?}"))),
+    };
+    let mut out = PartLevels {
+        weight,
+        ..PartLevels::default()
+    };
+    if !mips {
+        return Ok(out);
+    }
+    let (local, deeper) = local_levels(meta.width, meta.height, meta.rows.clone());
+    let texels: usize = local.iter().map(|f| f.width * f.height).sum();
+    let mut planes = Vec::with_capacity(basis.len());
+    for m in basis.monomials() {
+        planes.push(unpacked(c, &format!("mip.{}", m.name), texels, WHAT)?);
+    }
+    let mut at = 0;
+    for f in &local {
+        let n = f.width * f.height;
+        out.levels.push(crate::Level {
+            width: f.width,
+            height: f.height,
+            planes: planes.iter().map(|p| p[at..at + n].to_vec()).collect(),
+        });
+        at += n;
+    }
+    if deeper {
+        let s = local.last().map_or(0, |f| f.width * f.height);
+        let flat = unpacked(c, "pool", s * (lights + 1), WHAT)?;
+        let mut it = flat
+            .chunks(s.max(1))
+            .map(|v| v.iter().map(|&x| x as u32).collect());
+        let cov: Vec<u32> = if s == 0 {
+            Vec::new()
+        } else {
+            it.next().unwrap_or_default()
+        };
+        let occ: Vec<Vec<u32>> = if s == 0 {
+            vec![Vec::new(); lights]
+        } else {
+            it.collect()
+        };
+        out.counts = Some((cov, occ));
+    }
+    Ok(out)
 }
 
 /// Part files in `dir` (names containing `.part-` and ending in `.exr`), sorted.
@@ -821,6 +1071,7 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
     let mut out: Option<(Ptm, FitReport, LightSet)> = None;
     let mut coverage: Vec<f32> = Vec::new();
     let mut mips = false;
+    let mut levels = PartLevels::default();
     for (path, _) in set {
         let part = read_part(path)?;
         let PartData::Ptm(p) = part.data else {
@@ -831,9 +1082,13 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
             None => {
                 p.ptm.planes.iter_mut().for_each(grow);
                 grow(&mut p.fit.rms_map);
+                if p.ptm.link == Link::Logistic {
+                    grow(&mut p.fit.max_map);
+                }
                 grow(&mut p.coverage);
                 coverage = p.coverage;
                 mips = p.mips;
+                levels = p.levels;
                 out = Some((p.ptm, p.fit, p.lights));
             }
             Some((ptm, fit, lights)) => {
@@ -845,7 +1100,10 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
                     && (p.fit.lights, p.fit.lights_fit, p.fit.rank)
                         == (fit.lights, fit.lights_fit, fit.rank)
                     && p.fit.cond.to_bits() == fit.cond.to_bits()
-                    && p.fit.warnings == fit.warnings;
+                    && p.fit.warnings == fit.warnings
+                    && p.levels.weight == levels.weight
+                    && p.levels.levels.len() == levels.levels.len()
+                    && p.levels.counts.is_some() == levels.counts.is_some();
                 if !same {
                     return Err(err(
                         path,
@@ -857,27 +1115,115 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
                 }
                 ptm.height += p.ptm.height;
                 fit.rms_map.extend(p.fit.rms_map);
+                fit.max_map.extend(p.fit.max_map);
                 coverage.extend(p.coverage);
+                if let (Some(a), Some(b)) = (&mut fit.logistic, &p.fit.logistic) {
+                    a.iterations_total += b.iterations_total;
+                    a.iterations_max = a.iterations_max.max(b.iterations_max);
+                    a.not_converged += b.not_converged;
+                    a.separable += b.separable;
+                    a.constant += b.constant;
+                }
+                // Rows of a level lie in shard order, like level 0's.
+                for (a, b) in levels.levels.iter_mut().zip(p.levels.levels) {
+                    for (x, y) in a.planes.iter_mut().zip(b.planes) {
+                        x.extend(y);
+                    }
+                    a.height += b.height;
+                }
+                if let (Some((cov, occ)), Some((c2, o2))) = (&mut levels.counts, p.levels.counts) {
+                    cov.extend(c2);
+                    for (a, b) in occ.iter_mut().zip(o2) {
+                        a.extend(b);
+                    }
+                }
             }
         }
     }
     let (mut ptm, mut fit, lights) = out.expect("check_set refuses an empty set");
-    finish_fit(&mut ptm, &mut fit, coverage, mips);
+    finish_fit(&mut ptm, &mut fit, coverage, mips, levels, &lights)?;
     Ok((ptm, fit, lights))
 }
 
 /// Recomputes the file-level facts of a merged fit from its per-texel maps, as
 /// `Accumulator::finish` computes them for a whole bake: statistics, the coverage channel and
-/// the MIP levels. The one place a new per-file figure is to be added (a logistic link's
-/// levels would be fitted here from box-filtered K counts the parts carry).
-fn finish_fit(ptm: &mut Ptm, fit: &mut FitReport, coverage: Vec<f32>, mips: bool) {
-    if mips {
-        ptm.mips = crate::solve::identity_mips(ptm, &coverage);
-        fit.mip_levels = ptm.mips.len();
-    }
+/// the MIP levels. The one place a new per-file figure is to be added. Logistic link: the
+/// parts' levels joined, the deeper levels fitted from the joined pooled counts, and the
+/// iteration statistics (and the warnings they raise) from the parts' sums.
+fn finish_fit(
+    ptm: &mut Ptm,
+    fit: &mut FitReport,
+    coverage: Vec<f32>,
+    mips: bool,
+    levels: PartLevels,
+    lights: &LightSet,
+) -> Result<()> {
     let masked: Vec<bool> = coverage.iter().map(|&c| c <= 0.0).collect();
     fit.texels = ptm.width * ptm.height;
     fit.masked = masked.iter().filter(|&&m| m).count();
+    if ptm.link == Link::Logistic {
+        let Some(stats) = fit.logistic.as_mut() else {
+            return Err(Error::Invalid(
+                "logistic parts without their statistics".into(),
+            ));
+        };
+        stats.iterations_mean =
+            stats.iterations_total as f64 / (fit.texels - fit.masked).max(1) as f64;
+        let kernel = crate::logistic::Kernel::from_name(stats.kernel)
+            .filter(|k| k.supported())
+            .unwrap_or_else(crate::logistic::Kernel::detect);
+        let opts = crate::FitOptions {
+            link: Link::Logistic,
+            uv: ptm.uv,
+            weight: levels.weight,
+            regularize: Some(stats.lambda),
+            tolerance: stats.tolerance,
+            max_iterations: stats.max_iterations,
+            mips,
+            kernel: Some(kernel),
+            rcond: fit.rcond,
+            ..crate::FitOptions::new(ptm.basis)
+        };
+        let stats = stats.clone();
+        fit.warnings.extend(crate::solve::logistic_warnings(&stats));
+        fit.max = Some(ErrorStats::of(&fit.max_map, &masked));
+        if mips {
+            let chain = crate::logistic::Footprint::chain(ptm.width, ptm.height);
+            let s = levels.levels.len();
+            if levels
+                .levels
+                .iter()
+                .zip(&chain[1..])
+                .any(|(l, f)| l.height != f.height)
+            {
+                return Err(Error::Invalid(
+                    "the parts' MIP levels do not join into the whole image's".into(),
+                ));
+            }
+            ptm.mips = levels.levels;
+            if let Some((cov, occ)) = &levels.counts {
+                let above_w = chain[s].width;
+                let deeper = crate::solve::logistic_coarse_levels(
+                    lights,
+                    &opts,
+                    cov,
+                    occ,
+                    above_w,
+                    &chain[s + 1..],
+                )?;
+                ptm.mips.extend(deeper);
+            }
+            if ptm.mips.len() + 1 != chain.len() {
+                return Err(Error::Invalid(
+                    "the parts' MIP levels do not join into the whole image's".into(),
+                ));
+            }
+            fit.mip_levels = ptm.mips.len();
+        }
+    } else if mips {
+        ptm.mips = crate::solve::identity_mips(ptm, &coverage);
+        fit.mip_levels = ptm.mips.len();
+    }
     fit.rms = ErrorStats::of(&fit.rms_map, &masked);
     ptm.coverage = crate::solve::ptm_coverage(&coverage);
     fit.coverage = if coverage.iter().any(|&c| c < 1.0) {
@@ -885,6 +1231,7 @@ fn finish_fit(ptm: &mut Ptm, fit: &mut FitReport, coverage: Vec<f32>, mips: bool
     } else {
         Vec::new()
     };
+    Ok(())
 }
 
 #[cfg(test)]

@@ -450,15 +450,11 @@ impl Accumulator {
 
     /// Solves every texel and returns the PTM and its report. Every light must have been added.
     pub fn finish(self, tile: [f64; 2]) -> Result<(Ptm, FitReport)> {
-        if let Some(i) = self.seen.iter().position(|s| !s) {
-            return Err(Error::Invalid(format!(
-                "light {i} ({}) was never added; the fit needs every light of the set",
-                self.lights.names[i]
-            )));
-        }
+        self.check_complete()?;
         let t_acc = self.started.elapsed().as_secs_f64();
         if self.opts.link == Link::Logistic {
-            return self.finish_logistic(tile, t_acc);
+            let (ptm, report, _) = self.finish_logistic(tile, t_acc, None)?;
+            return Ok((ptm, report));
         }
         let (mips, coverage) = (self.opts.mips, self.full_coverage.clone());
         let (mut ptm, mut report) = self.finish_identity(tile, t_acc)?;
@@ -471,6 +467,52 @@ impl Accumulator {
                 .push(("mip levels", t0.elapsed().as_secs_f64()));
         }
         Ok((ptm, report))
+    }
+
+    /// Solves the rows of a farm shard: this accumulator holds rows `rows` of an image
+    /// `height` rows tall ([`crate::shard`]). Level 0 is fitted as [`Accumulator::finish`] fits
+    /// it. MIP levels: the identity link leaves them all to the merge (averages of the merged
+    /// coefficients); the logistic link fits here the levels whose footprints lie in these
+    /// rows and returns, when the chain goes deeper, the last one's pooled counts, from which
+    /// the merge fits the rest.
+    pub fn finish_part(
+        mut self,
+        tile: [f64; 2],
+        rows: std::ops::Range<usize>,
+        height: usize,
+    ) -> Result<(Ptm, FitReport, crate::shard::PartLevels)> {
+        let weight = self.opts.weight;
+        if self.opts.link == Link::Identity {
+            self.opts.mips = false;
+            let (ptm, report) = self.finish(tile)?;
+            return Ok((ptm, report, crate::shard::PartLevels::default()));
+        }
+        if rows.len() != self.height || rows.end > height {
+            return Err(Error::Invalid(format!(
+                "rows {}..{} of {height} for an accumulator of {} rows",
+                rows.start, rows.end, self.height
+            )));
+        }
+        self.check_complete()?;
+        let t_acc = self.started.elapsed().as_secs_f64();
+        let (mut ptm, report, pooled) = self.finish_logistic(tile, t_acc, Some((rows, height)))?;
+        let counts = pooled.and_then(|p| p.into_counts());
+        let part = crate::shard::PartLevels {
+            levels: std::mem::take(&mut ptm.mips),
+            counts,
+            weight,
+        };
+        Ok((ptm, report, part))
+    }
+
+    fn check_complete(&self) -> Result<()> {
+        if let Some(i) = self.seen.iter().position(|s| !s) {
+            return Err(Error::Invalid(format!(
+                "light {i} ({}) was never added; the fit needs every light of the set",
+                self.lights.names[i]
+            )));
+        }
+        Ok(())
     }
 
     fn finish_identity(self, tile: [f64; 2], t_acc: f64) -> Result<(Ptm, FitReport)> {
@@ -718,7 +760,12 @@ impl Accumulator {
         ErrorStats::of(&map, &self.masked)
     }
 
-    fn finish_logistic(self, tile: [f64; 2], t_acc: f64) -> Result<(Ptm, FitReport)> {
+    fn finish_logistic(
+        self,
+        tile: [f64; 2],
+        t_acc: f64,
+        part: Option<(std::ops::Range<usize>, usize)>,
+    ) -> Result<(Ptm, FitReport, Option<crate::logistic::Pooled>)> {
         let src = if self.occ16.is_empty() {
             Source::Counts8 {
                 occ: &self.occ8,
@@ -730,7 +777,7 @@ impl Accumulator {
                 cov: &self.cov,
             }
         };
-        let (mut ptm, mut report) = fit_logistic(
+        let (mut ptm, mut report, pooled) = fit_logistic(
             &src,
             &self.prep,
             &self.lights,
@@ -738,11 +785,12 @@ impl Accumulator {
             tile,
             &self.masked,
             &self.opts,
+            part,
         )?;
         report.coverage = partial_coverage(&self.full_coverage);
         ptm.coverage = ptm_coverage(&self.full_coverage);
         report.seconds.insert(0, ("accumulate", t_acc));
-        Ok((ptm, report))
+        Ok((ptm, report, pooled))
     }
 
     fn gram_distant(&self) -> DMatrix<f64> {

@@ -20,6 +20,7 @@
 //! [`Accumulator`]), `refit` (stored stacks, texels with dropped samples), `kernel` (the
 //! packing and every `unsafe` SIMD kernel of the identity link), and here the two links'
 //! per-image drivers shared by the streaming and stored paths.
+use std::ops::Range;
 use std::time::Instant;
 
 use crate::logistic::{self, Footprint, Kernel, Source, Tables};
@@ -42,22 +43,15 @@ pub use options::{
 };
 pub use refit::fit_stack;
 
-/// The logistic fit of one image from `src` (level 0 and, with `opts.mips`, every MIP level),
-/// on a prepared distant-light design: the PTM and its report (errors, iterations, classes).
-fn fit_logistic(
-    src: &Source,
+/// The logistic fit's shared tables, its kernel and its relative ridge λ, from a prepared
+/// distant-light design: what every level of a fit (and a farm merge's coarse levels) uses.
+fn logistic_tables(
     prep: &Prepared,
     lights: &LightSet,
-    size: (usize, usize),
-    tile: [f64; 2],
-    masked: &[bool],
     opts: &FitOptions,
-) -> Result<(Ptm, FitReport)> {
-    let (w, h) = size;
-    let t = w * h;
+) -> Result<(Tables, Kernel, f64)> {
     let m = opts.basis.len();
     let n = lights.len();
-    let t0 = Instant::now();
     let kernel = opts.kernel.unwrap_or_else(Kernel::detect);
     if !kernel.supported() {
         return Err(Error::Invalid(format!(
@@ -97,18 +91,117 @@ fn fit_logistic(
         opts.tolerance,
         opts.max_iterations,
     );
+    Ok((tables, kernel, lambda))
+}
+
+/// The warnings a logistic fit's level-0 statistics raise (beside the light set's).
+pub(crate) fn logistic_warnings(stats: &LogisticStats) -> Vec<String> {
+    let mut warnings = Vec::new();
+    if stats.not_converged > 0 {
+        warnings.push(format!(
+            "{} texels stopped at the logistic iteration cap ({}) before the tolerance {:e}: raise --max-iterations, or the ridge (--regularize)",
+            stats.not_converged, stats.max_iterations, stats.tolerance
+        ));
+    }
+    if stats.lambda == 0.0 && stats.separable + stats.constant > 0 {
+        warnings.push(format!(
+            "{} texels are separable (K is 0 or 1 and a polynomial boundary splits them exactly) and the ridge is 0: their maximum-likelihood coefficients are infinite, so they stopped where the iteration cap left them; give --regularize > 0",
+            stats.separable + stats.constant
+        ));
+    }
+    warnings
+}
+
+/// Fits the MIP levels `levels` (footprints of the chain below level 0, each pooled from the
+/// one before, the first from `src`, `src_w` texels wide), level by level. Returns the levels
+/// and the last level's pooled data when `keep_last` (a farm part hands it to the merge).
+fn logistic_levels(
+    tables: &Tables,
+    kernel: Kernel,
+    src: &Source,
+    src_w: usize,
+    levels: &[Footprint],
+    keep_last: bool,
+) -> (Vec<crate::Level>, Option<logistic::Pooled>) {
+    // Each level pools the one above (exact counts, or coverage-weighted K), is fitted, and
+    // replaces it: at most two levels' data are alive, the first a quarter of level 0.
+    let mut out = Vec::with_capacity(levels.len());
+    let mut above: Option<logistic::Pooled> = None;
+    let mut above_w = src_w;
+    for fp in levels {
+        let pooled = match &above {
+            None => logistic::pool(src, above_w, *fp),
+            Some(p) => logistic::pool(&p.source(), above_w, *fp),
+        };
+        // A coarse texel is fitted when any of its footprint is covered (the kernel leaves
+        // out texels whose every sample is missing).
+        let level = logistic::fit_level(
+            tables,
+            &pooled.source(),
+            fp.width * fp.height,
+            &|_| true,
+            kernel,
+        );
+        out.push(crate::Level {
+            width: fp.width,
+            height: fp.height,
+            planes: level.planes,
+        });
+        above = Some(pooled);
+        above_w = fp.width;
+    }
+    (out, above.filter(|_| keep_last))
+}
+
+/// The MIP levels `levels` of a farm merge whose footprints cross shard borders, fitted from
+/// the pooled counts `cov` / `occ` (`[light][texel]`) of the level above them (`src_w` texels
+/// wide), with the fit's tables rebuilt from `opts` and `lights` as the bake built them.
+pub(crate) fn logistic_coarse_levels(
+    lights: &LightSet,
+    opts: &FitOptions,
+    cov: &[u32],
+    occ: &[Vec<u32>],
+    src_w: usize,
+    levels: &[Footprint],
+) -> Result<Vec<crate::Level>> {
+    let prep = factor::prepare(lights, opts)?;
+    let (tables, kernel, _) = logistic_tables(&prep, lights, opts)?;
+    let src = Source::Counts32 { occ, cov };
+    Ok(logistic_levels(&tables, kernel, &src, src_w, levels, false).0)
+}
+
+/// The logistic fit of one image from `src` (level 0 and, with `opts.mips`, every MIP level),
+/// on a prepared distant-light design: the PTM and its report (errors, iterations, classes).
+/// `part`: the image is rows `rows` of one `height` rows tall (a farm shard, see
+/// [`crate::shard`]): only the levels whose footprints lie in those rows are fitted, and the
+/// last one's pooled counts are returned when the merge must pool deeper levels from them.
+#[allow(clippy::too_many_arguments)]
+fn fit_logistic(
+    src: &Source,
+    prep: &Prepared,
+    lights: &LightSet,
+    size: (usize, usize),
+    tile: [f64; 2],
+    masked: &[bool],
+    opts: &FitOptions,
+    part: Option<(Range<usize>, usize)>,
+) -> Result<(Ptm, FitReport, Option<logistic::Pooled>)> {
+    let (w, h) = size;
+    let t = w * h;
+    let m = opts.basis.len();
+    let n = lights.len();
+    let t0 = Instant::now();
+    let (tables, kernel, lambda) = logistic_tables(prep, lights, opts)?;
+    let f = &prep.factor;
     let t_factor = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
-    let chain = Footprint::chain(w, h);
     let fits = logistic::fit_level(&tables, src, t, &|ti| !masked[ti], kernel);
     let t_level0 = t1.elapsed().as_secs_f64();
     let fitted: Vec<usize> = (0..t).filter(|&ti| !masked[ti]).collect();
+    let iterations_total: u64 = fitted.iter().map(|&ti| fits.iterations[ti] as u64).sum();
     let stats = LogisticStats {
-        iterations_mean: fitted
-            .iter()
-            .map(|&ti| fits.iterations[ti] as f64)
-            .sum::<f64>()
-            / fitted.len().max(1) as f64,
+        iterations_mean: iterations_total as f64 / fitted.len().max(1) as f64,
+        iterations_total,
         iterations_max: fitted
             .iter()
             .map(|&ti| fits.iterations[ti])
@@ -132,49 +225,20 @@ fn fit_logistic(
         ..
     } = fits;
     let t2 = Instant::now();
-    let mut mips = Vec::new();
-    if opts.mips {
-        // Each level pools the one above (exact counts, or coverage-weighted K), is fitted, and
-        // replaces it: at most two levels' data are alive, the first a quarter of level 0.
-        let mut above: Option<logistic::Pooled> = None;
-        let mut above_w = w;
-        for fp in &chain[1..] {
-            let pooled = match &above {
-                None => logistic::pool(src, above_w, *fp),
-                Some(p) => logistic::pool(&p.source(), above_w, *fp),
-            };
-            // A coarse texel is fitted when any of its footprint is covered (the kernel leaves
-            // out texels whose every sample is missing).
-            let level = logistic::fit_level(
-                &tables,
-                &pooled.source(),
-                fp.width * fp.height,
-                &|_| true,
-                kernel,
-            );
-            mips.push(crate::Level {
-                width: fp.width,
-                height: fp.height,
-                planes: level.planes,
-            });
-            above = Some(pooled);
-            above_w = fp.width;
+    let (mips, pooled) = match (&part, opts.mips) {
+        (_, false) => (Vec::new(), None),
+        (None, true) => {
+            let chain = Footprint::chain(w, h);
+            logistic_levels(&tables, kernel, src, w, &chain[1..], false)
         }
-    }
+        (Some((rows, height)), true) => {
+            let (local, deeper) = crate::shard::local_levels(w, *height, rows.clone());
+            logistic_levels(&tables, kernel, src, w, &local, deeper)
+        }
+    };
     let t_mips = t2.elapsed().as_secs_f64();
     let mut warnings = prep.warnings.clone();
-    if stats.not_converged > 0 {
-        warnings.push(format!(
-            "{} texels stopped at the logistic iteration cap ({}) before the tolerance {:e}: raise --max-iterations, or the ridge (--regularize)",
-            stats.not_converged, opts.max_iterations, opts.tolerance
-        ));
-    }
-    if lambda == 0.0 && stats.separable + stats.constant > 0 {
-        warnings.push(format!(
-            "{} texels are separable (K is 0 or 1 and a polynomial boundary splits them exactly) and the ridge is 0: their maximum-likelihood coefficients are infinite, so they stopped where the iteration cap left them; give --regularize > 0",
-            stats.separable + stats.constant
-        ));
-    }
+    warnings.extend(logistic_warnings(&stats));
     check_strict(opts, &warnings)?;
     let mask_vec = masked.to_vec();
     let mut report = FitReport {
@@ -226,7 +290,7 @@ fn fit_logistic(
         mips,
         coverage: None, // set by the caller, which knows the coverage
     };
-    Ok((ptm, report))
+    Ok((ptm, report, pooled))
 }
 
 /// MIP levels of an identity-link PTM: the least-squares fit of box-filtered K equals the

@@ -173,6 +173,9 @@ pub struct FitReport {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LogisticStats {
     pub iterations_mean: f64,
+    /// Iterations summed over the fitted texels (the mean's numerator: a farm merge adds
+    /// the parts').
+    pub iterations_total: u64,
     pub iterations_max: u32,
     pub not_converged: usize,
     pub separable: usize,

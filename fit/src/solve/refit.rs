@@ -82,7 +82,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         k: &stack.k,
         coverage: &stack.coverage,
     };
-    let (mut ptm, mut report) = fit_logistic(
+    let (mut ptm, mut report, _) = fit_logistic(
         &src,
         &prep,
         &stack.lights,
@@ -90,6 +90,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         stack.tile,
         &mask,
         opts,
+        None,
     )?;
     report.coverage = partial_coverage(&stack.coverage);
     ptm.coverage = ptm_coverage(&stack.coverage);
