@@ -248,17 +248,9 @@ impl Baker {
         &self.coverage
     }
 
-    pub fn config(&self) -> &BakeConfig {
-        &self.cfg
-    }
-
     /// The image rows this baker traces (all rows unless built by [`Baker::new_rows`]).
     pub fn rows(&self) -> Range<usize> {
         self.rows.clone()
-    }
-
-    pub fn report(&self) -> &BakeReport {
-        &self.report
     }
 
     fn scene_for(&mut self, copies: &[[i32; 2]]) -> Result<&Scene> {
@@ -452,12 +444,6 @@ impl Baker {
     pub fn direction_scene(&self, l: [f64; 3]) -> Option<&Scene> {
         let copies = tiling::copies_for_direction(self.tile, &self.bounds, l, self.margin);
         self.shadow_scenes.get(&copies)
-    }
-
-    /// Shadow-ray origins and normals of the primary hits, block-major as traced (for the
-    /// raw-Embree benchmark): `(org, n, hit)`.
-    pub fn primary_samples(&self) -> impl Iterator<Item = ([f32; 3], [f32; 3], bool)> + '_ {
-        self.samples.iter().map(|s| (s.org, s.n, s.hit))
     }
 
     /// The clamp plane of shadow rays and the height of the camera (mesh units).

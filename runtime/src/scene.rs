@@ -59,10 +59,6 @@ impl Blur {
             Blur::Separable => "separable",
         }
     }
-
-    pub fn from_name(name: &str) -> Option<Blur> {
-        Blur::ALL.into_iter().find(|b| b.name() == name)
-    }
 }
 
 /// A perspective camera (the default camera is orthographic top-down over `Scene::view`).
