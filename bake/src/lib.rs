@@ -1,6 +1,6 @@
 //! `ptm-bake`: Embree 4 occlusion baking of tileable swatches from a dome of lights.
 //!
-//! Data flow: [`Swatch`] (checked mesh and tile) → [`Baker::new`] (Embree scene of the tile,
+//! Data flow: [`PreparedMesh`] (checked mesh and tile) → [`Baker::new`] (Embree scene of the tile,
 //! instanced copies, primary hits of an orthographic camera over the central tile) →
 //! [`Baker::trace`] (per light, the occluded fraction K of every texel, handed to a sink light
 //! by light, so a fitter can stream without holding the whole sample stack).
@@ -14,7 +14,7 @@ pub mod swatch;
 pub mod tiling;
 pub mod visibility;
 
-pub use swatch::Swatch;
+pub use swatch::PreparedMesh;
 pub use visibility::{
     bake_planes, baker_bytes, sample_xy, BakeConfig, BakeReport, Baker, Planes, Sink,
 };

@@ -26,9 +26,10 @@ pub struct Seam {
     pub mismatch: Option<f64>,
 }
 
-/// A checked swatch ready to bake: non-degenerate triangles, tile and bounds.
+/// The bake's prepared mesh: a swatch's triangles checked and ready to trace (non-degenerate
+/// triangles, tile, bounds, seams). Not [`ptm_swatches::Swatch`], the generator's output.
 #[derive(Clone, Debug)]
-pub struct Swatch {
+pub struct PreparedMesh {
     /// Where the mesh came from (a path or `builtin:NAME`), for messages.
     pub origin: String,
     pub positions: Vec<[f32; 3]>,
@@ -45,7 +46,7 @@ pub struct Swatch {
     pub seams: [Seam; 2],
 }
 
-impl Swatch {
+impl PreparedMesh {
     /// Loads `spec`: `builtin:NAME[?k=v…]` or a path to an OBJ file. `tile` overrides the tile
     /// size; by default a builtin's own tile, or the OBJ's x/y bounding box.
     pub fn load(spec: &str, tile: Option<[f64; 2]>) -> Result<Self> {
@@ -210,9 +211,9 @@ impl Swatch {
     }
 
     /// The same swatch with every length multiplied by `k` (a power of two keeps it exact).
-    pub fn scaled(&self, k: f64) -> Swatch {
+    pub fn scaled(&self, k: f64) -> PreparedMesh {
         let kf = k as f32;
-        Swatch {
+        PreparedMesh {
             origin: self.origin.clone(),
             positions: self.positions.iter().map(|p| p.map(|c| c * kf)).collect(),
             triangles: self.triangles.clone(),
@@ -408,7 +409,7 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
 impl Obj {
     /// The mesh in f32, moved in f64 next to the origin first, and the (x, y) shift applied.
     /// With a tile the shift is a whole number of tiles (the periodic bake is unchanged),
-    /// without one it puts the bounding box at (0, 0) as [`Swatch::from_mesh`] would; z moves
+    /// without one it puts the bounding box at (0, 0) as [`PreparedMesh::from_mesh`] would; z moves
     /// only when the mesh lies further from z = 0 than its own height. An f32 step at 1e6 is
     /// 0.0625: converting first would bake a different mesh.
     pub fn recentred(self, tile: Option<[f64; 2]>) -> (Mesh, [f64; 2]) {
@@ -586,7 +587,7 @@ mod tests {
             "quad.obj",
             "v 1 1 0\nv 3 1 0\nv 3 2 0\nv 1 2 0\nf 1 2 3 4\nf 1 1 2\n",
         );
-        let s = Swatch::load(p.to_str().unwrap(), None).unwrap();
+        let s = PreparedMesh::load(p.to_str().unwrap(), None).unwrap();
         assert_eq!(s.triangles.len(), 2);
         assert_eq!(s.degenerate, 1);
         assert_eq!(s.tile, [2.0, 1.0]);
@@ -671,7 +672,7 @@ mod tests {
                 Some(t) => write(&dir, name, t),
                 None => dir.join(name),
             };
-            let e = Swatch::load(p.to_str().unwrap(), None)
+            let e = PreparedMesh::load(p.to_str().unwrap(), None)
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(name) && e.contains(want), "{name}: {e}");
@@ -688,7 +689,7 @@ mod tests {
             ([0.01, 0.01], "at most 16 tiles per axis"),
             ([1e30, 1e30], "too small for f32 against the 1e30×1e30 tile"),
         ] {
-            let e = Swatch::load(p.to_str().unwrap(), Some(t))
+            let e = PreparedMesh::load(p.to_str().unwrap(), Some(t))
                 .unwrap_err()
                 .to_string();
             assert!(e.contains("--tile") && e.contains(want), "{t:?}: {e}");
@@ -697,7 +698,7 @@ mod tests {
         let latin1 = dir.join("latin1.obj");
         std::fs::write(&latin1, b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n").unwrap();
         assert_eq!(
-            Swatch::load(latin1.to_str().unwrap(), None)
+            PreparedMesh::load(latin1.to_str().unwrap(), None)
                 .unwrap()
                 .triangles
                 .len(),
@@ -741,7 +742,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             tile: [1.0, 1.0],
         };
-        let s = Swatch::from_mesh(mesh, None, "ramp").unwrap();
+        let s = PreparedMesh::from_mesh(mesh, None, "ramp").unwrap();
         assert!(
             (s.seams[0].mismatch.unwrap() - 0.3).abs() < 1e-6,
             "{:?}",

@@ -13,7 +13,7 @@ use ptm_fit::LightSet;
 use rayon::prelude::*;
 
 use crate::embree::{self, Device, Scene};
-use crate::swatch::Swatch;
+use crate::swatch::PreparedMesh;
 use crate::tiling;
 use crate::{Error, Result};
 
@@ -49,7 +49,7 @@ pub const MAX_LIGHT_DISTANCE: f64 = 1e6;
 /// hemisphere of radius `r` about (W/2, H/2, 0) must lie outside the swatch's bounding box
 /// (a light inside the cloth shadows nothing sensible), and `r` must stay within
 /// [`MAX_LIGHT_DISTANCE`] swatch sizes.
-pub fn check_light_distance(r: f64, swatch: &Swatch) -> Result<()> {
+pub fn check_light_distance(r: f64, swatch: &PreparedMesh) -> Result<()> {
     let b = &swatch.bounds;
     let centre = [swatch.tile[0] / 2.0, swatch.tile[1] / 2.0, 0.0];
     // Farthest corner of the bounds from the centre: the bounding box lies inside that sphere.
@@ -157,7 +157,7 @@ pub struct Baker {
 
 impl Baker {
     /// Builds the Embree scenes and traces the primary hits.
-    pub fn new(swatch: &Swatch, cfg: &BakeConfig) -> Result<Self> {
+    pub fn new(swatch: &PreparedMesh, cfg: &BakeConfig) -> Result<Self> {
         Self::new_rows(swatch, cfg, 0..cfg.res[1])
     }
 
@@ -165,7 +165,7 @@ impl Baker {
     /// the sink and [`Baker::coverage`] then hold `rows.len()` rows. Sample positions hash the
     /// global texel index, so these rows are bit-identical to the same rows of a whole bake.
     /// `rows.start` must be a multiple of 4 (the tracer's texel blocks).
-    pub fn new_rows(swatch: &Swatch, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
+    pub fn new_rows(swatch: &PreparedMesh, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
         let [nx, ny] = cfg.res;
         if nx == 0 || ny == 0 || cfg.spp == 0 {
             return Err(Error::Config(format!(
@@ -655,7 +655,7 @@ impl Planes {
 
 /// Bakes `lights` over `swatch` into memory: (planes, coverage, report).
 pub fn bake_planes(
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     lights: &LightSet,
     cfg: &BakeConfig,
 ) -> Result<(Planes, Vec<f32>, BakeReport)> {
@@ -681,7 +681,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             tile: [1.0, 1.0],
         };
-        let swatch = Swatch::from_mesh(mesh, None, "quad").unwrap();
+        let swatch = PreparedMesh::from_mesh(mesh, None, "quad").unwrap();
         let cfg = BakeConfig {
             res: [4, 4],
             spp: 1,
@@ -710,7 +710,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             tile: [1.0, 1.0],
         };
-        let swatch = Swatch::from_mesh(mesh, None, "quad").unwrap();
+        let swatch = PreparedMesh::from_mesh(mesh, None, "quad").unwrap();
         assert!(check_light_distance(0.9, &swatch).is_ok());
         assert!(check_light_distance(1e6, &swatch).is_ok());
         for r in [0.5, 1e-30, 0.0, -3.0, f64::NAN] {

@@ -133,11 +133,11 @@ fn err(e: impl std::fmt::Display) -> String {
 /// OBJ: the bake's reader, f64 recentring, the swatch checks, and the tiling plans of a few
 /// lights (the copies a mesh much larger than its tile would multiply).
 fn run_obj(bytes: &[u8], _: &Path) -> Result<(), String> {
-    use ptm_bake::{swatch, tiling, Swatch};
+    use ptm_bake::{swatch, tiling, PreparedMesh};
     let obj = swatch::parse_obj(bytes, "fuzz.obj").map_err(err)?;
     let tile = obj.tile;
     let (mesh, _) = obj.recentred(tile);
-    let s = Swatch::from_mesh(mesh, tile, "fuzz.obj").map_err(err)?;
+    let s = PreparedMesh::from_mesh(mesh, tile, "fuzz.obj").map_err(err)?;
     let _ = s.warnings();
     let margin = 1e-6 * s.scale();
     let mut copies = tiling::copies_meeting(s.tile, &s.bounds, &[], margin).len();

@@ -17,7 +17,7 @@ mod tables;
 
 use std::path::PathBuf;
 
-use ptm_bake::Swatch;
+use ptm_bake::PreparedMesh;
 use ptm_fit::{Basis, Link, UvMap, Weight};
 
 pub use runtime::Runtime;
@@ -188,7 +188,7 @@ pub fn run(opts: &Options, progress: &mut dyn FnMut(&str)) -> Result<Report> {
     let mut swatches = Vec::new();
     let mut first = None;
     for name in &opts.swatches {
-        let swatch = Swatch::load(&format!("builtin:{name}"), None)?;
+        let swatch = PreparedMesh::load(&format!("builtin:{name}"), None)?;
         let (s, truth) = SwatchStudy::run(name, &swatch, &plan, &test, progress)?;
         swatches.push(s);
         first.get_or_insert((swatch, truth));

@@ -3,7 +3,7 @@
 //! extreme scales or broken in the ways real meshes are.
 use std::path::Path;
 
-use ptm_bake::{bake_planes, dome, Swatch};
+use ptm_bake::{bake_planes, dome, PreparedMesh};
 use ptm_fit::solve::LogisticStats;
 use ptm_fit::{
     fit_stack, Basis, FitOptions, FitReport, LightSet, Link, Ptm, SampleStack, SaveOptions, UvMap,
@@ -35,7 +35,7 @@ impl Stability {
     /// folder for the half-float PTMs of the precision study.
     pub fn run(
         name: &str,
-        swatch: &Swatch,
+        swatch: &PreparedMesh,
         truth: &Truth,
         plan: &Plan,
         scratch: &Path,
@@ -160,7 +160,12 @@ pub enum GeometryCase {
 }
 
 /// Bakes `lights` over `swatch` at the truth's resolution into a stored stack.
-fn bake_stack(swatch: &Swatch, lights: &LightSet, res: usize, spp: u32) -> Result<SampleStack> {
+fn bake_stack(
+    swatch: &PreparedMesh,
+    lights: &LightSet,
+    res: usize,
+    spp: u32,
+) -> Result<SampleStack> {
     let (planes, coverage, _) = bake_planes(swatch, lights, &bake_config(res, spp, 1))?;
     Ok(SampleStack {
         width: res,
@@ -191,7 +196,7 @@ const FITS: [(Link, UvMap); 2] = [
 ];
 
 /// The light layouts of the issue, fitted with both bases and both of [`FITS`] on a real bake.
-pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow>> {
+pub fn layouts(swatch: &PreparedMesh, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow>> {
     let mut near_ring = dome::rings("30x16")?;
     for (i, d) in near_ring.dirs.iter_mut().enumerate() {
         // ±1e-4 in z: numerically a ring, formally full rank.
@@ -258,7 +263,7 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow
 /// The logistic link's ridge λ (relative to the mean eigenvalue of AᵀΩA) from 1e-6 to 10 on a
 /// Fibonacci dome of `dirs` lights, hemispherical (u, v), beside the identity link's fit of the
 /// same stack: what λ does to the error, the coefficients, Newton and the separable texels.
-pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Vec<RidgeRow>> {
+pub fn ridge(swatch: &PreparedMesh, truth: &Truth, spp: u32, dirs: usize) -> Result<Vec<RidgeRow>> {
     let (k_true, cov) = truth.at(truth.res);
     let lights = dome::fibonacci(dirs, 5.0)?;
     let stack = bake_stack(swatch, &lights, truth.res, spp)?;
@@ -346,7 +351,7 @@ fn solve_normal_f32(a: &[Vec<f32>], k: &[f32]) -> Vec<f32> {
 
 /// f32 normal equations against our f64 SVD, and half against float storage.
 pub fn precision(
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     truth: &Truth,
     spp: u32,
     scratch: &Path,
@@ -461,9 +466,9 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Geometry> {
     let mesh = ptm_swatches::builtin(spec)?;
     let lights = dome::fibonacci(16, 5.0)?;
     /// A bake of one mesh: the checked swatch, K planes, coverage, uncovered texels.
-    type Baked = (Swatch, Vec<Vec<f32>>, Vec<f32>, usize);
+    type Baked = (PreparedMesh, Vec<Vec<f32>>, Vec<f32>, usize);
     let bake = |m: Mesh, name: &str, res: usize| -> Result<Baked> {
-        let sw = Swatch::from_mesh(m, None, name)?;
+        let sw = PreparedMesh::from_mesh(m, None, name)?;
         let (planes, cov, rep) = bake_planes(&sw, &lights, &bake_config(res, spp, 1))?;
         Ok((sw, planes.k, cov, rep.uncovered_texels))
     };
@@ -518,7 +523,7 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Geometry> {
             p[2] += 0.05 * h;
         }
     }
-    let sw = Swatch::from_mesh(broken, None, &format!("{spec} (x = W border lifted)"))?;
+    let sw = PreparedMesh::from_mesh(broken, None, &format!("{spec} (x = W border lifted)"))?;
     cases.push(GeometryCase::NonPeriodic {
         warnings: sw.warnings(),
     });

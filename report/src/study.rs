@@ -4,7 +4,7 @@
 //! time budget.
 use std::time::Instant;
 
-use ptm_bake::{dome, BakeConfig, Baker, Swatch};
+use ptm_bake::{dome, BakeConfig, Baker, PreparedMesh};
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, Link, Ptm, UvMap, Weight};
 use rayon::prelude::*;
 
@@ -49,7 +49,7 @@ pub fn bake_config(res: usize, spp: u32, seed: u64) -> BakeConfig {
 impl Truth {
     /// Bakes the truth twice with independent sample positions and keeps their mean; half the
     /// RMS difference of the two is the mean's own sampling noise (returned as `noise`).
-    pub fn bake(swatch: &Swatch, res: usize, spp: u32, lights: LightSet) -> Result<Truth> {
+    pub fn bake(swatch: &PreparedMesh, res: usize, spp: u32, lights: LightSet) -> Result<Truth> {
         let t = Instant::now();
         // Seeds no setting uses: the truth's sample positions are independent of theirs.
         let (a, coverage, _) =
@@ -242,7 +242,7 @@ impl Outcome {
 /// the trace and each fit separately, then measures each PTM against `truth` resampled to the
 /// settings' resolution. MIP levels are not fitted: the error is level 0's.
 pub fn run_settings(
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     truth: &Truth,
     coarse: &(Vec<Vec<f32>>, Vec<f32>),
     settings: &[Setting],
@@ -367,7 +367,7 @@ impl SwatchStudy {
     /// Returns the truth too: the stability cases measure against it.
     pub fn run(
         name: &str,
-        swatch: &Swatch,
+        swatch: &PreparedMesh,
         plan: &Plan,
         test: &LightSet,
         progress: &mut dyn FnMut(&str),
