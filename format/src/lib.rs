@@ -1,7 +1,8 @@
 //! `ptm-format`: the occlusion PTM file and all a render pipeline needs to use one — the
 //! polynomial bases, links and (u, v) maps ([`basis`]), the PTM in memory with [`Ptm::load`],
 //! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), HP PTM 1.2
-//! export ([`hp`]) and the atomic file output every writer of the workspace uses ([`atomic`]).
+//! export ([`hp`]), the atomic file output every writer of the workspace uses ([`atomic`]), and
+//! the one seeded hash every crate draws its random numbers from ([`hash`]).
 //!
 //! It depends on `exr`, `half` and `thiserror` only: no solver (nalgebra), no thread pool
 //! (rayon), no image codec, no Embree, no wgpu. The fitter (`ptm-fit`) builds on it and
@@ -29,6 +30,7 @@
 pub mod atomic;
 pub mod basis;
 pub mod exrio;
+pub mod hash;
 pub mod hp;
 pub mod ptm;
 

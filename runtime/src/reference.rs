@@ -4,6 +4,8 @@
 
 use std::f64::consts::PI;
 
+use ptm_fit::hash::{splitmix64 as hash, unit_f64 as unit};
+
 use crate::cpu::shade::opacity_raw;
 use crate::layout::{Frame, LightGpu};
 use crate::output::Image;
@@ -21,18 +23,6 @@ pub fn render_reference(p: &Prepared, samples: u32) -> Image {
         mc_opacity(&p.frame, &p.opacity, q, l, samples, key)
     };
     crate::cpu::render_with(p, Some(&opacity))
-}
-
-fn hash(mut x: u64) -> u64 {
-    // splitmix64 finaliser.
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
-
-fn unit(x: u64) -> f64 {
-    (x >> 11) as f64 / (1u64 << 53) as f64
 }
 
 /// Ground truth: mean caster opacity over a spherical light seen from acceptor point p,
