@@ -3,6 +3,7 @@
 //! not periodic over its tile gets a warning with the measured seam mismatch.
 use std::path::Path;
 
+use ptm_fit::vec3::{cross, norm, sub};
 use ptm_swatches::Mesh;
 
 use crate::{Error, Result};
@@ -549,22 +550,6 @@ fn seam_mismatch(positions: &[[f32; 3]], triangles: &[[u32; 3]], axis: usize, pe
         worst
     };
     one_way(&a, &b).max(one_way(&b, &a))
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
 #[cfg(test)]

@@ -37,7 +37,7 @@ pub mod stack;
 
 // The file layer, re-exported so `ptm_fit::Ptm`, `ptm_fit::basis::…` and `crate::ptm::…` here
 // keep naming the same items.
-pub use ptm_format::{atomic, basis, exrio, hash, hp, ptm};
+pub use ptm_format::{atomic, basis, exrio, hash, hp, ptm, vec3};
 pub use ptm_format::{Error as FormatError, FileFacts, ToFileFacts};
 
 pub use basis::{Basis, Link, Monomial, UvMap};

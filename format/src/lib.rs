@@ -1,8 +1,9 @@
 //! `ptm-format`: the occlusion PTM file and all a render pipeline needs to use one — the
 //! polynomial bases, links and (u, v) maps ([`basis`]), the PTM in memory with [`Ptm::load`],
 //! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), HP PTM 1.2
-//! export ([`hp`]), the atomic file output every writer of the workspace uses ([`atomic`]), and
-//! the one seeded hash every crate draws its random numbers from ([`hash`]).
+//! export ([`hp`]), the atomic file output every writer of the workspace uses ([`atomic`]), the
+//! one seeded hash every crate draws its random numbers from ([`hash`]) and the 3-vector helpers
+//! ([`vec3`]).
 //!
 //! It depends on `exr`, `half` and `thiserror` only: no solver (nalgebra), no thread pool
 //! (rayon), no image codec, no Embree, no wgpu. The fitter (`ptm-fit`) builds on it and
@@ -33,6 +34,7 @@ pub mod exrio;
 pub mod hash;
 pub mod hp;
 pub mod ptm;
+pub mod vec3;
 
 pub use atomic::{same_file, write_atomic, Transaction};
 pub use basis::{Basis, Link, Monomial, UvMap};

@@ -5,6 +5,7 @@
 use std::f64::consts::PI;
 
 use ptm_fit::hash::{splitmix64 as hash, unit_f64 as unit};
+use ptm_fit::vec3::{cross, dot, normalize};
 
 use crate::cpu::shade::opacity_raw;
 use crate::layout::{Frame, LightGpu};
@@ -111,21 +112,4 @@ pub fn mc_opacity(
         return [0.0; 3];
     }
     sum_o.map(|x| (x / sum_w) as f32)
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    a.map(|x| x / n)
 }

@@ -1,13 +1,14 @@
 //! Pile (velvet tufts, terry loops) on a plain ground weave, and corduroy-like grooves.
 
+// SplitMix64: a seed gives the same pile everywhere.
+use ptm_format::hash::SplitMix as Rng;
+use ptm_format::vec3::{cross, norm};
+
 use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::weave::{self, Pattern, WovenParams};
-use crate::yarn::{cross, norm, Cloth, Ends, Yarn};
+use crate::yarn::{Cloth, Ends, Yarn};
 use crate::Result;
-
-// SplitMix64: a seed gives the same pile everywhere.
-use ptm_format::hash::SplitMix as Rng;
 
 /// Distance between 2D segments [p0, p1] and [q0, q1].
 fn segment_distance(p0: [f64; 2], p1: [f64; 2], q0: [f64; 2], q1: [f64; 2]) -> f64 {

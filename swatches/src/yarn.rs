@@ -1,6 +1,8 @@
 //! Yarns as swept tubes (centre-line samples with elliptical cross-sections), the cloth they
 //! make over one periodic tile, its triangle mesh and the yarn-to-yarn clearance.
 
+use ptm_format::vec3::{cross, dot, norm, scale, sub};
+
 use crate::mesh::Mesh;
 
 /// How a yarn's tube ends.
@@ -49,26 +51,6 @@ pub struct Clearance {
     pub offset: [i32; 2],
     /// Midpoint of the two section centres.
     pub at: [f64; 3],
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-pub(crate) fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
 }
 
 const AXES: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
