@@ -130,11 +130,11 @@ fn err(e: impl std::fmt::Display) -> String {
     e.to_string()
 }
 
-/// OBJ: the bake's reader, f64 recentring, the swatch checks, and the tiling plans of a few
+/// OBJ: the one reader (ptm_swatches::obj), f64 recentring, the swatch checks, and the tiling plans of a few
 /// lights (the copies a mesh much larger than its tile would multiply).
 fn run_obj(bytes: &[u8], _: &Path) -> Result<(), String> {
-    use ptm_bake::{swatch, tiling, PreparedMesh};
-    let obj = swatch::parse_obj(bytes, "fuzz.obj").map_err(err)?;
+    use ptm_bake::{tiling, PreparedMesh};
+    let obj = ptm_swatches::obj::parse_obj(bytes, "fuzz.obj").map_err(err)?;
     let tile = obj.tile;
     let (mesh, _) = obj.recentred(tile);
     let s = PreparedMesh::from_mesh(mesh, tile, "fuzz.obj").map_err(err)?;

@@ -24,6 +24,7 @@
 pub mod draft;
 pub mod knit;
 pub mod mesh;
+pub mod obj;
 pub mod params;
 pub mod pile;
 pub mod weave;
