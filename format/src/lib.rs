@@ -43,17 +43,26 @@ pub use ptm::{FileFacts, Level, Ptm, PtmInfo, SaveOptions, ToFileFacts};
 /// Errors of the format crate. Messages name the file and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {
+        /// The file, as given.
         path: String,
+        /// The operating system's error.
         source: std::io::Error,
     },
     /// A file that is not what it should be (not a PTM, a missing channel, a bad attribute).
     #[error("{path}: {reason}")]
-    Format { path: String, reason: String },
+    Format {
+        /// The file, as given.
+        path: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// Arguments that make no file (plane sizes, a basis the format cannot hold).
     #[error("{0}")]
     Invalid(String),
 }
 
+/// The format crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;
