@@ -27,10 +27,12 @@ impl LightSet {
         Self { names, dirs }
     }
 
+    /// Number of lights.
     pub fn len(&self) -> usize {
         self.dirs.len()
     }
 
+    /// Whether the set has no light.
     pub fn is_empty(&self) -> bool {
         self.dirs.is_empty()
     }
