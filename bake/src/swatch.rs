@@ -12,7 +12,9 @@ use crate::{Error, Result};
 /// Axis-aligned bounds in the swatch frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
+    /// Smallest x, y, z, in mesh units.
     pub min: [f64; 3],
+    /// Largest x, y, z, in mesh units.
     pub max: [f64; 3],
 }
 
@@ -34,7 +36,9 @@ pub struct Seam {
 pub struct PreparedMesh {
     /// Where the mesh came from (a path or `builtin:NAME`), for messages.
     pub origin: String,
+    /// Vertex positions in the swatch frame (mesh units, after any shift), f32 as Embree takes them.
     pub positions: Vec<[f32; 3]>,
+    /// Triangles as 0-based vertex indices, degenerate ones removed.
     pub triangles: Vec<[u32; 3]>,
     /// Tile size (W, H) in mesh units: copies repeat at multiples of it.
     pub tile: [f64; 2],
@@ -45,6 +49,7 @@ pub struct PreparedMesh {
     /// Translation applied so that the tile starts at (0, 0) (when the tile defaulted to the
     /// mesh's bounding box), in mesh units.
     pub shift: [f64; 2],
+    /// Seam match along x (index 0) and y (index 1).
     pub seams: [Seam; 2],
 }
 

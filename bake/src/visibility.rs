@@ -83,12 +83,16 @@ pub fn check_light_distance(r: f64, swatch: &PreparedMesh) -> Result<()> {
 /// Figures of one bake, for `--json` and the benchmark.
 #[derive(Clone, Debug, Default)]
 pub struct BakeReport {
+    /// Primary (camera) rays traced: texels × samples per texel.
     pub primary_rays: u64,
+    /// Shadow rays traced over all lights.
     pub shadow_rays: u64,
     /// Samples counted occluded without tracing: surface facing away from the light, or the
     /// light at or below the horizon.
     pub shadow_rays_skipped: u64,
+    /// Seconds building Embree scenes (central tile and shadow copies).
     pub seconds_scene: f64,
+    /// Seconds tracing primary rays.
     pub seconds_primary: f64,
     /// Shadow tracing plus the sink's own time (shadow-scene builds count in `seconds_scene`).
     pub seconds_shadow: f64,
@@ -634,11 +638,14 @@ fn jitter(texel: u64, sample: u64, seed: u64) -> (f64, f64) {
 /// `-o samples.exr` and tests.
 #[derive(Clone, Debug, Default)]
 pub struct Planes {
+    /// Per light in order, the K plane (row-major, row 0 at y = H).
     pub k: Vec<Vec<f32>>,
+    /// Per light, the (u, v) of the light seen from each texel (point lights only).
     pub uv: Option<Vec<Vec<[f32; 2]>>>,
 }
 
 impl Planes {
+    /// Appends light `index`'s planes; a [`Sink`] for [`Baker::trace`] (lights arrive in order).
     pub fn push(&mut self, index: usize, k: &[f32], uv: Option<&[[f32; 2]]>) -> Result<()> {
         debug_assert_eq!(index, self.k.len());
         self.k.push(k.to_vec());
