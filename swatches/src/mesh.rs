@@ -16,7 +16,9 @@ use crate::{Error, Result};
 /// but never by more than one tile, so a 3×3 block of copies covers the central tile.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions in the swatch frame (user units, z up).
     pub positions: Vec<[f32; 3]>,
+    /// Triangles as 0-based vertex indices, wound so that normals point outwards.
     pub triangles: Vec<[u32; 3]>,
     /// Tile size (W, H) in the swatch's units.
     pub tile: [f32; 2],

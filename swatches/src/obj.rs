@@ -10,6 +10,7 @@ use crate::{Error, Result};
 /// [`Obj::recentred`] moves the mesh next to it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Obj {
+    /// Vertex positions as written, in the file's units.
     pub positions: Vec<[f64; 3]>,
     /// 0-based, checked against `positions`.
     pub triangles: Vec<[u32; 3]>,
