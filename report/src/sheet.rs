@@ -18,9 +18,11 @@ pub fn names() -> Vec<&'static str> {
 /// One swatch of the sheet.
 #[derive(Clone, Debug)]
 pub struct SheetCell {
+    /// Builtin name.
     pub name: &'static str,
     /// Texels across and down the tile (down: in proportion to the tile, at most `texels`).
     pub width: usize,
+    /// Texels down the tile.
     pub height: usize,
     /// Row-major, `width × height`: 1 − K, or None where no surface lies under the texel.
     pub visibility: Vec<Option<f32>>,
@@ -31,6 +33,7 @@ pub struct SheetCell {
 pub struct ContactSheet {
     /// Texels across each swatch's tile width.
     pub texels: usize,
+    /// One per builtin of [`names`], in that order.
     pub cells: Vec<SheetCell>,
 }
 
