@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_bake::{dome, BakeConfig, BakeReport, Baker, Swatch};
+use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh};
 use ptm_fit::atomic::{same_file, Transaction};
 use ptm_fit::shard::PartMeta;
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, SampleStack, SaveOptions};
@@ -141,14 +141,14 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
 
 /// Parses `--tile`, loads and checks the swatch, and prints its warnings. Returns the swatch
 /// and the seconds loading took.
-fn resolve_swatch(args: &Args) -> anyhow::Result<(Swatch, f64)> {
+fn resolve_swatch(args: &Args) -> anyhow::Result<(PreparedMesh, f64)> {
     let tile = match args.tile.as_deref() {
         None => None,
         Some(&[w, h]) => Some([w, h]),
         Some(t) => bail!("--tile takes W,H (two numbers), got {t:?}"),
     };
     let t0 = Instant::now();
-    let swatch = Swatch::load(&args.swatch, tile)?;
+    let swatch = PreparedMesh::load(&args.swatch, tile)?;
     let t_load = t0.elapsed().as_secs_f64();
     for w in &swatch.warnings() {
         eprintln!("ptm bake: warning: {w}");
@@ -215,7 +215,7 @@ enum Output {
 fn check_outputs(
     args: &Args,
     res: [usize; 2],
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     lights: &LightSet,
 ) -> anyhow::Result<Output> {
     let Some(s) = args.shard else {
@@ -312,7 +312,7 @@ fn fit_accumulator(
 }
 
 /// Says on stderr what is about to be baked (and that lights below the horizon bake to K = 1).
-fn announce(args: &Args, swatch: &Swatch, res: [usize; 2], lights: &LightSet) {
+fn announce(args: &Args, swatch: &PreparedMesh, res: [usize; 2], lights: &LightSet) {
     let below = lights.dirs.iter().filter(|d| d[2] <= 0.0).count();
     if below > 0 {
         eprintln!("ptm bake: warning: {below} light(s) at or below the horizon bake to K = 1");
@@ -349,7 +349,7 @@ struct Kept {
 /// progress bar on a terminal; reports uncovered texels and lights whose shadows were capped.
 fn trace(
     args: &Args,
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     res: [usize; 2],
     rows: Range<usize>,
     lights: &LightSet,
@@ -445,7 +445,7 @@ struct Written {
 /// and the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes
 /// the `.lp` beside the merged output); publishes them together.
 fn write_outputs(
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     lights: &LightSet,
     kept: Kept,
     part: &Option<(PartMeta, PathBuf)>,
@@ -598,7 +598,7 @@ fn print_summary(report: &BakeReport, written: &Written) {
 #[allow(clippy::too_many_arguments)]
 fn bake_json(
     args: &Args,
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     res: [usize; 2],
     rows: Range<usize>,
     lights: &LightSet,

@@ -3,7 +3,7 @@
 //! The partition, the part format and the merge live in `ptm_fit::shard`.
 use std::path::Path;
 
-use ptm_bake::Swatch;
+use ptm_bake::PreparedMesh;
 use ptm_fit::shard::{self, PartLevels, PartMeta, PtmPart, Shard};
 use ptm_fit::{FitReport, LightSet, Ptm, SampleStack};
 
@@ -50,7 +50,7 @@ pub fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet)
 }
 
 /// Content hash of the swatch as baked: positions, triangles and tile.
-pub fn swatch_hash(swatch: &Swatch) -> String {
+pub fn swatch_hash(swatch: &PreparedMesh) -> String {
     let pos: Vec<u8> = swatch
         .positions
         .iter()
@@ -70,7 +70,7 @@ pub fn meta(
     args: &Args,
     s: Shard,
     res: [usize; 2],
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     lights: &LightSet,
 ) -> anyhow::Result<PartMeta> {
     Ok(PartMeta {

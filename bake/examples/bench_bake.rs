@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use ptm_bake::embree::{self, Scene, Valid16};
-use ptm_bake::{dome, sample_xy, BakeConfig, Baker, Swatch};
+use ptm_bake::{dome, sample_xy, BakeConfig, Baker, PreparedMesh};
 use rayon::prelude::*;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -20,7 +20,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let spp: usize = arg(3, "4").parse()?;
     let repeats: usize = arg(4, "6").parse()?;
 
-    let swatch = Swatch::load(&spec, None)?;
+    let swatch = PreparedMesh::load(&spec, None)?;
     let lights = dome::fibonacci(n_lights, 5.0)?;
     let cfg = BakeConfig {
         res: [res, res],

@@ -14,7 +14,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use ptm_bake::{dome, BakeConfig, Baker, Swatch};
+use ptm_bake::{dome, BakeConfig, Baker, PreparedMesh};
 use ptm_fit::shard::{self, PartMeta, PtmPart, Shard};
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, SampleStack, SaveOptions};
 
@@ -91,7 +91,7 @@ fn bake(
     let mut st = Stages::default();
     let cpu0 = cpu_seconds();
     let t = Instant::now();
-    let swatch = Swatch::load(job.spec, None)?;
+    let swatch = PreparedMesh::load(job.spec, None)?;
     st.load = t.elapsed().as_secs_f64();
     let mut mark = cpu0;
     let mut stage = |st: &mut Stages, i: usize| {

@@ -220,7 +220,9 @@ impl Drop for Scene {
 #[repr(C, align(16))]
 #[derive(Clone, Copy)]
 pub struct RayHitPadded {
+    /// The ray and hit record Embree 4.2 declares.
     pub rh: sys::RTCRayHit,
+    /// Instance-array primitive ids Embree ≥ 4.3 writes after it (unused, only room).
     pub inst_prim_id: [u32; 4],
 }
 
@@ -228,7 +230,9 @@ pub struct RayHitPadded {
 /// (not normalised, in world space for translated instances).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Hit {
+    /// Distance to the hit in units of the ray direction's length.
     pub t: f32,
+    /// Geometric normal, unnormalised, world space.
     pub ng: [f32; 3],
 }
 
@@ -325,6 +329,7 @@ impl Scene {
         unsafe { sys::rtcOccluded16(valid.0.as_ptr(), self.raw, rays, &mut args) };
     }
 
+    /// Whether lane `lane` of a packet traced by [`Scene::occluded16`] hit something (Embree sets its `tfar` to −∞).
     pub fn lane_occluded(rays: &Ray16, lane: usize) -> bool {
         rays.tfar[lane] == f32::NEG_INFINITY
     }

@@ -1,6 +1,6 @@
 //! `ptm-bake`: Embree 4 occlusion baking of tileable swatches from a dome of lights.
 //!
-//! Data flow: [`Swatch`] (checked mesh and tile) → [`Baker::new`] (Embree scene of the tile,
+//! Data flow: [`PreparedMesh`] (checked mesh and tile) → [`Baker::new`] (Embree scene of the tile,
 //! instanced copies, primary hits of an orthographic camera over the central tile) →
 //! [`Baker::trace`] (per light, the occluded fraction K of every texel, handed to a sink light
 //! by light, so a fitter can stream without holding the whole sample stack).
@@ -14,7 +14,7 @@ pub mod swatch;
 pub mod tiling;
 pub mod visibility;
 
-pub use swatch::Swatch;
+pub use swatch::PreparedMesh;
 pub use visibility::{
     bake_planes, baker_bytes, sample_xy, BakeConfig, BakeReport, Baker, Planes, Sink,
 };
@@ -22,19 +22,32 @@ pub use visibility::{
 /// Errors of the bake crate; messages name the input and what to do.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// Reading a file failed.
     #[error("cannot read {path}")]
     Io {
+        /// The file, as given.
         path: String,
+        /// The operating system's error.
         source: std::io::Error,
     },
+    /// A swatch that cannot be baked (unreadable OBJ, no triangles, a bad tile).
     #[error("{path}: {reason}")]
-    InvalidMesh { path: String, reason: String },
+    InvalidMesh {
+        /// The swatch as given (a path or `builtin:NAME`).
+        path: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A light dome that cannot be built or read.
     #[error("{0}")]
     Dome(String),
+    /// Bake settings that make no bake (resolution, samples, memory).
     #[error("{0}")]
     Config(String),
+    /// Embree refused a device, scene or geometry.
     #[error("embree: {0}")]
     Embree(String),
+    /// An error of the fit crate or the file layer under it (writing samples, fitting on the fly).
     #[error(transparent)]
     Fit(#[from] ptm_fit::Error),
 }
@@ -46,4 +59,5 @@ impl From<ptm_fit::FormatError> for Error {
     }
 }
 
+/// The bake crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;

@@ -1,16 +1,20 @@
-//! Swatch input: OBJ or builtin meshes, checked before anything is traced. Bad input is refused
+//! Swatch input: OBJ files (read by `ptm_swatches::obj`) or builtin meshes, checked before
+//! anything is traced. Bad input is refused
 //! with an error naming the source; degenerate triangles are dropped and counted; a mesh that is
 //! not periodic over its tile gets a warning with the measured seam mismatch.
 use std::path::Path;
 
-use ptm_swatches::Mesh;
+use ptm_fit::vec3::{cross, norm, sub};
+use ptm_swatches::{obj, Mesh};
 
 use crate::{Error, Result};
 
 /// Axis-aligned bounds in the swatch frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
+    /// Smallest x, y, z, in mesh units.
     pub min: [f64; 3],
+    /// Largest x, y, z, in mesh units.
     pub max: [f64; 3],
 }
 
@@ -26,12 +30,15 @@ pub struct Seam {
     pub mismatch: Option<f64>,
 }
 
-/// A checked swatch ready to bake: non-degenerate triangles, tile and bounds.
+/// The bake's prepared mesh: a swatch's triangles checked and ready to trace (non-degenerate
+/// triangles, tile, bounds, seams). Not [`ptm_swatches::Swatch`], the generator's output.
 #[derive(Clone, Debug)]
-pub struct Swatch {
+pub struct PreparedMesh {
     /// Where the mesh came from (a path or `builtin:NAME`), for messages.
     pub origin: String,
+    /// Vertex positions in the swatch frame (mesh units, after any shift), f32 as Embree takes them.
     pub positions: Vec<[f32; 3]>,
+    /// Triangles as 0-based vertex indices, degenerate ones removed.
     pub triangles: Vec<[u32; 3]>,
     /// Tile size (W, H) in mesh units: copies repeat at multiples of it.
     pub tile: [f64; 2],
@@ -42,10 +49,11 @@ pub struct Swatch {
     /// Translation applied so that the tile starts at (0, 0) (when the tile defaulted to the
     /// mesh's bounding box), in mesh units.
     pub shift: [f64; 2],
+    /// Seam match along x (index 0) and y (index 1).
     pub seams: [Seam; 2],
 }
 
-impl Swatch {
+impl PreparedMesh {
     /// Loads `spec`: `builtin:NAME[?k=v…]` or a path to an OBJ file. `tile` overrides the tile
     /// size; by default a builtin's own tile, or the OBJ's x/y bounding box.
     pub fn load(spec: &str, tile: Option<[f64; 2]>) -> Result<Self> {
@@ -58,7 +66,7 @@ impl Swatch {
                 Self::from_mesh(mesh, tile, spec)
             }
             None => {
-                let obj = read_obj(Path::new(spec))?;
+                let obj = obj::read_obj(Path::new(spec)).map_err(|e| obj_error(e, spec))?;
                 let tile = tile.or(obj.tile);
                 let (mesh, shift) = obj.recentred(tile);
                 let mut swatch = Self::from_mesh(mesh, tile, spec)?;
@@ -210,9 +218,9 @@ impl Swatch {
     }
 
     /// The same swatch with every length multiplied by `k` (a power of two keeps it exact).
-    pub fn scaled(&self, k: f64) -> Swatch {
+    pub fn scaled(&self, k: f64) -> PreparedMesh {
         let kf = k as f32;
-        Swatch {
+        PreparedMesh {
             origin: self.origin.clone(),
             positions: self.positions.iter().map(|p| p.map(|c| c * kf)).collect(),
             triangles: self.triangles.clone(),
@@ -266,202 +274,23 @@ pub const MAX_TILE_ASPECT: f64 = 1e4;
 /// The most tiles a mesh may be tall (long pile over a small tile), as its shadow runs are.
 pub const MAX_TILES_TALL: f64 = crate::tiling::MAX_RUN_TILES;
 
-/// An OBJ file as read, in f64: coordinates far from the origin keep their precision until
-/// [`Obj::recentred`] moves the mesh next to it.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Obj {
-    pub positions: Vec<[f64; 3]>,
-    /// 0-based, checked against `positions`.
-    pub triangles: Vec<[u32; 3]>,
-    /// The `# tile W H` header `ptm swatch` writes, when present.
-    pub tile: Option<[f64; 2]>,
-}
-
-/// Reads an OBJ file: see [`parse_obj`].
-pub fn read_obj(path: &Path) -> Result<Obj> {
-    let name = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|e| Error::Io {
-        path: name.clone(),
-        source: e,
-    })?;
-    parse_obj(&bytes, &name)
-}
-
-/// Parses OBJ bytes (`origin` names them in errors): `v x y z` lines, `f` lines (polygons
-/// fan-triangulated, `/vt/vn` parts ignored, negative indices relative to the vertices so far),
-/// every object into one mesh, and a `# tile W H` comment before the first vertex. Other lines
-/// (`vt`, `vn`, `o`, `g`, `usemtl`, …) are ignored, and so are bytes that are not UTF-8
-/// outside `v` and `f` lines (a Latin-1 comment).
-pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
-    let bad = |line: usize, reason: String| Error::InvalidMesh {
-        path: origin.to_string(),
-        reason: format!("line {line}: {reason}"),
-    };
-    if bytes.iter().all(u8::is_ascii_whitespace) {
-        return Err(Error::InvalidMesh {
-            path: origin.to_string(),
-            reason: "empty file".into(),
-        });
+/// The OBJ reader's errors as the bake's own, with the same messages (`spec` names a file the
+/// reader did not).
+fn obj_error(e: ptm_swatches::Error, spec: &str) -> Error {
+    match e {
+        ptm_swatches::Error::Io { path, source } => Error::Io {
+            path: path.display().to_string(),
+            source,
+        },
+        ptm_swatches::Error::InvalidMesh { path, reason } => Error::InvalidMesh {
+            path: path.display().to_string(),
+            reason,
+        },
+        other => Error::InvalidMesh {
+            path: spec.to_string(),
+            reason: other.to_string(),
+        },
     }
-    let mut obj = Obj::default();
-    // Line of each triangle's face, for an index checked at the end.
-    let mut face_lines: Vec<usize> = Vec::new();
-    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
-        let n = n + 1;
-        let line = String::from_utf8_lossy(raw);
-        let mut it = line.split_whitespace();
-        match it.next() {
-            Some("#") if obj.positions.is_empty() && line.starts_with("# tile ") => {
-                let v: Vec<f64> = it.filter_map(|t| t.parse().ok()).collect();
-                match v[..] {
-                    [w, h] if w > 0.0 && h > 0.0 && w.is_finite() && h.is_finite() => {
-                        obj.tile = Some([w, h])
-                    }
-                    _ => {
-                        return Err(bad(
-                            n,
-                            format!(
-                                "{:?} needs two positive numbers W H (the tile size)",
-                                line.trim()
-                            ),
-                        ))
-                    }
-                }
-            }
-            Some("v") => {
-                let mut v = [0.0; 3];
-                for (k, c) in v.iter_mut().enumerate() {
-                    let t = it.next().ok_or_else(|| {
-                        bad(n, format!("a vertex needs 3 coordinates, found {k}"))
-                    })?;
-                    *c = t
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|c| c.is_finite())
-                        .ok_or_else(|| {
-                            bad(
-                                n,
-                                format!("vertex coordinate {t:?} is non-finite or not a number"),
-                            )
-                        })?;
-                }
-                obj.positions.push(v);
-            }
-            Some("f") => {
-                let nv = obj.positions.len() as i64;
-                let mut idx = Vec::with_capacity(4);
-                for t in it {
-                    let first = t.split('/').next().unwrap_or("");
-                    let k = first
-                        .parse::<i64>()
-                        .map_err(|_| bad(n, format!("face index {t:?} is not an integer")))?;
-                    let k = match k {
-                        0 => {
-                            return Err(bad(
-                                n,
-                                "face index 0: OBJ indices start at 1 (negative ones count \
-                                 back from the last vertex)"
-                                    .into(),
-                            ))
-                        }
-                        k if k > 0 => k - 1,
-                        k => nv + k,
-                    };
-                    let k = u32::try_from(k).map_err(|_| {
-                        bad(
-                            n,
-                            format!("face index {first} is outside the {nv} vertices so far"),
-                        )
-                    })?;
-                    idx.push(k);
-                }
-                if idx.len() < 3 {
-                    return Err(bad(
-                        n,
-                        format!("a face needs at least 3 vertices, found {}", idx.len()),
-                    ));
-                }
-                for k in 1..idx.len() - 1 {
-                    obj.triangles.push([idx[0], idx[k], idx[k + 1]]);
-                    face_lines.push(n);
-                }
-            }
-            _ => {}
-        }
-    }
-    let nv = obj.positions.len();
-    if let Some((t, &n)) = obj
-        .triangles
-        .iter()
-        .zip(&face_lines)
-        .find(|(t, _)| t.iter().any(|&k| k as usize >= nv))
-    {
-        let k = t.iter().max().copied().unwrap_or(0) as u64 + 1;
-        return Err(bad(
-            n,
-            format!("face index {k} but the file has {nv} vertices"),
-        ));
-    }
-    Ok(obj)
-}
-
-impl Obj {
-    /// The mesh in f32, moved in f64 next to the origin first, and the (x, y) shift applied.
-    /// With a tile the shift is a whole number of tiles (the periodic bake is unchanged),
-    /// without one it puts the bounding box at (0, 0) as [`Swatch::from_mesh`] would; z moves
-    /// only when the mesh lies further from z = 0 than its own height. An f32 step at 1e6 is
-    /// 0.0625: converting first would bake a different mesh.
-    pub fn recentred(self, tile: Option<[f64; 2]>) -> (Mesh, [f64; 2]) {
-        let mut lo = [f64::INFINITY; 3];
-        let mut hi = [f64::NEG_INFINITY; 3];
-        for &k in self.triangles.iter().flatten() {
-            for a in 0..3 {
-                lo[a] = lo[a].min(self.positions[k as usize][a]);
-                hi[a] = hi[a].max(self.positions[k as usize][a]);
-            }
-        }
-        let mut shift = [0.0; 3];
-        if !self.triangles.is_empty() {
-            for a in 0..2 {
-                shift[a] = match tile {
-                    Some(t) if t[a] > 0.0 && t[a].is_finite() => {
-                        // floor: a mesh over [0, W] (or overhanging it a little) stays.
-                        let whole = (((lo[a] + hi[a]) / 2.0) / t[a]).floor() * t[a];
-                        if whole.is_finite() {
-                            -whole
-                        } else {
-                            0.0
-                        }
-                    }
-                    _ => -lo[a],
-                };
-            }
-            if lo[2].abs() > hi[2] - lo[2] {
-                shift[2] = -lo[2];
-            }
-        }
-        let mesh = Mesh {
-            positions: self
-                .positions
-                .iter()
-                .map(|p| [0, 1, 2].map(|a| (p[a] + shift[a]) as f32))
-                .collect(),
-            triangles: self.triangles,
-            tile: [0.0; 2],
-        };
-        (mesh, [shift[0], shift[1]])
-    }
-}
-
-/// Reads an OBJ file (all objects, polygons triangulated) into one f32 mesh, as written; see
-/// [`read_obj`] for the f64 reading.
-pub fn load_obj(path: &Path) -> Result<Mesh> {
-    let obj = read_obj(path)?;
-    Ok(Mesh {
-        positions: obj.positions.iter().map(|p| p.map(|c| c as f32)).collect(),
-        triangles: obj.triangles,
-        tile: obj.tile.map_or([0.0; 2], |t| t.map(|c| c as f32)),
-    })
 }
 
 fn bounds(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Bounds {
@@ -550,22 +379,6 @@ fn seam_mismatch(positions: &[[f32; 3]], triangles: &[[u32; 3]], axis: usize, pe
     one_way(&a, &b).max(one_way(&b, &a))
 }
 
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -586,7 +399,7 @@ mod tests {
             "quad.obj",
             "v 1 1 0\nv 3 1 0\nv 3 2 0\nv 1 2 0\nf 1 2 3 4\nf 1 1 2\n",
         );
-        let s = Swatch::load(p.to_str().unwrap(), None).unwrap();
+        let s = PreparedMesh::load(p.to_str().unwrap(), None).unwrap();
         assert_eq!(s.triangles.len(), 2);
         assert_eq!(s.degenerate, 1);
         assert_eq!(s.tile, [2.0, 1.0]);
@@ -671,7 +484,7 @@ mod tests {
                 Some(t) => write(&dir, name, t),
                 None => dir.join(name),
             };
-            let e = Swatch::load(p.to_str().unwrap(), None)
+            let e = PreparedMesh::load(p.to_str().unwrap(), None)
                 .unwrap_err()
                 .to_string();
             assert!(e.contains(name) && e.contains(want), "{name}: {e}");
@@ -688,7 +501,7 @@ mod tests {
             ([0.01, 0.01], "at most 16 tiles per axis"),
             ([1e30, 1e30], "too small for f32 against the 1e30×1e30 tile"),
         ] {
-            let e = Swatch::load(p.to_str().unwrap(), Some(t))
+            let e = PreparedMesh::load(p.to_str().unwrap(), Some(t))
                 .unwrap_err()
                 .to_string();
             assert!(e.contains("--tile") && e.contains(want), "{t:?}: {e}");
@@ -697,7 +510,7 @@ mod tests {
         let latin1 = dir.join("latin1.obj");
         std::fs::write(&latin1, b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n").unwrap();
         assert_eq!(
-            Swatch::load(latin1.to_str().unwrap(), None)
+            PreparedMesh::load(latin1.to_str().unwrap(), None)
                 .unwrap()
                 .triangles
                 .len(),
@@ -717,7 +530,7 @@ mod tests {
                 b = off + 1.0,
                 z = off
             );
-            let obj = parse_obj(text.as_bytes(), "far.obj").unwrap();
+            let obj = obj::parse_obj(text.as_bytes(), "far.obj").unwrap();
             let (mesh, shift) = obj.recentred(tile);
             let want_x = if tile.is_some() { off.floor() } else { off };
             assert_eq!(shift, [-want_x, 0.0]);
@@ -741,7 +554,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             tile: [1.0, 1.0],
         };
-        let s = Swatch::from_mesh(mesh, None, "ramp").unwrap();
+        let s = PreparedMesh::from_mesh(mesh, None, "ramp").unwrap();
         assert!(
             (s.seams[0].mismatch.unwrap() - 0.3).abs() < 1e-6,
             "{:?}",

@@ -9,11 +9,12 @@ use std::collections::HashMap;
 use std::ops::Range;
 use std::time::Instant;
 
+use ptm_fit::hash::splitmix64;
 use ptm_fit::LightSet;
 use rayon::prelude::*;
 
 use crate::embree::{self, Device, Scene};
-use crate::swatch::Swatch;
+use crate::swatch::PreparedMesh;
 use crate::tiling;
 use crate::{Error, Result};
 
@@ -49,7 +50,7 @@ pub const MAX_LIGHT_DISTANCE: f64 = 1e6;
 /// hemisphere of radius `r` about (W/2, H/2, 0) must lie outside the swatch's bounding box
 /// (a light inside the cloth shadows nothing sensible), and `r` must stay within
 /// [`MAX_LIGHT_DISTANCE`] swatch sizes.
-pub fn check_light_distance(r: f64, swatch: &Swatch) -> Result<()> {
+pub fn check_light_distance(r: f64, swatch: &PreparedMesh) -> Result<()> {
     let b = &swatch.bounds;
     let centre = [swatch.tile[0] / 2.0, swatch.tile[1] / 2.0, 0.0];
     // Farthest corner of the bounds from the centre: the bounding box lies inside that sphere.
@@ -82,12 +83,16 @@ pub fn check_light_distance(r: f64, swatch: &Swatch) -> Result<()> {
 /// Figures of one bake, for `--json` and the benchmark.
 #[derive(Clone, Debug, Default)]
 pub struct BakeReport {
+    /// Primary (camera) rays traced: texels × samples per texel.
     pub primary_rays: u64,
+    /// Shadow rays traced over all lights.
     pub shadow_rays: u64,
     /// Samples counted occluded without tracing: surface facing away from the light, or the
     /// light at or below the horizon.
     pub shadow_rays_skipped: u64,
+    /// Seconds building Embree scenes (central tile and shadow copies).
     pub seconds_scene: f64,
+    /// Seconds tracing primary rays.
     pub seconds_primary: f64,
     /// Shadow tracing plus the sink's own time (shadow-scene builds count in `seconds_scene`).
     pub seconds_shadow: f64,
@@ -157,7 +162,7 @@ pub struct Baker {
 
 impl Baker {
     /// Builds the Embree scenes and traces the primary hits.
-    pub fn new(swatch: &Swatch, cfg: &BakeConfig) -> Result<Self> {
+    pub fn new(swatch: &PreparedMesh, cfg: &BakeConfig) -> Result<Self> {
         Self::new_rows(swatch, cfg, 0..cfg.res[1])
     }
 
@@ -165,7 +170,7 @@ impl Baker {
     /// the sink and [`Baker::coverage`] then hold `rows.len()` rows. Sample positions hash the
     /// global texel index, so these rows are bit-identical to the same rows of a whole bake.
     /// `rows.start` must be a multiple of 4 (the tracer's texel blocks).
-    pub fn new_rows(swatch: &Swatch, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
+    pub fn new_rows(swatch: &PreparedMesh, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
         let [nx, ny] = cfg.res;
         if nx == 0 || ny == 0 || cfg.spp == 0 {
             return Err(Error::Config(format!(
@@ -248,17 +253,9 @@ impl Baker {
         &self.coverage
     }
 
-    pub fn config(&self) -> &BakeConfig {
-        &self.cfg
-    }
-
     /// The image rows this baker traces (all rows unless built by [`Baker::new_rows`]).
     pub fn rows(&self) -> Range<usize> {
         self.rows.clone()
-    }
-
-    pub fn report(&self) -> &BakeReport {
-        &self.report
     }
 
     fn scene_for(&mut self, copies: &[[i32; 2]]) -> Result<&Scene> {
@@ -454,12 +451,6 @@ impl Baker {
         self.shadow_scenes.get(&copies)
     }
 
-    /// Shadow-ray origins and normals of the primary hits, block-major as traced (for the
-    /// raw-Embree benchmark): `(org, n, hit)`.
-    pub fn primary_samples(&self) -> impl Iterator<Item = ([f32; 3], [f32; 3], bool)> + '_ {
-        self.samples.iter().map(|s| (s.org, s.n, s.hit))
-    }
-
     /// The clamp plane of shadow rays and the height of the camera (mesh units).
     pub fn z_cap(&self) -> f64 {
         self.z_cap
@@ -634,29 +625,27 @@ pub fn sample_xy(
 /// Two uniform numbers in [0, 1) from (texel, sample, seed): SplitMix64 finalisers over a
 /// combined key, 24 bits each (exact in f32 and f64).
 fn jitter(texel: u64, sample: u64, seed: u64) -> (f64, f64) {
-    let h = mix(mix(seed ^ 0x9e37_79b9_7f4a_7c15).wrapping_add(texel)
-        ^ mix(sample.wrapping_add(0x632b_e59b_d9b4_e019)));
+    let h = splitmix64(
+        splitmix64(seed ^ 0x9e37_79b9_7f4a_7c15).wrapping_add(texel)
+            ^ splitmix64(sample.wrapping_add(0x632b_e59b_d9b4_e019)),
+    );
     let u = (h >> 40) as f64 / (1u64 << 24) as f64;
     let v = ((h >> 16) & 0xff_ffff) as f64 / (1u64 << 24) as f64;
     (u, v)
-}
-
-fn mix(mut z: u64) -> u64 {
-    z = z.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    z ^ (z >> 31)
 }
 
 /// A plane collector: every light's K plane (and uv planes for point lights) in memory, for
 /// `-o samples.exr` and tests.
 #[derive(Clone, Debug, Default)]
 pub struct Planes {
+    /// Per light in order, the K plane (row-major, row 0 at y = H).
     pub k: Vec<Vec<f32>>,
+    /// Per light, the (u, v) of the light seen from each texel (point lights only).
     pub uv: Option<Vec<Vec<[f32; 2]>>>,
 }
 
 impl Planes {
+    /// Appends light `index`'s planes; a [`Sink`] for [`Baker::trace`] (lights arrive in order).
     pub fn push(&mut self, index: usize, k: &[f32], uv: Option<&[[f32; 2]]>) -> Result<()> {
         debug_assert_eq!(index, self.k.len());
         self.k.push(k.to_vec());
@@ -669,7 +658,7 @@ impl Planes {
 
 /// Bakes `lights` over `swatch` into memory: (planes, coverage, report).
 pub fn bake_planes(
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     lights: &LightSet,
     cfg: &BakeConfig,
 ) -> Result<(Planes, Vec<f32>, BakeReport)> {
@@ -684,6 +673,15 @@ mod tests {
     use super::*;
 
     #[test]
+    fn sample_jitter_is_pinned() {
+        // Values of the bake's own splitmix64 before it moved to ptm_format::hash: sample
+        // positions, and so every baked file, must not change.
+        let q = |n: u32| n as f64 / (1u64 << 24) as f64;
+        assert_eq!(jitter(0, 0, 0), (q(3_220_021), q(14_766_942)));
+        assert_eq!(jitter(12_345, 7, 42), (q(9_344_779), q(6_093_084)));
+    }
+
+    #[test]
     fn every_tracing_thread_flushes_denormals() {
         let mesh = ptm_swatches::Mesh {
             positions: vec![
@@ -695,7 +693,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             tile: [1.0, 1.0],
         };
-        let swatch = Swatch::from_mesh(mesh, None, "quad").unwrap();
+        let swatch = PreparedMesh::from_mesh(mesh, None, "quad").unwrap();
         let cfg = BakeConfig {
             res: [4, 4],
             spp: 1,
@@ -724,7 +722,7 @@ mod tests {
             triangles: vec![[0, 1, 2], [0, 2, 3]],
             tile: [1.0, 1.0],
         };
-        let swatch = Swatch::from_mesh(mesh, None, "quad").unwrap();
+        let swatch = PreparedMesh::from_mesh(mesh, None, "quad").unwrap();
         assert!(check_light_distance(0.9, &swatch).is_ok());
         assert!(check_light_distance(1e6, &swatch).is_ok());
         for r in [0.5, 1e-30, 0.0, -3.0, f64::NAN] {

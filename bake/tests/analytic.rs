@@ -1,7 +1,7 @@
 //! Analytic bake tests: scenes whose occlusion is known in closed form (flat plane, an
 //! infinitely long wall under grazing lights, a sphere on a plane), plus seams, packets versus
 //! single rays, thread-count and scale invariance.
-use ptm_bake::{bake_planes, BakeConfig, Swatch};
+use ptm_bake::{bake_planes, BakeConfig, PreparedMesh};
 use ptm_fit::LightSet;
 use ptm_swatches::Mesh;
 
@@ -81,7 +81,7 @@ fn sphere_scene() -> Mesh {
 fn flat_plane_is_never_occluded() {
     let mut m = unit_mesh();
     plane(&mut m, 8, 0.0);
-    let s = Swatch::from_mesh(m, None, "plane").unwrap();
+    let s = PreparedMesh::from_mesh(m, None, "plane").unwrap();
     let lights = ptm_bake::dome::fibonacci(32, 5.0).unwrap();
     let (planes, coverage, rep) = bake_planes(&s, &lights, &cfg(32, 4)).unwrap();
     assert!(coverage.iter().all(|&c| c == 1.0));
@@ -109,7 +109,7 @@ fn infinite_wall_shadow_band_across_several_tiles() {
         [0.5, 0.0, h],
     ]);
     m.triangles.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
-    let s = Swatch::from_mesh(m, None, "wall").unwrap();
+    let s = PreparedMesh::from_mesh(m, None, "wall").unwrap();
     // Band width D = 0.23 tile (its far edge inside a texel), light towards −x (so the band
     // lies at x > 0.5) and mostly +y.
     let dirs: Vec<[f64; 3]> = [5.0f64, 10.0]
@@ -167,7 +167,7 @@ fn infinite_wall_shadow_band_across_several_tiles() {
 /// own half with n·l < 0 is dark.
 #[test]
 fn sphere_on_plane_shadow_and_terminator() {
-    let s = Swatch::from_mesh(sphere_scene(), None, "sphere").unwrap();
+    let s = PreparedMesh::from_mesh(sphere_scene(), None, "sphere").unwrap();
     let (e, phi) = (40.0f64, 30.0f64);
     let l = light(e, phi);
     let lights = LightSet::from_dirs([l]);
@@ -250,7 +250,7 @@ fn seams_are_continuous() {
     let lights = LightSet::from_dirs([light(20.0, 170.0), light(35.0, -10.0)]);
     let res = 32;
     let bake = |m: Mesh| {
-        let s = Swatch::from_mesh(m, None, "sphere").unwrap();
+        let s = PreparedMesh::from_mesh(m, None, "sphere").unwrap();
         bake_planes(&s, &lights, &cfg(res, 16)).unwrap().0
     };
     let (a, b) = (bake(m), bake(shifted));
@@ -278,7 +278,7 @@ fn seams_are_continuous() {
 
 #[test]
 fn packets_single_rays_and_thread_counts_agree_exactly() {
-    let s = Swatch::from_mesh(sphere_scene(), None, "sphere").unwrap();
+    let s = PreparedMesh::from_mesh(sphere_scene(), None, "sphere").unwrap();
     let lights = ptm_bake::dome::fibonacci(8, 5.0).unwrap();
     let base = cfg(32, 4);
     let (p2, c2, _) = bake_planes(&s, &lights, &base).unwrap();
@@ -320,7 +320,7 @@ fn scale_does_not_change_k() {
             *p = p.map(|c| c * f);
         }
         m.tile = [f, f];
-        let s = Swatch::from_mesh(m, None, "sphere").unwrap();
+        let s = PreparedMesh::from_mesh(m, None, "sphere").unwrap();
         bake_planes(&s, &lights, &cfg(32, spp)).unwrap().0
     };
     let reference = bake(1.0);
@@ -352,7 +352,7 @@ fn scale_does_not_change_k() {
 fn point_lights_record_per_texel_directions() {
     let mut m = unit_mesh();
     plane(&mut m, 2, 0.0);
-    let s = Swatch::from_mesh(m, None, "plane").unwrap();
+    let s = PreparedMesh::from_mesh(m, None, "plane").unwrap();
     let lights = LightSet::from_dirs([light(45.0, 0.0)]);
     let r = 2.0;
     let res = 16;
@@ -404,7 +404,7 @@ fn offset_obj_bakes_the_same_k() {
         }
         let path = dir.join(format!("sphere-{}.obj", off[0]));
         std::fs::write(&path, text).unwrap();
-        let s = Swatch::load(path.to_str().unwrap(), None).unwrap();
+        let s = PreparedMesh::load(path.to_str().unwrap(), None).unwrap();
         bake_planes(&s, &lights, &cfg(32, spp)).unwrap()
     };
     let (reference, cov, _) = bake([0.0; 3]);

@@ -1,21 +1,8 @@
 //! Cross-check against an independent brute-force tracer (Möller–Trumbore over every triangle
 //! of a full (2k+1)² block of copies, k = ⌈H_z / (W·tan e)⌉, in f64): same sample positions,
 //! same offsets, no Embree and none of the baker's copy selection.
-use ptm_bake::{bake_planes, dome, sample_xy, BakeConfig, Swatch};
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
+use ptm_bake::{bake_planes, dome, sample_xy, BakeConfig, PreparedMesh};
+use ptm_fit::vec3::{cross, dot, sub};
 
 /// Distance t ∈ (0, tfar) to triangle `v` along `o + t·d`, if hit.
 fn hit(o: [f64; 3], d: [f64; 3], v: [[f64; 3]; 3], tfar: f64) -> Option<(f64, [f64; 3])> {
@@ -45,7 +32,7 @@ fn point_lights_match_a_brute_force_tracer() {
 }
 
 fn compare_with_brute_force(light_distance: Option<f64>) {
-    let swatch = Swatch::load("builtin:plain-weave", None).unwrap();
+    let swatch = PreparedMesh::load("builtin:plain-weave", None).unwrap();
     let lights = dome::fibonacci(6, 12.0).unwrap();
     let (res, spp) = (8usize, 1usize);
     let cfg = BakeConfig {

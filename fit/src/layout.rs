@@ -44,8 +44,10 @@ pub enum Layout {
 }
 
 impl Layout {
+    /// Every layout, in the order `--layout` lists them.
     pub const ALL: [Layout; 2] = [Layout::Channels, Layout::Rgba];
 
+    /// The layout's name as `--layout` and the `ptm:layout` attribute spell it.
     pub fn name(self) -> &'static str {
         match self {
             Layout::Channels => "channels",
@@ -53,6 +55,7 @@ impl Layout {
         }
     }
 
+    /// The layout [`Layout::name`] names, if any.
     pub fn from_name(name: &str) -> Option<Layout> {
         Layout::ALL.into_iter().find(|l| l.name() == name)
     }
@@ -162,9 +165,13 @@ pub struct Map {
 /// renderer layout's own `ptm:layout`, `ptm:part*` and `wrapmodes`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct PtmFile {
+    /// Texels per row at level 0.
     pub width: usize,
+    /// Rows at level 0.
     pub height: usize,
+    /// Every map by its channel-layout name, with its resolution levels.
     pub maps: BTreeMap<String, Map>,
+    /// Every header attribute of the PTM, verbatim (UTF-8 text bytes as written).
     pub attrs: BTreeMap<String, AttributeValue>,
 }
 

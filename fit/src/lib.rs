@@ -38,7 +38,7 @@ pub mod stack;
 
 // The file layer, re-exported so `ptm_fit::Ptm`, `ptm_fit::basis::…` and `crate::ptm::…` here
 // keep naming the same items.
-pub use ptm_format::{atomic, basis, exrio, hp, ptm};
+pub use ptm_format::{atomic, basis, exrio, hash, hp, ptm, vec3};
 pub use ptm_format::{Error as FormatError, FileFacts, ToFileFacts};
 
 pub use basis::{Basis, Link, Monomial, UvMap};
@@ -51,32 +51,53 @@ pub use stack::SampleStack;
 /// Errors of the fit crate. Messages name the input and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {
+        /// The file, as given.
         path: String,
+        /// The operating system's error.
         source: std::io::Error,
     },
+    /// A malformed line of a light file (`.lp`).
     #[error("{path}: line {line}: {reason}")]
     LightFile {
+        /// The light file, as given.
         path: String,
+        /// 1-based line number.
         line: usize,
+        /// What is wrong with the line.
         reason: String,
     },
+    /// A file that is not what it should be (a stack or image set with a missing or bad part).
     #[error("{path}: {reason}")]
-    Format { path: String, reason: String },
+    Format {
+        /// The file, as given.
+        path: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// Arguments or data that make no fit (sizes that disagree, an empty light set).
     #[error("{0}")]
     Invalid(String),
+    /// A NaN or infinite K sample, refused unless bad samples are skipped.
     #[error("non-finite sample {value} at texel (column {col}, row {row}) for light {light}: fix the input, or pass --skip-bad to drop such samples")]
     BadSample {
+        /// Texel column (0-based).
         col: usize,
+        /// Texel row (0-based, row 0 at y = H).
         row: usize,
+        /// Light index in the light set (0-based).
         light: usize,
+        /// The sample as read.
         value: f32,
     },
+    /// A warning about the light set, an error because strict fitting was asked for.
     #[error("--strict: {0}")]
     Strict(String),
 }
 
+/// The fit crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;
 
 /// The file layer's errors become the same-named variants here, so matches on

@@ -6,6 +6,7 @@
 //! vector, as relight's reader does). Vectors are normalised on read.
 use std::path::Path;
 
+use crate::vec3::normalize;
 use crate::{Error, Result};
 
 /// An ordered set of distant lights. Order is significant: the bake writes channel `K.0003` for
@@ -26,10 +27,12 @@ impl LightSet {
         Self { names, dirs }
     }
 
+    /// Number of lights.
     pub fn len(&self) -> usize {
         self.dirs.len()
     }
 
+    /// Whether the set has no light.
     pub fn is_empty(&self) -> bool {
         self.dirs.is_empty()
     }
@@ -129,11 +132,6 @@ impl LightSet {
     pub fn write_lp(&self, path: &Path) -> Result<()> {
         Ok(crate::atomic::write_bytes(path, self.to_lp().as_bytes())?)
     }
-}
-
-fn normalize(v: [f64; 3]) -> [f64; 3] {
-    let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-    [v[0] / len, v[1] / len, v[2] / len]
 }
 
 #[cfg(test)]

@@ -706,8 +706,11 @@ unsafe fn block_avx512<const M: usize, const D: usize>(
 /// Which build of the kernel runs: the widest the CPU supports, unless forced.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kernel {
+    /// Plain Rust over 8-lane arrays, on any CPU.
     Portable,
+    /// AVX2 with FMA, 8 f32 lanes.
     Avx2,
+    /// AVX-512F, 16 f32 lanes.
     Avx512,
 }
 
@@ -744,6 +747,7 @@ impl Kernel {
         }
     }
 
+    /// Texels one kernel call fits side by side.
     pub fn lanes(self) -> usize {
         match self {
             Kernel::Avx512 => 16,
@@ -758,6 +762,7 @@ impl Kernel {
             .find(|k| k.name() == name)
     }
 
+    /// The build in words, as reports print it.
     pub fn name(self) -> &'static str {
         match self {
             Kernel::Portable => "portable",

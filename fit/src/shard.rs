@@ -39,7 +39,9 @@ pub const ROW_BLOCK: usize = 16;
 /// Shard `index` of `count` (0-based), as `--shard I/N` names it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Shard {
+    /// Which shard, 0-based, below `count`.
     pub index: usize,
+    /// How many shards the bake is split into.
     pub count: usize,
 }
 
@@ -124,11 +126,13 @@ pub fn fingerprint<'a>(chunks: impl IntoIterator<Item = &'a [u8]>) -> String {
 /// What identifies a part: which shard, and of which bake.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartMeta {
+    /// Which shard of how many this part is.
     pub shard: Shard,
     /// Rows of the full image this part holds.
     pub rows: Range<usize>,
     /// Size of the full image (texels per row, rows).
     pub width: usize,
+    /// Rows of the full image.
     pub height: usize,
     /// Every setting of the full bake that changes its output, in words (equal for all parts).
     pub settings: String,
@@ -142,12 +146,14 @@ pub struct PartMeta {
 /// per-texel maps the merge recomputes statistics from.
 #[derive(Clone, Debug)]
 pub struct PtmPart {
+    /// The part's rows of the fitted PTM (no MIP levels).
     pub ptm: Ptm,
     /// Light count, lights in the fit, solver, rank, condition, light-set warnings; `rms_map`
     /// holds the part's rows.
     pub fit: FitReport,
     /// Coverage of the part's rows (always stored, also where it is all 1).
     pub coverage: Vec<f32>,
+    /// The light set of the bake, equal in every part.
     pub lights: LightSet,
     /// The whole bake's PTM carries MIP levels. Identity link: the merge computes them all
     /// from the merged coefficients (coverage-weighted box averages, as `Accumulator::finish`).
@@ -217,15 +223,20 @@ pub(crate) fn local_levels(
 /// A part's content: rows of a sample stack, or rows of a PTM with its fit facts.
 #[derive(Clone, Debug)]
 pub enum PartData {
+    /// Rows of a sample stack.
     Stack(SampleStack),
+    /// Rows of a PTM with the fit's facts.
     Ptm(Box<PtmPart>),
 }
 
 /// A part read and checked.
 #[derive(Clone, Debug)]
 pub struct Part {
+    /// The part file, for messages.
     pub path: PathBuf,
+    /// Which shard of which bake it holds.
     pub meta: PartMeta,
+    /// Its rows.
     pub data: PartData,
 }
 
@@ -234,8 +245,11 @@ pub struct Part {
 pub struct Merged {
     /// `"stack"` or `"ptm"`.
     pub kind: String,
+    /// Texels per row of the merged file.
     pub width: usize,
+    /// Rows of the merged file.
     pub height: usize,
+    /// Its light set.
     pub lights: LightSet,
 }
 

@@ -57,7 +57,7 @@ fn poly_stack(
 
 fn random_stack(lights: &LightSet, w: usize, h: usize, rng: &mut Rng) -> SampleStack {
     let k = (0..lights.len())
-        .map(|_| (0..w * h).map(|_| rng.next() as f32).collect())
+        .map(|_| (0..w * h).map(|_| rng.uniform() as f32).collect())
         .collect();
     SampleStack {
         width: w,

@@ -12,8 +12,11 @@
 /// A monomial u^a · v^b with its channel name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Monomial {
+    /// EXR channel name of the coefficient (`c0`, `c1`, …).
     pub name: &'static str,
+    /// Power of u.
     pub pu: u8,
+    /// Power of v.
     pub pv: u8,
 }
 
@@ -53,6 +56,7 @@ pub enum Basis {
 }
 
 impl Basis {
+    /// Every basis, in the order help texts list them.
     pub const ALL: [Basis; 2] = [Basis::Ptm6, Basis::Ptm11];
 
     /// `"ptm6"` or `"ptm11"`: the name on the command line and in the file header.
@@ -63,10 +67,12 @@ impl Basis {
         }
     }
 
+    /// The basis whose [`Basis::name`] is `name` (as the file's `ptm:basis` and the CLI spell it).
     pub fn from_name(name: &str) -> Option<Basis> {
         Basis::ALL.into_iter().find(|b| b.name() == name)
     }
 
+    /// The basis's monomials in coefficient order (channel i holds the coefficient of the i-th).
     pub fn monomials(self) -> &'static [Monomial] {
         match self {
             Basis::Ptm6 => &PTM6,
@@ -107,6 +113,7 @@ pub enum Link {
 }
 
 impl Link {
+    /// Every link, in the order help texts list them.
     pub const ALL: [Link; 2] = [Link::Identity, Link::Logistic];
 
     /// `"identity"` or `"logistic"`: the name on the command line and in `ptm:link`.
@@ -117,6 +124,7 @@ impl Link {
         }
     }
 
+    /// The link whose name is `name` (as `ptm:link` and the CLI spell it).
     pub fn from_name(name: &str) -> Option<Link> {
         Link::ALL.into_iter().find(|l| l.name() == name)
     }
@@ -164,6 +172,7 @@ pub enum UvMap {
 }
 
 impl UvMap {
+    /// Every (u, v) map, in the order help texts list them.
     pub const ALL: [UvMap; 2] = [UvMap::Projected, UvMap::Hemispherical];
 
     /// `"projected"` or `"hemispherical"`: the name on the command line and in `ptm:uv`.
@@ -174,6 +183,7 @@ impl UvMap {
         }
     }
 
+    /// The map whose name is `name` (as `ptm:uv` and the CLI spell it).
     pub fn from_name(name: &str) -> Option<UvMap> {
         UvMap::ALL.into_iter().find(|m| m.name() == name)
     }
@@ -253,10 +263,13 @@ pub fn products(basis: Basis) -> (Vec<(u8, u8)>, Vec<usize>) {
 
 /// Minimal float abstraction so the same table serves f32 evaluation and f64 fitting.
 pub mod num_like {
+    /// f32 or f64, as far as evaluating a monomial needs.
     pub trait Float:
         Copy + std::ops::Add<Output = Self> + std::ops::Mul<Output = Self> + PartialOrd
     {
+        /// Additive identity.
         fn zero() -> Self;
+        /// x to the small non-negative power n (x⁰ = 1).
         fn powi(x: Self, n: u8) -> Self;
     }
     macro_rules! float {

@@ -16,16 +16,22 @@ use crate::{Error, Result};
 
 /// Samples of one channel as stored: f32 or half.
 pub enum Samples {
+    /// 32-bit float samples.
     F32(Vec<f32>),
+    /// Half-float samples.
     F16(Vec<f16>),
 }
 
 /// A header attribute of one of the portable types.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Attr {
+    /// UTF-8 text (read back leniently as Latin-1).
     Text(String),
+    /// A list of texts (EXR `stringvector`).
     Texts(Vec<String>),
+    /// A double.
     F64(f64),
+    /// A 32-bit integer.
     I32(i32),
 }
 
@@ -211,14 +217,19 @@ fn sort_header_attributes(bytes: &mut [u8], path: &Path) -> Result<()> {
 
 /// The contents of a single-part flat EXR: channels by name, header attributes by name.
 pub struct Contents {
+    /// The file, for messages.
     pub path: String,
+    /// Width of the full-resolution level, pixels.
     pub width: usize,
+    /// Height of the full-resolution level, pixels.
     pub height: usize,
+    /// Full-resolution samples of each channel, row-major.
     pub channels: HashMap<String, Samples>,
     /// Coarser resolution levels 1, 2, … of each channel of a MIP-mapped file (else empty).
     pub levels: HashMap<String, Vec<Samples>>,
     /// Sizes of those levels.
     pub level_sizes: Vec<(usize, usize)>,
+    /// Header attributes of the portable types, by name (others are skipped).
     pub attrs: HashMap<String, Attr>,
 }
 
@@ -386,6 +397,7 @@ impl Contents {
             .collect()
     }
 
+    /// The text attribute `name`, or an error saying the `what` lacks it.
     pub fn text(&self, name: &str, what: &str) -> Result<String> {
         match self.attrs.get(name) {
             Some(Attr::Text(s)) => Ok(s.clone()),
@@ -393,6 +405,7 @@ impl Contents {
         }
     }
 
+    /// The text-vector attribute `name`, or an error saying the `what` lacks it.
     pub fn texts(&self, name: &str, what: &str) -> Result<Vec<String>> {
         match self.attrs.get(name) {
             Some(Attr::Texts(v)) => Ok(v.clone()),
@@ -400,6 +413,7 @@ impl Contents {
         }
     }
 
+    /// The number attribute `name` (a double or an integer), or an error saying the `what` lacks it.
     pub fn f64(&self, name: &str, what: &str) -> Result<f64> {
         match self.attrs.get(name) {
             Some(Attr::F64(x)) => Ok(*x),

@@ -18,7 +18,9 @@ pub const HP_FROM_PTM6: [usize; 6] = [0, 4, 2, 1, 3, 5];
 /// What the export wrote and the error its 8-bit quantisation adds.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HpExport {
+    /// Per-coefficient scale of the 8-bit quantisation (HP's `scale` line), in HP slot order.
     pub scales: [f32; 6],
+    /// Per-coefficient bias of the quantisation (HP's `bias` line), in HP slot order.
     pub biases: [i32; 6],
     /// Max over texels of Σ|a − dequantised a| / 255: a bound on the change of V (= of K)
     /// anywhere on the unit disk (every term is at most 1 in magnitude there).

@@ -1,7 +1,9 @@
 //! `ptm-format`: the occlusion PTM file and all a render pipeline needs to use one — the
 //! polynomial bases, links and (u, v) maps ([`basis`]), the PTM in memory with [`Ptm::load`],
 //! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), HP PTM 1.2
-//! export ([`hp`]) and the atomic file output every writer of the workspace uses ([`atomic`]).
+//! export ([`hp`]), the atomic file output every writer of the workspace uses ([`atomic`]), the
+//! one seeded hash every crate draws its random numbers from ([`hash`]) and the 3-vector helpers
+//! ([`vec3`]).
 //!
 //! It depends on `exr`, `half` and `thiserror` only: no solver (nalgebra), no thread pool
 //! (rayon), no image codec, no Embree, no wgpu. The fitter (`ptm-fit`) builds on it and
@@ -29,8 +31,10 @@
 pub mod atomic;
 pub mod basis;
 pub mod exrio;
+pub mod hash;
 pub mod hp;
 pub mod ptm;
+pub mod vec3;
 
 pub use atomic::{same_file, write_atomic, Transaction};
 pub use basis::{Basis, Link, Monomial, UvMap};
@@ -39,17 +43,26 @@ pub use ptm::{FileFacts, Level, Ptm, PtmInfo, SaveOptions, ToFileFacts};
 /// Errors of the format crate. Messages name the file and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {
+        /// The file, as given.
         path: String,
+        /// The operating system's error.
         source: std::io::Error,
     },
     /// A file that is not what it should be (not a PTM, a missing channel, a bad attribute).
     #[error("{path}: {reason}")]
-    Format { path: String, reason: String },
+    Format {
+        /// The file, as given.
+        path: String,
+        /// What is wrong with it.
+        reason: String,
+    },
     /// Arguments that make no file (plane sizes, a basis the format cannot hold).
     #[error("{0}")]
     Invalid(String),
 }
 
+/// The format crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;

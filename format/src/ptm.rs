@@ -36,7 +36,9 @@ pub const PTM_VERSION_2: &str = "occlusion-ptm/2";
 /// One coarser MIP level of a PTM: coefficients fitted to the box-filtered K of its footprint.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Level {
+    /// Width of the level, texels.
     pub width: usize,
+    /// Height of the level, texels.
     pub height: usize,
     /// Coefficient planes in basis order, row-major.
     pub planes: Vec<Vec<f32>>,
@@ -45,6 +47,7 @@ pub struct Level {
 /// An occlusion PTM: per texel, the coefficients of K = link(p(u, v)) in `basis`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Ptm {
+    /// The polynomial basis p(u, v) the coefficient planes are in.
     pub basis: Basis,
     /// K = p (identity) or K = σ(p) (logistic).
     pub link: Link,
@@ -110,6 +113,7 @@ pub struct FileFacts<'a> {
     /// Mean and 99th percentile over covered texels of the per-texel RMS error of K
     /// (`ptm:rmsMean`, `ptm:rmsP99`).
     pub rms_mean: f64,
+    /// 99th percentile of the same (`ptm:rmsP99`).
     pub rms_p99: f64,
     /// 99th percentile of the per-texel maximum error of K, when measured (`ptm:maxErrP99`).
     pub max_p99: Option<f64>,
@@ -121,11 +125,13 @@ pub struct FileFacts<'a> {
     /// Per-texel RMS and maximum error of K, row-major (empty when not computed); written as
     /// `err.rms` / `err.max` when [`SaveOptions::error_map`] is set.
     pub rms_map: &'a [f32],
+    /// Per-texel maximum error of K, row-major, beside `rms_map`.
     pub max_map: &'a [f32],
 }
 
 /// Something that states the [`FileFacts`] of a PTM file.
 pub trait ToFileFacts {
+    /// The file-level facts to record in the header.
     fn file_facts(&self) -> FileFacts<'_>;
 }
 
@@ -140,13 +146,19 @@ impl ToFileFacts for FileFacts<'_> {
 pub struct PtmInfo {
     /// `"float32"` or `"half"`.
     pub storage: String,
+    /// Lights in the light set (`ptm:nLights`), when recorded.
     pub lights: Option<usize>,
+    /// The solver in words (`ptm:solver`), when recorded.
     pub solver: Option<String>,
+    /// Rank of the design (`ptm:rank`), when recorded.
     pub rank: Option<usize>,
+    /// Condition number of the design (`ptm:cond`), when recorded.
     pub cond: Option<f64>,
+    /// Mean per-texel RMS error of K over covered texels (`ptm:rmsMean`), when recorded.
     pub rms_mean: Option<f64>,
     /// Per-texel error maps when the file has them (`err.rms`, `err.max`).
     pub err_rms: Option<Vec<f32>>,
+    /// Per-texel maximum error of K (`err.max`), row-major, beside `err_rms`.
     pub err_max: Option<Vec<f32>>,
     /// Per-texel coverage when the file has it (`coverage`: 0 = no cloth under the texel).
     pub coverage: Option<Vec<f32>>,

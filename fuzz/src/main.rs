@@ -136,14 +136,14 @@ fn err(e: impl std::fmt::Display) -> String {
     e.to_string()
 }
 
-/// OBJ: the bake's reader, f64 recentring, the swatch checks, and the tiling plans of a few
+/// OBJ: the one reader (ptm_swatches::obj), f64 recentring, the swatch checks, and the tiling plans of a few
 /// lights (the copies a mesh much larger than its tile would multiply).
 fn run_obj(bytes: &[u8], _: &Path) -> Result<(), String> {
-    use ptm_bake::{swatch, tiling, Swatch};
-    let obj = swatch::parse_obj(bytes, "fuzz.obj").map_err(err)?;
+    use ptm_bake::{tiling, PreparedMesh};
+    let obj = ptm_swatches::obj::parse_obj(bytes, "fuzz.obj").map_err(err)?;
     let tile = obj.tile;
     let (mesh, _) = obj.recentred(tile);
-    let s = Swatch::from_mesh(mesh, tile, "fuzz.obj").map_err(err)?;
+    let s = PreparedMesh::from_mesh(mesh, tile, "fuzz.obj").map_err(err)?;
     let _ = s.warnings();
     let margin = 1e-6 * s.scale();
     let mut copies = tiling::copies_meeting(s.tile, &s.bounds, &[], margin).len();
@@ -244,22 +244,8 @@ fn run_caster(bytes: &[u8], tmp: &Path) -> Result<(), String> {
     Ok(())
 }
 
-/// splitmix64: mutants are a function of (seed, reader, case) alone.
-struct Rng(u64);
-
-impl Rng {
-    fn next(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    fn below(&mut self, n: usize) -> usize {
-        (self.next() % n.max(1) as u64) as usize
-    }
-}
+// splitmix64: mutants are a function of (seed, reader, case) alone.
+use ptm_fit::hash::SplitMix as Rng;
 
 /// Numbers and tokens that break readers: zero, negative, huge counts, non-finite values,
 /// subnormals, integer limits.
@@ -331,7 +317,7 @@ fn mutant(seed: u64, reader: usize, case: u64, corpus: &[Vec<u8>], text: bool) -
         return corpus[case as usize].clone();
     }
     let mut r = Rng(seed ^ (reader as u64).wrapping_mul(0x5851_f42d_4c95_7f2d) ^ case << 20);
-    r.next();
+    r.next_u64();
     let mut d = corpus[r.below(corpus.len())].clone();
     for _ in 0..1 + r.below(4) {
         let n = d.len();
@@ -342,11 +328,21 @@ fn mutant(seed: u64, reader: usize, case: u64, corpus: &[Vec<u8>], text: bool) -
             }
             1 if n > 0 => {
                 let i = r.below(n);
-                d[i] = [0, 0xff, 0x7f, 0x80, b'\n', b'-', b'9', 0xe9, r.next() as u8][r.below(9)];
+                d[i] = [
+                    0,
+                    0xff,
+                    0x7f,
+                    0x80,
+                    b'\n',
+                    b'-',
+                    b'9',
+                    0xe9,
+                    r.next_u64() as u8,
+                ][r.below(9)];
             }
             2 => {
                 let i = r.below(n + 1);
-                let bytes: Vec<u8> = (0..1 + r.below(8)).map(|_| r.next() as u8).collect();
+                let bytes: Vec<u8> = (0..1 + r.below(8)).map(|_| r.next_u64() as u8).collect();
                 d.splice(i..i, bytes);
             }
             3 if n > 0 => {

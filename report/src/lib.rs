@@ -17,7 +17,7 @@ mod tables;
 
 use std::path::PathBuf;
 
-use ptm_bake::Swatch;
+use ptm_bake::PreparedMesh;
 use ptm_fit::{Basis, Link, UvMap, Weight};
 
 pub use runtime::Runtime;
@@ -30,23 +30,30 @@ pub use tables::Tables;
 /// What can stop the study (data-dependent numeric trouble is measured, not an error).
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// A bake of the study failed.
     #[error(transparent)]
     Bake(#[from] ptm_bake::Error),
+    /// A fit of the study failed.
     #[error(transparent)]
     Fit(#[from] ptm_fit::Error),
+    /// Writing or reading a scratch PTM failed.
     #[error(transparent)]
     Format(#[from] ptm_fit::FormatError),
+    /// A builtin swatch could not be built.
     #[error(transparent)]
     Swatch(#[from] ptm_swatches::Error),
+    /// A render of the runtime part failed.
     #[error(transparent)]
     Runtime(#[from] ptm_runtime::Error),
     /// `ptm_runtime::Gpu::new` failed: the runtime part needs an adapter.
     #[error("the runtime part of the report needs a wgpu adapter (lavapipe: scripts/setup.sh)")]
     NoAdapter(#[source] ptm_runtime::Error),
+    /// The options name no swatch.
     #[error("no swatch to study")]
     NoSwatch,
 }
 
+/// The report crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;
 
 /// The (link, (u, v) map) pairs: the patent's plain PTM first, `ptm fit`'s default last.
@@ -73,9 +80,11 @@ pub struct Options {
 /// Sizes of one study: [`Plan::new`] is the one place they are chosen.
 #[derive(Clone, Debug)]
 pub struct Plan {
+    /// The quick plan (`ptm report --quick`): smaller bakes and fewer settings.
     pub quick: bool,
     /// Texels a side and samples per texel of each of the two ground-truth bakes.
     pub truth_res: usize,
+    /// Samples per texel of the truth bakes.
     pub truth_spp: u32,
     /// Held-out light directions the error is measured on.
     pub test_lights: usize,
@@ -88,11 +97,14 @@ pub struct Plan {
     /// Contact sheet: texels across each swatch's tile width, samples per texel, and the
     /// light's elevation in degrees above the swatch plane (azimuth 30°).
     pub sheet_texels: usize,
+    /// Contact sheet: samples per texel.
     pub sheet_spp: u32,
+    /// Contact sheet: the light's elevation, degrees above the swatch plane.
     pub sheet_elevation_deg: f64,
 }
 
 impl Plan {
+    /// The full study's sizes, or the quick ones.
     pub fn new(quick: bool) -> Plan {
         let s = |dirs, spp, res, basis, weight, (link, uv): (Link, UvMap)| Setting {
             dirs,
@@ -170,12 +182,15 @@ impl Plan {
 /// Everything the study measured.
 #[derive(Clone, Debug)]
 pub struct Report {
+    /// The sizes the study ran with.
     pub plan: Plan,
     /// One per swatch of [`Options::swatches`], in order.
     pub swatches: Vec<SwatchStudy>,
+    /// Every parameterless builtin under one low light.
     pub contact_sheet: ContactSheet,
     /// On the first swatch.
     pub stability: Stability,
+    /// Blur methods and penumbra extremes on the adapter found.
     pub runtime: Runtime,
 }
 
@@ -188,7 +203,7 @@ pub fn run(opts: &Options, progress: &mut dyn FnMut(&str)) -> Result<Report> {
     let mut swatches = Vec::new();
     let mut first = None;
     for name in &opts.swatches {
-        let swatch = Swatch::load(&format!("builtin:{name}"), None)?;
+        let swatch = PreparedMesh::load(&format!("builtin:{name}"), None)?;
         let (s, truth) = SwatchStudy::run(name, &swatch, &plan, &test, progress)?;
         swatches.push(s);
         first.get_or_insert((swatch, truth));

@@ -14,7 +14,9 @@ use crate::{Error, Result};
 pub struct Runtime {
     /// The adapter, in words (`Gpu::describe`).
     pub adapter: String,
+    /// One row per blur method against the Monte Carlo ground truth.
     pub blur: Vec<BlurRow>,
+    /// One row per extreme case of the penumbra map.
     pub extremes: Vec<ExtremeRow>,
 }
 
@@ -36,7 +38,9 @@ impl Runtime {
 pub struct BlurRow {
     /// The spherical light's radius, and the penumbra radius it gives on the caster (texels).
     pub light_radius: f32,
+    /// The penumbra radius on the caster, texels.
     pub penumbra_texels: f64,
+    /// The method's errors against the ground truth and its pass times.
     pub measured: compare::BlurRow,
 }
 
@@ -54,15 +58,19 @@ pub enum ProfileWidth {
 /// One extreme case of the penumbra map, measured.
 #[derive(Clone, Debug)]
 pub struct ExtremeRow {
+    /// The case in words.
     pub name: &'static str,
     /// What ptm does about it, in words.
     pub does: &'static str,
+    /// The blur method rendered.
     pub blur: Blur,
     /// The caster was box-downsampled by this factor (1: not) to `caster_texels`.
     pub caster_downsample: usize,
+    /// Caster texels (w, h) after downsampling.
     pub caster_texels: [u32; 2],
     /// Analytic and measured 10–90 % widths of the opacity profile along the strip.
     pub analytic_width: ProfileWidth,
+    /// Measured 10–90 % width (beside `analytic_width`).
     pub measured_width: ProfileWidth,
     /// One caster texel's footprint on the cloth; None where the light lies on the caster
     /// plane.
@@ -71,6 +79,7 @@ pub struct ExtremeRow {
     pub max_deviation: f64,
     /// Largest |GPU − CPU twin| over the image; None where the images do not compare.
     pub gpu_vs_twin: Option<f64>,
+    /// Whether every pixel of the render is finite.
     pub all_finite: bool,
     /// Setup + shade passes, milliseconds.
     pub ms: f64,

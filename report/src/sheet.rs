@@ -1,6 +1,6 @@
 //! The contact sheet's data: every builtin swatch baked under one low light, as visibility
 //! 1 − K per texel (the `ptm report` command draws each as 2×2 tiles so that a seam would show).
-use ptm_bake::{bake_planes, Swatch};
+use ptm_bake::{bake_planes, PreparedMesh};
 use ptm_fit::LightSet;
 
 use crate::study::bake_config;
@@ -18,9 +18,11 @@ pub fn names() -> Vec<&'static str> {
 /// One swatch of the sheet.
 #[derive(Clone, Debug)]
 pub struct SheetCell {
+    /// Builtin name.
     pub name: &'static str,
     /// Texels across and down the tile (down: in proportion to the tile, at most `texels`).
     pub width: usize,
+    /// Texels down the tile.
     pub height: usize,
     /// Row-major, `width × height`: 1 − K, or None where no surface lies under the texel.
     pub visibility: Vec<Option<f32>>,
@@ -31,6 +33,7 @@ pub struct SheetCell {
 pub struct ContactSheet {
     /// Texels across each swatch's tile width.
     pub texels: usize,
+    /// One per builtin of [`names`], in that order.
     pub cells: Vec<SheetCell>,
 }
 
@@ -42,7 +45,7 @@ impl ContactSheet {
         let light = LightSet::from_dirs([[e.cos() * a.cos(), e.cos() * a.sin(), e.sin()]]);
         let mut cells = Vec::new();
         for name in names() {
-            let sw = Swatch::load(&format!("builtin:{name}"), None)?;
+            let sw = PreparedMesh::load(&format!("builtin:{name}"), None)?;
             let ny =
                 ((texels as f64 * sw.tile[1] / sw.tile[0]).round() as usize).clamp(1, 4 * texels);
             let mut cfg = bake_config(texels, spp, 1);

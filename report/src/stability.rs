@@ -3,7 +3,7 @@
 //! extreme scales or broken in the ways real meshes are.
 use std::path::Path;
 
-use ptm_bake::{bake_planes, dome, Swatch};
+use ptm_bake::{bake_planes, dome, PreparedMesh};
 use ptm_fit::solve::LogisticStats;
 use ptm_fit::{
     fit_stack, Basis, FitOptions, FitReport, LightSet, Link, Ptm, SampleStack, SaveOptions, UvMap,
@@ -20,13 +20,19 @@ pub struct Stability {
     pub swatch: String,
     /// Texels a side, covered texels, samples per texel of every bake here.
     pub res: usize,
+    /// Texels with some coverage.
     pub covered: usize,
+    /// Samples per texel.
     pub spp: u32,
+    /// Light layouts (rings, near-degenerate rings, too few lights …) fitted per basis and model.
     pub layouts: Vec<LayoutRow>,
     /// Fibonacci lights of the ridge sweep.
     pub ridge_dirs: usize,
+    /// One row per fit of the ridge sweep.
     pub ridge: Vec<RidgeRow>,
+    /// f32 normal equations and half-float storage against the f64 fit.
     pub precision: Vec<PrecisionRow>,
+    /// Scaled, degenerate, non-periodic and under-tessellated versions of the swatch.
     pub geometry: Geometry,
 }
 
@@ -35,7 +41,7 @@ impl Stability {
     /// folder for the half-float PTMs of the precision study.
     pub fn run(
         name: &str,
-        swatch: &Swatch,
+        swatch: &PreparedMesh,
         truth: &Truth,
         plan: &Plan,
         scratch: &Path,
@@ -57,9 +63,13 @@ impl Stability {
 /// One light layout fitted with one basis and model.
 #[derive(Clone, Debug)]
 pub struct LayoutRow {
+    /// The layout's name as the table prints it.
     pub layout: &'static str,
+    /// Basis fitted.
     pub basis: Basis,
+    /// Link fitted.
     pub link: Link,
+    /// (u, v) map fitted.
     pub uv: UvMap,
     /// The fit, or the error `ptm fit` would stop with, in words.
     pub fit: std::result::Result<LayoutFit, String>,
@@ -70,6 +80,7 @@ pub struct LayoutRow {
 pub struct LayoutFit {
     /// Rank and condition number of the (weighted) design matrix.
     pub rank: usize,
+    /// Condition number σ_max / σ_min of the same.
     pub cond: f64,
     /// The fit's warnings, as `ptm fit` prints them (empty: ok).
     pub warnings: Vec<String>,
@@ -77,6 +88,7 @@ pub struct LayoutFit {
     pub max_abs_coef: f64,
     /// Against the truth on the held-out lights.
     pub errors: Errors,
+    /// Logistic link: what Newton did.
     pub logistic: Option<LogisticStats>,
 }
 
@@ -84,15 +96,21 @@ pub struct LayoutFit {
 /// logistic link at ridge λ.
 #[derive(Clone, Debug)]
 pub struct RidgeRow {
+    /// Basis fitted.
     pub basis: Basis,
+    /// Link fitted.
     pub link: Link,
+    /// (u, v) map fitted.
     pub uv: UvMap,
     /// Relative to the mean eigenvalue of AᵀΩA.
     pub lambda: Option<f64>,
     /// RMS error of K on the held-out lights.
     pub rms: f64,
+    /// Largest |coefficient| over covered texels.
     pub max_abs_coef: f64,
+    /// Logistic link: what Newton did.
     pub logistic: Option<LogisticStats>,
+    /// Seconds of the fit.
     pub fit_s: f64,
 }
 
@@ -102,27 +120,37 @@ pub enum Variant {
     /// The same fit by f32 normal equations, texel by texel.
     F32NormalEquations,
     /// The f64 fit stored as half floats and read back; `bound` is the file's stated bound.
-    HalfStorage { bound: f64 },
+    HalfStorage {
+        /// The file's stated bound on |ΔK|.
+        bound: f64,
+    },
 }
 
 /// One precision case.
 #[derive(Clone, Debug)]
 pub struct PrecisionRow {
+    /// The light layout, in words.
     pub lights: &'static str,
+    /// What is compared with the f64 SVD fit.
     pub variant: Variant,
+    /// Basis fitted.
     pub basis: Basis,
+    /// Condition number of the design.
     pub cond: f64,
     /// Largest |ΔK| (unclamped) against the f64 SVD fit; infinite where NaN appears.
     pub max_dk: f64,
     /// RMS error of K on the held-out lights, of the f64 SVD fit and of the variant.
     pub rms_f64: f64,
+    /// RMS error of the variant (beside `rms_f64`).
     pub rms_variant: f64,
 }
 
 /// The geometry cases of one builtin swatch.
 #[derive(Clone, Debug)]
 pub struct Geometry {
+    /// The builtin spec the cases are made from.
     pub spec: String,
+    /// The cases, in table order.
     pub cases: Vec<GeometryCase>,
 }
 
@@ -131,36 +159,58 @@ pub struct Geometry {
 pub enum GeometryCase {
     /// The swatch scaled by `scale`: K against the unscaled bake.
     Scaled {
+        /// Factor every length was multiplied by.
         scale: f32,
+        /// Largest |ΔK| against the unscaled bake.
         max_dk: f64,
         /// (texel, light) pairs whose K differs, of `total`.
         differ: usize,
+        /// (texel, light) pairs compared.
         total: usize,
     },
     /// `appended` zero-area triangles added; the swatch's warnings.
     Degenerate {
+        /// Zero-area triangles added.
         appended: usize,
+        /// The swatch's warnings.
         warnings: Vec<String>,
+        /// Largest |ΔK| against the bake without them.
         max_dk: f64,
+        /// (texel, light) pairs whose K differs.
         differ: usize,
     },
     /// Vertices near the x = W border lifted by 5% of H; the swatch's warnings.
-    NonPeriodic { warnings: Vec<String> },
+    NonPeriodic {
+        /// The swatch's warnings.
+        warnings: Vec<String>,
+    },
     /// The coarsest tessellation `spec` (`triangles`) baked at `fine_res`² and at `res`²:
     /// uncovered texels of the fine bake, and the coverage-weighted mean K of both.
     FinerThanTriangles {
+        /// The coarse spec.
         spec: String,
+        /// Its triangle count.
         triangles: usize,
+        /// Texels a side of the fine bake.
         fine_res: usize,
+        /// Texels a side of the base bake.
         res: usize,
+        /// Texels of the fine bake no primary ray reached.
         uncovered: usize,
+        /// Coverage-weighted mean K of the fine bake.
         mean_fine: f64,
+        /// Coverage-weighted mean K of the base bake.
         mean_base: f64,
     },
 }
 
 /// Bakes `lights` over `swatch` at the truth's resolution into a stored stack.
-fn bake_stack(swatch: &Swatch, lights: &LightSet, res: usize, spp: u32) -> Result<SampleStack> {
+fn bake_stack(
+    swatch: &PreparedMesh,
+    lights: &LightSet,
+    res: usize,
+    spp: u32,
+) -> Result<SampleStack> {
     let (planes, coverage, _) = bake_planes(swatch, lights, &bake_config(res, spp, 1))?;
     Ok(SampleStack {
         width: res,
@@ -191,7 +241,7 @@ const FITS: [(Link, UvMap); 2] = [
 ];
 
 /// The light layouts of the issue, fitted with both bases and both of [`FITS`] on a real bake.
-pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow>> {
+pub fn layouts(swatch: &PreparedMesh, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow>> {
     let mut near_ring = dome::rings("30x16")?;
     for (i, d) in near_ring.dirs.iter_mut().enumerate() {
         // ±1e-4 in z: numerically a ring, formally full rank.
@@ -258,7 +308,7 @@ pub fn layouts(swatch: &Swatch, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow
 /// The logistic link's ridge λ (relative to the mean eigenvalue of AᵀΩA) from 1e-6 to 10 on a
 /// Fibonacci dome of `dirs` lights, hemispherical (u, v), beside the identity link's fit of the
 /// same stack: what λ does to the error, the coefficients, Newton and the separable texels.
-pub fn ridge(swatch: &Swatch, truth: &Truth, spp: u32, dirs: usize) -> Result<Vec<RidgeRow>> {
+pub fn ridge(swatch: &PreparedMesh, truth: &Truth, spp: u32, dirs: usize) -> Result<Vec<RidgeRow>> {
     let (k_true, cov) = truth.at(truth.res);
     let lights = dome::fibonacci(dirs, 5.0)?;
     let stack = bake_stack(swatch, &lights, truth.res, spp)?;
@@ -346,7 +396,7 @@ fn solve_normal_f32(a: &[Vec<f32>], k: &[f32]) -> Vec<f32> {
 
 /// f32 normal equations against our f64 SVD, and half against float storage.
 pub fn precision(
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     truth: &Truth,
     spp: u32,
     scratch: &Path,
@@ -461,9 +511,9 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Geometry> {
     let mesh = ptm_swatches::builtin(spec)?;
     let lights = dome::fibonacci(16, 5.0)?;
     /// A bake of one mesh: the checked swatch, K planes, coverage, uncovered texels.
-    type Baked = (Swatch, Vec<Vec<f32>>, Vec<f32>, usize);
+    type Baked = (PreparedMesh, Vec<Vec<f32>>, Vec<f32>, usize);
     let bake = |m: Mesh, name: &str, res: usize| -> Result<Baked> {
-        let sw = Swatch::from_mesh(m, None, name)?;
+        let sw = PreparedMesh::from_mesh(m, None, name)?;
         let (planes, cov, rep) = bake_planes(&sw, &lights, &bake_config(res, spp, 1))?;
         Ok((sw, planes.k, cov, rep.uncovered_texels))
     };
@@ -518,7 +568,7 @@ pub fn geometry(spec: &str, res: usize, spp: u32) -> Result<Geometry> {
             p[2] += 0.05 * h;
         }
     }
-    let sw = Swatch::from_mesh(broken, None, &format!("{spec} (x = W border lifted)"))?;
+    let sw = PreparedMesh::from_mesh(broken, None, &format!("{spec} (x = W border lifted)"))?;
     cases.push(GeometryCase::NonPeriodic {
         warnings: sw.warnings(),
     });

@@ -4,7 +4,7 @@
 //! time budget.
 use std::time::Instant;
 
-use ptm_bake::{dome, BakeConfig, Baker, Swatch};
+use ptm_bake::{dome, BakeConfig, Baker, PreparedMesh};
 use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, Link, Ptm, UvMap, Weight};
 use rayon::prelude::*;
 
@@ -24,13 +24,17 @@ pub fn test_lights(n: usize) -> Result<LightSet> {
 
 /// A dense bake of the held-out lights: the reference every setting is measured against.
 pub struct Truth {
+    /// Texels a side.
     pub res: usize,
+    /// The held-out lights baked.
     pub lights: LightSet,
     /// `k[light][texel]` at `res`².
     pub k: Vec<Vec<f32>>,
+    /// Per-texel coverage at `res`², row-major.
     pub coverage: Vec<f32>,
     /// RMS sampling noise of K in the truth itself: errors below it are not resolved.
     pub noise: f64,
+    /// Seconds the truth bakes took.
     pub seconds: f64,
 }
 
@@ -49,7 +53,7 @@ pub fn bake_config(res: usize, spp: u32, seed: u64) -> BakeConfig {
 impl Truth {
     /// Bakes the truth twice with independent sample positions and keeps their mean; half the
     /// RMS difference of the two is the mean's own sampling noise (returned as `noise`).
-    pub fn bake(swatch: &Swatch, res: usize, spp: u32, lights: LightSet) -> Result<Truth> {
+    pub fn bake(swatch: &PreparedMesh, res: usize, spp: u32, lights: LightSet) -> Result<Truth> {
         let t = Instant::now();
         // Seeds no setting uses: the truth's sample positions are independent of theirs.
         let (a, coverage, _) =
@@ -137,10 +141,13 @@ pub struct Errors {
     /// RMS, 99th percentile and maximum of |K_fit − K_true| (K_fit clamped to [0, 1], as
     /// rendered).
     pub rms: f64,
+    /// 99th percentile of the same.
     pub p99: f64,
+    /// Maximum of the same.
     pub max: f64,
     /// Fraction of (texel, light) pairs whose unclamped K leaves [0, 1], and by how much at most.
     pub outside: f64,
+    /// Largest distance of an unclamped K outside [0, 1].
     pub outside_max: f64,
 }
 
@@ -187,12 +194,19 @@ pub fn measure(ptm: &Ptm, lights: &LightSet, k_true: &[Vec<f32>], coverage: &[f3
 /// fit models K (basis, light weight, link, (u, v) map).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Setting {
+    /// Lights of the bake's Fibonacci dome.
     pub dirs: usize,
+    /// Samples per texel.
     pub spp: u32,
+    /// Texels a side.
     pub res: usize,
+    /// Basis fitted.
     pub basis: Basis,
+    /// Light weighting of the fit.
     pub weight: Weight,
+    /// Link fitted.
     pub link: Link,
+    /// (u, v) map fitted.
     pub uv: UvMap,
 }
 
@@ -220,11 +234,14 @@ impl Setting {
 /// What a setting cost and bought.
 #[derive(Clone, Debug)]
 pub struct Outcome {
+    /// The setting measured.
     pub setting: Setting,
     /// Scene build + primary hits + shadow rays (shared by the settings of one bake), and this
     /// setting's streaming fit (accumulate, then solve: SVD apply or Newton per texel).
     pub bake_s: f64,
+    /// This setting's fit seconds (beside the bake's `bake_s`).
     pub fit_s: f64,
+    /// Against the truth on the held-out lights.
     pub errors: Errors,
     /// Logistic link: what Newton did (iterations, separable and constant texels).
     pub logistic: Option<ptm_fit::solve::LogisticStats>,
@@ -242,7 +259,7 @@ impl Outcome {
 /// the trace and each fit separately, then measures each PTM against `truth` resampled to the
 /// settings' resolution. MIP levels are not fitted: the error is level 0's.
 pub fn run_settings(
-    swatch: &Swatch,
+    swatch: &PreparedMesh,
     truth: &Truth,
     coarse: &(Vec<Vec<f32>>, Vec<f32>),
     settings: &[Setting],
@@ -320,6 +337,7 @@ pub struct ModelRow {
     pub setting: Setting,
     /// RMS error of K and fit seconds per model, in the order of [`MODELS`].
     pub rms: [f64; 4],
+    /// Fit seconds per model, in the order of [`MODELS`].
     pub fit_s: [f64; 4],
     /// The shared bake's seconds.
     pub bake_s: f64,
@@ -338,6 +356,7 @@ impl ModelRow {
 pub struct Recommendation {
     /// Bake + fit seconds allowed.
     pub budget_s: f64,
+    /// The outcome chosen.
     pub best: Outcome,
 }
 
@@ -346,16 +365,19 @@ pub struct Recommendation {
 pub struct SwatchStudy {
     /// Builtin name (`plain-weave`).
     pub name: String,
+    /// Triangles of the swatch's mesh.
     pub triangles: usize,
     /// The periodic tile's width and height, in mesh units.
     pub tile: [f64; 2],
     /// Seconds of the two truth bakes, and the truth's own RMS sampling noise of K.
     pub truth_seconds: f64,
+    /// RMS sampling noise of K in the truth itself.
     pub truth_noise: f64,
     /// In the order the settings were baked (grouped by bake).
     pub outcomes: Vec<Outcome>,
     /// Indices into `outcomes` of the Pareto front, by time ([`pareto`]).
     pub pareto: Vec<usize>,
+    /// The four models on one bake per basis.
     pub models: Vec<ModelRow>,
     /// One per half decade of seconds spanning the measured range.
     pub recommendations: Vec<Recommendation>,
@@ -367,7 +389,7 @@ impl SwatchStudy {
     /// Returns the truth too: the stability cases measure against it.
     pub fn run(
         name: &str,
-        swatch: &Swatch,
+        swatch: &PreparedMesh,
         plan: &Plan,
         test: &LightSet,
         progress: &mut dyn FnMut(&str),

@@ -5,7 +5,9 @@
 pub struct Table {
     /// File stem of the CSV (`<name>.csv`).
     pub name: String,
+    /// Column headers.
     pub columns: Vec<&'static str>,
+    /// Rows of cells, as many as `columns` each.
     pub rows: Vec<Vec<String>>,
 }
 

@@ -12,13 +12,21 @@ use crate::Report;
 pub struct Tables {
     /// `study_<swatch>`, one per swatch.
     pub studies: Vec<Table>,
+    /// The four models per swatch and basis.
     pub models: Table,
+    /// The best setting per time budget.
     pub recommendations: Table,
+    /// Light layouts of the stability study.
     pub layouts: Table,
+    /// The ridge-λ sweep.
     pub ridge: Table,
+    /// The precision cases.
     pub precision: Table,
+    /// The geometry cases.
     pub geometry: Table,
+    /// Blur methods against Monte Carlo.
     pub blur: Table,
+    /// Penumbra extremes against analytic profiles.
     pub extremes: Table,
 }
 

@@ -9,9 +9,10 @@
 
 use std::time::Instant;
 
+use ptm_fit::hash::splitmix64 as hash;
 use ptm_fit::{Basis, Ptm};
 use ptm_runtime::gpu::Renderer;
-use ptm_runtime::synthetic::{hash, leaves as caster};
+use ptm_runtime::synthetic::leaves as caster;
 use ptm_runtime::{Blur, Gpu, Light, Scene};
 
 fn ptm11(n: usize) -> Ptm {

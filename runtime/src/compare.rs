@@ -7,6 +7,7 @@ use crate::{gpu, reference, Gpu, Image, Result};
 /// One method's row of the comparison.
 #[derive(Clone, Debug, PartialEq)]
 pub struct BlurRow {
+    /// The blur method's name (`explicit`, `sat`, `mip`, `separable`).
     pub method: &'static str,
     /// Largest |method − ground truth| over pixels and channels (linear radiance).
     pub max_abs_error: f32,
@@ -18,6 +19,7 @@ pub struct BlurRow {
     pub setup_s: f64,
 }
 
+/// Mean |a − b| over pixels and rgb channels (linear radiance); the images must be the same size.
 pub fn mean_abs_diff(a: &Image, b: &Image) -> f32 {
     let mut sum = 0f64;
     for (p, q) in a.pixels.iter().zip(&b.pixels) {

@@ -16,10 +16,12 @@ use crate::{shader, Error, Result};
 /// Seconds per pass, in execution order (e.g. `upload`, `sat_build`, `shade`, `readback`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Timings {
+    /// (pass name, seconds) in execution order.
     pub passes: Vec<(&'static str, f64)>,
 }
 
 impl Timings {
+    /// Seconds of the pass called `name`, if it ran.
     pub fn get(&self, name: &str) -> Option<f64> {
         self.passes
             .iter()
@@ -31,8 +33,11 @@ impl Timings {
 /// A headless device and queue (cloning shares them).
 #[derive(Clone)]
 pub struct Gpu {
+    /// The wgpu device.
     pub device: wgpu::Device,
+    /// Its queue.
     pub queue: wgpu::Queue,
+    /// Which adapter it is (name, backend, driver), for reports.
     pub adapter: wgpu::AdapterInfo,
 }
 
@@ -149,6 +154,7 @@ pub struct Renderer {
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 
 impl Renderer {
+    /// Builds the pipelines and buffers of `p`'s variant and uploads its data (a summed-area table, MIP chain or separable maps are built on the first render).
     pub fn new(gpu: &Gpu, p: &Prepared) -> Result<Renderer> {
         let v = &p.variant;
         let mut setup = Timings::default();

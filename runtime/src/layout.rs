@@ -25,6 +25,7 @@ pub struct Frame {
     pub caster_height: f32,
     /// sin and cos of the caster's tilt about its centre line (parallel to X).
     pub caster_sin_tilt: f32,
+    /// cos of the tilt (see `caster_sin_tilt`).
     pub caster_cos_tilt: f32,
     /// Explicit blur: the cap on samples per axis.
     pub explicit_samples: u32,
@@ -49,16 +50,20 @@ pub struct Frame {
     pub perspective: u32,
     /// Camera right × tan(fov/2)·aspect.
     pub cam_right: [f32; 3],
+    /// Padding to the WGSL vec3's 16-byte stride.
     pub pad0: f32,
     /// Camera up × tan(fov/2).
     pub cam_up: [f32; 3],
+    /// Padding to the WGSL vec3's 16-byte stride.
     pub pad1: f32,
     /// Camera forward (unit).
     pub cam_forward: [f32; 3],
+    /// Padding to the WGSL vec3's 16-byte stride.
     pub pad2: f32,
 }
 
 impl Frame {
+    /// All fields 0 (every field is then filled by `scene::prepare`).
     pub fn zeroed() -> Frame {
         bytemuck::Zeroable::zeroed()
     }
@@ -74,6 +79,7 @@ pub struct LightGpu {
     pub radius: f32,
     /// Colour × intensity (linear rgb).
     pub color: [f32; 3],
+    /// Padding to the WGSL vec3's 16-byte stride.
     pub pad: f32,
 }
 
@@ -83,12 +89,16 @@ pub struct LightGpu {
 pub struct PtmLevel {
     /// First texel of the level in `Prepared::coeffs` (texels, not floats).
     pub offset: u32,
+    /// Width of the level, texels.
     pub width: u32,
+    /// Height of the level, texels.
     pub height: u32,
+    /// Padding to 16 bytes, as the WGSL struct.
     pub pad: u32,
     /// The tile's extent in this level's texels (x, y): (width, height) when the level tiles
     /// exactly; w/2^k, h/2^k (up to one texel more) for a stored level of an odd side.
     pub period: [f32; 2],
+    /// Padding to 32 bytes, as the WGSL struct.
     pub pad2: [f32; 2],
 }
 
@@ -112,12 +122,16 @@ impl PtmLevel {
 pub struct MipLevel {
     /// First texel of the level in `Prepared::mip`.
     pub offset: u32,
+    /// Width of the level, texels.
     pub width: u32,
+    /// Height of the level, texels.
     pub height: u32,
+    /// Padding to 16 bytes, as the WGSL struct.
     pub pad: u32,
 }
 
 impl MipLevel {
+    /// Level `width`×`height` whose texels start at `offset` in the chain.
     pub fn new(offset: usize, width: usize, height: usize) -> MipLevel {
         MipLevel {
             offset: offset as u32,
@@ -136,6 +150,7 @@ pub struct SatParams {
     pub size: [u32; 2],
     /// Opacity channels in the table (1 grey, 3 coloured).
     pub channels: u32,
+    /// Padding to 16 bytes, as the WGSL struct.
     pub pad: u32,
 }
 

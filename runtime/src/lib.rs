@@ -40,21 +40,48 @@ pub use scene::{Blur, Caster, Light, Prepared, Scene, Warning};
 /// Errors of the runtime crate. Messages name the input and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// wgpu found no adapter (the reason from wgpu).
     #[error(
         "no GPU adapter found ({0}); install a Vulkan driver (on Debian: apt-get install \
          mesa-vulkan-drivers libvulkan1 for the lavapipe software adapter)"
     )]
     NoAdapter(String),
+    /// The adapter refused a device.
     #[error("creating the GPU device on {adapter}: {reason}")]
-    Device { adapter: String, reason: String },
+    Device {
+        /// The adapter's name.
+        adapter: String,
+        /// wgpu's reason.
+        reason: String,
+    },
+    /// A GPU operation failed (validation, mapping a buffer, a lost device).
     #[error("GPU {stage}: {reason}")]
-    Gpu { stage: &'static str, reason: String },
+    Gpu {
+        /// What was being done, e.g. `readback`.
+        stage: &'static str,
+        /// wgpu's reason.
+        reason: String,
+    },
+    /// An assembled WGSL variant that naga or wgpu refused.
     #[error("shader variant {variant}: {reason}")]
-    Shader { variant: String, reason: String },
+    Shader {
+        /// The variant's short name, e.g. `ptm11+sat`.
+        variant: String,
+        /// The validator's message.
+        reason: String,
+    },
+    /// An image (caster, albedo, output) that cannot be read or written.
     #[error("{path}: {reason}")]
-    Image { path: String, reason: String },
+    Image {
+        /// The file, as given.
+        path: String,
+        /// What went wrong.
+        reason: String,
+    },
+    /// A scene that cannot be rendered (sizes, lights, camera), in words.
     #[error("invalid scene: {0}")]
     Scene(String),
+    /// An error of the fit crate or the file layer under it (loading a PTM).
     #[error(transparent)]
     Fit(#[from] ptm_fit::Error),
 }
@@ -66,4 +93,5 @@ impl From<ptm_fit::FormatError> for Error {
     }
 }
 
+/// The runtime crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;

@@ -8,8 +8,11 @@ use crate::{Error, Result};
 /// Linear radiance, row-major, row 0 at the top of the picture (the far edge y1 of the view).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
+    /// Linear rgba per pixel.
     pub pixels: Vec<[f32; 4]>,
 }
 

@@ -4,6 +4,9 @@
 
 use std::f64::consts::PI;
 
+use ptm_fit::hash::{splitmix64 as hash, unit_f64 as unit};
+use ptm_fit::vec3::{cross, dot, normalize};
+
 use crate::cpu::shade::opacity_raw;
 use crate::layout::{Frame, LightGpu};
 use crate::output::Image;
@@ -21,18 +24,6 @@ pub fn render_reference(p: &Prepared, samples: u32) -> Image {
         mc_opacity(&p.frame, &p.opacity, q, l, samples, key)
     };
     crate::cpu::render_with(p, Some(&opacity))
-}
-
-fn hash(mut x: u64) -> u64 {
-    // splitmix64 finaliser.
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
-
-fn unit(x: u64) -> f64 {
-    (x >> 11) as f64 / (1u64 << 53) as f64
 }
 
 /// Ground truth: mean caster opacity over a spherical light seen from acceptor point p,
@@ -121,21 +112,4 @@ pub fn mc_opacity(
         return [0.0; 3];
     }
     sum_o.map(|x| (x / sum_w) as f32)
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    a.map(|x| x / n)
 }

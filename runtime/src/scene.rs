@@ -49,8 +49,10 @@ pub enum Blur {
 }
 
 impl Blur {
+    /// Every blur method, in the order help texts and reports list them.
     pub const ALL: [Blur; 4] = [Blur::Explicit, Blur::Sat, Blur::Mip, Blur::Separable];
 
+    /// The method in words, as the CLI and reports spell it.
     pub fn name(self) -> &'static str {
         match self {
             Blur::Explicit => "explicit",
@@ -58,10 +60,6 @@ impl Blur {
             Blur::Mip => "mip",
             Blur::Separable => "separable",
         }
-    }
-
-    pub fn from_name(name: &str) -> Option<Blur> {
-        Blur::ALL.into_iter().find(|b| b.name() == name)
     }
 }
 
@@ -91,10 +89,13 @@ pub struct Scene {
     /// Optional albedo texture (linear RGB, row 0 at the far edge), tiled with the PTM's period
     /// (or the view's size without a PTM): (width, height, texels).
     pub albedo_texture: Option<(usize, usize, Vec<[f32; 3]>)>,
+    /// The spherical (or point) lights shading the cloth.
     pub lights: Vec<Light>,
+    /// A planar caster above the cloth whose soft shadow is rendered, if any.
     pub caster: Option<Caster>,
     /// With a caster: its RGB transmits coloured light (stained glass) instead of grey.
     pub colored_shadow: bool,
+    /// How the caster's shadow is blurred (ignored without a caster).
     pub blur: Blur,
     /// Perspective camera; `None` = orthographic top view of `view`. Pixels whose ray misses
     /// the cloth plane are black.
@@ -447,7 +448,10 @@ fn stored_levels(ptm: &Ptm, coeffs: &mut Vec<f32>, nonfinite: &mut usize) -> Vec
 pub enum Warning {
     /// The view minifies a logistic PTM whose file stores no MIP levels: the `levels`-level
     /// chain averages coefficients, which does not average K (σ is not linear).
-    LogisticMipsDerived { levels: usize },
+    LogisticMipsDerived {
+        /// Levels of the derived chain.
+        levels: usize,
+    },
 }
 
 impl std::fmt::Display for Warning {
@@ -468,7 +472,9 @@ impl std::fmt::Display for Warning {
 /// bindings).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Variant {
+    /// The PTM's basis; `None` without a PTM (unoccluded cloth).
     pub basis: Option<ptm_fit::Basis>,
+    /// Albedo from a texture rather than a constant.
     pub albedo_texture: bool,
     /// The blur method when there is a caster.
     pub caster: Option<Blur>,
@@ -608,7 +614,9 @@ fn camera_basis(cam: &Perspective, aspect: f32) -> Result<[[f32; 3]; 3]> {
 /// A scene laid out as shader buffers; the GPU and the CPU twin both read exactly this.
 #[derive(Clone, Debug)]
 pub struct Prepared {
+    /// The uniform block.
     pub frame: Frame,
+    /// The lights as the shader reads them.
     pub lights: Vec<LightGpu>,
     /// PTM coefficients, texel-major: `coeffs[(row·nx + col)·n + k]`.
     pub coeffs: Vec<f32>,
@@ -631,6 +639,7 @@ pub struct Prepared {
     pub mip_levels: Vec<crate::layout::MipLevel>,
     /// Separable blur: per-light radii and the padded map layout.
     pub separable: crate::separable::Plan,
+    /// Which shader variant renders it.
     pub variant: Variant,
     /// Integer factor the caster image was box-downsampled by (1 = as given).
     pub caster_downsample: usize,

@@ -4,13 +4,7 @@
 
 use crate::scene::Caster;
 
-/// splitmix64's finaliser: a well-mixed 64-bit hash of `i`.
-pub fn hash(i: u64) -> u64 {
-    let mut x = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
+use ptm_fit::hash::splitmix64 as hash;
 
 /// A leafy `n`² caster (n ≥ 12): 60 green discs of radius n/40 to n/40 + n/12 texels and alpha
 /// 128–255 on transparent, over the world rectangle `rect` at height `elevation`, untilted.

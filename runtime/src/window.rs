@@ -60,9 +60,11 @@ pub struct WindowReport {
     pub pipeline_builds: u32,
     /// Seconds of the last render (prepare + pipeline + shade).
     pub last_render_s: f64,
-    /// State when the window closed.
+    /// The blur method when the window closed.
     pub blur: &'static str,
+    /// Whether the PTM was on (rather than toggled off) when the window closed.
     pub ptm_on: bool,
+    /// The dragged light's position when the window closed (world), if there was one.
     pub light: Option<[f32; 3]>,
     /// Mean linear RGB of the last rendered frame (scripted mode only; read back for tests).
     pub mean_rgb: Option<[f32; 3]>,

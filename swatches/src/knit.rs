@@ -18,7 +18,9 @@ pub struct KnitParams {
     pub wale: f64,
     /// Lateral loop bulge a, loop height h, depth d (Crane: 1.5, 4, 1).
     pub a: f64,
+    /// Loop height h (loop units).
     pub h: f64,
+    /// Loop depth d (loop units).
     pub d: f64,
     /// Course spacing (Crane: h + ½ = 4.5).
     pub row: f64,
@@ -28,9 +30,11 @@ pub struct KnitParams {
     pub rib: usize,
     /// Wales and courses in the tile (the rib's 2k wales are one repeat).
     pub wales: usize,
+    /// Courses in the tile.
     pub courses: usize,
     /// Vertices per ring and rings per wale.
     pub segments: usize,
+    /// Rings per wale along the yarn.
     pub along: usize,
 }
 

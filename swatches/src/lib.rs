@@ -24,6 +24,7 @@
 pub mod draft;
 pub mod knit;
 pub mod mesh;
+pub mod obj;
 pub mod params;
 pub mod pile;
 pub mod weave;
@@ -39,53 +40,96 @@ pub use yarn::{Cloth, Yarn};
 /// Errors of the swatch crate.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
+    /// Arguments that make no swatch (sizes, counts).
     #[error("{0}")]
     Invalid(String),
+    /// A generator name that is not builtin.
     #[error("unknown builtin swatch {name:?}; available: {available}")]
-    UnknownSwatch { name: String, available: String },
+    UnknownSwatch {
+        /// The name as given.
+        name: String,
+        /// The builtin names, in words.
+        available: String,
+    },
+    /// A spec that does not parse as `NAME[?k=v&…]`.
     #[error("swatch spec {spec:?}: {reason}")]
-    BadSpec { spec: String, reason: String },
+    BadSpec {
+        /// The spec as given.
+        spec: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A parameter value out of its range.
     #[error("{swatch}: parameter {name} = {value} is out of range; allowed: {allowed}")]
     InvalidParameter {
+        /// The generator, e.g. `twill`.
         swatch: String,
+        /// The parameter, e.g. `spacing`.
         name: String,
+        /// The value as given.
         value: String,
+        /// The allowed range or values in words.
         allowed: String,
     },
+    /// A parameter the generator does not have.
     #[error("{swatch}: unknown parameter {name:?}; parameters of this swatch: {known}")]
     UnknownParameter {
+        /// The generator, e.g. `twill`.
         swatch: String,
+        /// The parameter as given.
         name: String,
+        /// The parameters the generator has, in words.
         known: String,
     },
     /// A malformed draft; `line` 0 means the section as a whole (e.g. missing).
     #[error("{source_name}: [{section}]{}: {reason}", line_text(.line))]
     Draft {
+        /// Where the draft came from (its file), for messages.
         source_name: String,
+        /// The section, e.g. `THREADING`.
         section: String,
+        /// 1-based line in the section, 0 for the section as a whole.
         line: usize,
+        /// What is wrong.
         reason: String,
     },
+    /// Parameters whose yarns would pass through each other.
     #[error(
         "{swatch}: yarns overlap (gap {gap:.3e} between yarns {a} and {b} near {at:?}); {hint}"
     )]
     Overlap {
+        /// The generator spec.
         swatch: String,
+        /// The measured gap, user units (negative: overlap depth).
         gap: f64,
+        /// Index of the first yarn.
         a: usize,
+        /// Index of the second yarn.
         b: usize,
+        /// Where they meet, swatch frame.
         at: [f64; 3],
+        /// Which parameter to change, in words.
         hint: String,
     },
+    /// An OBJ file that is not a mesh (see [`obj::parse_obj`]).
     #[error("reading {path}: {reason}")]
-    InvalidMesh { path: PathBuf, reason: String },
+    InvalidMesh {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong, with the line number where there is one.
+        reason: String,
+    },
+    /// Reading or writing a file failed.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// The operating system's error.
         source: std::io::Error,
     },
 }
 
+/// The swatches crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;
 
 /// The builtin generators, for help texts and error messages.
@@ -113,8 +157,11 @@ pub fn builtin(spec: &str) -> Result<Mesh> {
 pub struct Swatch {
     /// Canonical generator name (`plain-weave`, `jersey`, ...).
     pub name: String,
+    /// The triangle mesh of one tile.
     pub mesh: Mesh,
+    /// The yarns it was swept from (and any non-yarn parts).
     pub cloth: Cloth,
+    /// The yarns' closest approach (negative gap: overlap).
     pub clearance: yarn::Clearance,
 }
 

@@ -16,7 +16,9 @@ use crate::{Error, Result};
 /// but never by more than one tile, so a 3×3 block of copies covers the central tile.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions in the swatch frame (user units, z up).
     pub positions: Vec<[f32; 3]>,
+    /// Triangles as 0-based vertex indices, wound so that normals point outwards.
     pub triangles: Vec<[u32; 3]>,
     /// Tile size (W, H) in the swatch's units.
     pub tile: [f32; 2],
@@ -101,98 +103,10 @@ impl Mesh {
         Ok(())
     }
 
-    /// Reads an OBJ file: `v` lines, `f` lines (polygons fan-triangulated, `/vt/vn` parts and
-    /// negative relative indices allowed) and the `# tile W H` comment [`Mesh::write_obj`]
-    /// writes (tile [0, 0] when absent); other lines are ignored.
+    /// Reads an OBJ file into a mesh as written (f32, the tile from the `# tile W H` header
+    /// [`Mesh::write_obj`] writes, [0, 0] without one), with the workspace's one reader,
+    /// [`crate::obj::read_obj`].
     pub fn read_obj(path: &Path) -> Result<Mesh> {
-        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Mesh::parse_obj(&text).map_err(|reason| Error::InvalidMesh {
-            path: path.to_path_buf(),
-            reason,
-        })
+        Ok(crate::obj::read_obj(path)?.into_mesh())
     }
-
-    /// [`Mesh::read_obj`] on text; the error is the reason with its line number.
-    pub fn parse_obj(text: &str) -> std::result::Result<Mesh, String> {
-        let mut mesh = Mesh::default();
-        for (n, line) in text.lines().enumerate() {
-            let n = n + 1;
-            let mut it = line.split_whitespace();
-            match it.next() {
-                Some("#") if line.starts_with("# tile ") => {
-                    mesh.tile = obj_tile_line(line)
-                        .ok_or_else(|| format!("line {n}: `# tile` needs two numbers W H"))?;
-                }
-                Some("v") => {
-                    let v: Vec<f32> = it
-                        .map(|s| s.parse::<f32>())
-                        .collect::<std::result::Result<_, _>>()
-                        .map_err(|e| format!("line {n}: bad vertex coordinate: {e}"))?;
-                    if v.len() < 3 {
-                        return Err(format!("line {n}: a vertex needs 3 coordinates"));
-                    }
-                    mesh.positions.push([v[0], v[1], v[2]]);
-                }
-                Some("f") => {
-                    let nv = mesh.positions.len() as i64;
-                    let idx: Vec<u32> = it
-                        .map(|s| {
-                            let first = s.split('/').next().unwrap_or("");
-                            // 1-based, or negative: relative to the vertices read so far.
-                            match first.parse::<i64>().ok()? {
-                                k if k >= 1 => u32::try_from(k - 1).ok(),
-                                k if k < 0 && nv + k >= 0 => u32::try_from(nv + k).ok(),
-                                _ => None,
-                            }
-                        })
-                        .collect::<Option<_>>()
-                        .ok_or_else(|| {
-                            format!("line {n}: face indices must be non-zero integers within the vertices so far")
-                        })?;
-                    if idx.len() < 3 {
-                        return Err(format!("line {n}: a face needs at least 3 vertices"));
-                    }
-                    for k in 1..idx.len() - 1 {
-                        mesh.triangles.push([idx[0], idx[k], idx[k + 1]]);
-                    }
-                }
-                _ => {}
-            }
-        }
-        let nv = mesh.positions.len() as u32;
-        if let Some((i, t)) = mesh
-            .triangles
-            .iter()
-            .enumerate()
-            .find(|(_, t)| t.iter().any(|&k| k >= nv))
-        {
-            return Err(format!(
-                "face {} has index {} but the mesh has {nv} vertices",
-                i + 1,
-                t.iter().max().unwrap() + 1
-            ));
-        }
-        Ok(mesh)
-    }
-}
-
-/// The tile size from the `# tile W H` header comment [`Mesh::write_obj`] writes, for readers
-/// that parse the rest of an OBJ themselves; `None` when there is no such line.
-pub fn obj_tile(text: &str) -> Option<[f32; 2]> {
-    text.lines()
-        .take_while(|l| l.starts_with('#') || l.trim().is_empty())
-        .find(|l| l.starts_with("# tile "))
-        .and_then(obj_tile_line)
-}
-
-fn obj_tile_line(line: &str) -> Option<[f32; 2]> {
-    let v: Vec<f32> = line
-        .split_whitespace()
-        .skip(2)
-        .map(|s| s.parse().ok())
-        .collect::<Option<_>>()?;
-    (v.len() == 2 && v.iter().all(|t| t.is_finite() && *t > 0.0)).then(|| [v[0], v[1]])
 }

@@ -1,27 +1,14 @@
 //! Pile (velvet tufts, terry loops) on a plain ground weave, and corduroy-like grooves.
 
+// SplitMix64: a seed gives the same pile everywhere.
+use ptm_format::hash::SplitMix as Rng;
+use ptm_format::vec3::{cross, norm};
+
 use crate::mesh::Mesh;
 use crate::params::Params;
 use crate::weave::{self, Pattern, WovenParams};
-use crate::yarn::{cross, norm, Cloth, Ends, Yarn};
+use crate::yarn::{Cloth, Ends, Yarn};
 use crate::Result;
-
-/// SplitMix64: a tiny deterministic generator, so a seed gives the same pile everywhere.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1) with 53 random bits.
-    fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-}
 
 /// Distance between 2D segments [p0, p1] and [q0, q1].
 fn segment_distance(p0: [f64; 2], p1: [f64; 2], q0: [f64; 2], q1: [f64; 2]) -> f64 {

@@ -9,13 +9,16 @@ use crate::{Error, Result};
 /// x = (i + ½)·spacing) and weft `j` (along +x, at y = (j + ½)·spacing) is on top where they cross.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Pattern {
+    /// Warps (threads along +y) in the repeat.
     pub warps: usize,
+    /// Wefts (threads along +x) in the repeat.
     pub wefts: usize,
     /// Row-major by weft: `over[j * warps + i]` is true when warp i passes over weft j.
     pub over: Vec<bool>,
 }
 
 impl Pattern {
+    /// The pattern with `f(i, j)` true where warp i passes over weft j.
     pub fn from_fn(warps: usize, wefts: usize, f: impl Fn(usize, usize) -> bool) -> Pattern {
         let mut over = Vec::with_capacity(warps * wefts);
         for j in 0..wefts {

@@ -1,6 +1,8 @@
 //! Yarns as swept tubes (centre-line samples with elliptical cross-sections), the cloth they
 //! make over one periodic tile, its triangle mesh and the yarn-to-yarn clearance.
 
+use ptm_format::vec3::{cross, dot, norm, scale, sub};
+
 use crate::mesh::Mesh;
 
 /// How a yarn's tube ends.
@@ -9,7 +11,10 @@ pub enum Ends {
     /// The yarn crosses the tile: its last ring is its first ring translated by `shift` (a whole
     /// number of tiles), and both lie in opposite border planes. The tube is left open there:
     /// the copy in the next tile continues it, so the tiled surface is closed.
-    Periodic { shift: [f64; 3] },
+    Periodic {
+        /// The translation from first to last ring, whole tiles, user units.
+        shift: [f64; 3],
+    },
     /// A closed tube with flat caps at both ends (pile tufts, loops).
     Capped,
 }
@@ -24,6 +29,7 @@ pub struct Yarn {
     /// are sliced by planes of constant y or x so that border rings lie in the border plane),
     /// but e1 × e2 must point along the yarn, which makes the triangle normals point outwards.
     pub axes: Vec<[[f64; 3]; 2]>,
+    /// How the tube ends.
     pub ends: Ends,
 }
 
@@ -32,6 +38,7 @@ pub struct Yarn {
 pub struct Cloth {
     /// Tile size (W, H) in user units.
     pub tile: [f64; 2],
+    /// The yarns, each a tube.
     pub yarns: Vec<Yarn>,
     /// Non-yarn geometry (already closed on the tile torus), excluded from the clearance.
     pub extra: Mesh,
@@ -46,29 +53,10 @@ pub struct Clearance {
     pub gap: f64,
     /// Indices of the two yarns and the tile offset of the second one's copy.
     pub yarns: (usize, usize),
+    /// Tile offset (a, b) of the second yarn's copy.
     pub offset: [i32; 2],
     /// Midpoint of the two section centres.
     pub at: [f64; 3],
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-pub(crate) fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-pub(crate) fn norm(a: [f64; 3]) -> f64 {
-    dot(a, a).sqrt()
-}
-pub(crate) fn scale(a: [f64; 3], s: f64) -> [f64; 3] {
-    [a[0] * s, a[1] * s, a[2] * s]
 }
 
 const AXES: [[f64; 3]; 3] = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];

@@ -3,6 +3,7 @@
 
 use std::collections::HashMap;
 
+use ptm_swatches::obj::parse_obj;
 use ptm_swatches::yarn::Ends;
 use ptm_swatches::{build, Mesh, Swatch, Yarn};
 
@@ -445,26 +446,27 @@ fn obj_round_trip_is_exact() {
     let back = Mesh::read_obj(&path).unwrap();
     assert_eq!(back, m);
     std::fs::remove_dir_all(&dir).ok();
-    let err = Mesh::parse_obj("v 0 0 0\nv 1 0 0\nf 1 2 3\n").unwrap_err();
+    let parse = |text: &str| parse_obj(text.as_bytes(), "t.obj");
+    let err = parse("v 0 0 0\nv 1 0 0\nf 1 2 3\n")
+        .unwrap_err()
+        .to_string();
     assert!(
-        err.contains("face 1 has index 3 but the mesh has 2 vertices"),
+        err.contains("t.obj: line 3: face index 3 but the file has 2 vertices"),
         "{err}"
     );
     // Foreign OBJs: a quad with texture/normal indices and relative indices, no tile.
-    let q = Mesh::parse_obj(
-        "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1/1/1 2/2/1 3/3/1 4/4/1\nf -4 -2 -1\n",
-    )
-    .unwrap();
+    let q = parse("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1/1/1 2/2/1 3/3/1 4/4/1\nf -4 -2 -1\n")
+        .unwrap()
+        .into_mesh();
     assert_eq!(q.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 2, 3]]);
     assert_eq!(q.tile, [0.0, 0.0]);
-    assert!(Mesh::parse_obj("v 0 0 0\nf 1 0 1\n").is_err());
-    // The header alone, for readers that parse the rest themselves.
+    assert!(parse("v 0 0 0\nf 1 0 1\n").is_err());
+    // The `# tile` header of a written file, in f64.
     let text =
         std::fs::read_to_string(env!("CARGO_MANIFEST_DIR").to_string() + "/jersey.obj").unwrap();
-    let tile = ptm_swatches::mesh::obj_tile(&text).unwrap();
-    assert_eq!(tile, Mesh::parse_obj(&text).unwrap().tile);
+    let tile = parse(&text).unwrap().tile.unwrap();
     assert!(
-        (tile[0] - 2.0).abs() < 1e-6 && (tile[1] - 2.0 * 4.5 / std::f32::consts::TAU).abs() < 1e-6
+        (tile[0] - 2.0).abs() < 1e-6 && (tile[1] - 2.0 * 4.5 / std::f64::consts::TAU).abs() < 1e-6
     );
 }
 

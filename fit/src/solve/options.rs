@@ -14,6 +14,7 @@ pub enum Weight {
 }
 
 impl Weight {
+    /// The weighting in words (`uniform`, `cosine`), as the CLI and file headers spell it.
     pub fn name(self) -> &'static str {
         match self {
             Weight::Uniform => "uniform",
@@ -25,11 +26,13 @@ impl Weight {
 /// Options of a fit. Defaults live in the CLI; [`FitOptions::new`] gives the documented ones.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitOptions {
+    /// The polynomial basis to fit.
     pub basis: Basis,
     /// K = p (least squares) or K = σ(p) (maximum likelihood, [`crate::logistic`]).
     pub link: Link,
     /// How light directions map to (u, v).
     pub uv: UvMap,
+    /// How much each light's residual counts.
     pub weight: Weight,
     /// Ridge λ, relative to the mean eigenvalue trace(AᵀWA)/terms: minimises
     /// |W½(Ac − k)|² + λ·trace(AᵀWA)/terms·|c|². `None`: truncated SVD (minimum norm) for the
@@ -63,6 +66,8 @@ pub const DEFAULT_RCOND: f64 = 1e-3;
 pub const COND_WARN: f64 = 100.0;
 
 impl FitOptions {
+    /// The documented defaults for `basis`: identity link, projected (u, v), uniform weights, truncated SVD at [`DEFAULT_RCOND`], the
+    /// logistic defaults, no MIP levels, no hold-out.
     pub fn new(basis: Basis) -> Self {
         FitOptions {
             basis,
@@ -85,8 +90,11 @@ impl FitOptions {
 /// Mean, 99th percentile and maximum of a per-texel error over the unmasked texels.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ErrorStats {
+    /// Mean over the texels.
     pub mean: f64,
+    /// 99th percentile over the texels.
     pub p99: f64,
+    /// Largest over the texels.
     pub max: f64,
 }
 
@@ -118,8 +126,11 @@ impl ErrorStats {
 /// Diagnostics of a fit, returned beside the PTM.
 #[derive(Clone, Debug, Default)]
 pub struct FitReport {
+    /// The basis fitted.
     pub basis: Option<Basis>,
+    /// The link fitted.
     pub link: Option<Link>,
+    /// The (u, v) map fitted.
     pub uv: Option<UvMap>,
     /// Logistic link: Newton iterations per fitted texel (mean, max), texels stopped by the
     /// iteration cap, texels whose samples a polynomial separates exactly (optimum at infinity
@@ -129,12 +140,15 @@ pub struct FitReport {
     pub mip_levels: usize,
     /// Lights in the set, lights that entered the fit (weight > 0, not held out).
     pub lights: usize,
+    /// Lights that entered the fit.
     pub lights_fit: usize,
     /// Indices of held-out lights.
     pub holdout_lights: Vec<usize>,
+    /// Texels of level 0.
     pub texels: usize,
     /// Texels with coverage 0: coefficients 0, left out of the statistics.
     pub masked: usize,
+    /// Coefficients per texel (the basis's length).
     pub coefficients: usize,
     /// Numerical rank of W½A (for per-texel directions: the lowest over texels).
     pub rank: usize,
@@ -142,6 +156,7 @@ pub struct FitReport {
     pub cond: f64,
     /// Absolute singular-value cutoff used (rcond · σ_max), and rcond.
     pub cutoff: f64,
+    /// The relative cutoff asked for.
     pub rcond: f64,
     /// Singular values of W½A, descending (distant lights).
     pub singular_values: Vec<f64>,
@@ -164,6 +179,7 @@ pub struct FitReport {
     pub coverage: Vec<f32>,
     /// Per-texel maps: weighted RMS and max residual (max empty when streaming).
     pub rms_map: Vec<f32>,
+    /// Per-texel max residual (empty when streaming).
     pub max_map: Vec<f32>,
     /// Seconds per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
@@ -172,18 +188,26 @@ pub struct FitReport {
 /// What the logistic fit did, over the fitted texels of level 0.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct LogisticStats {
+    /// Mean Newton iterations per fitted texel.
     pub iterations_mean: f64,
     /// Iterations summed over the fitted texels (the mean's numerator: a farm merge adds
     /// the parts').
     pub iterations_total: u64,
+    /// Most Newton iterations any texel took.
     pub iterations_max: u32,
+    /// Texels stopped by the iteration cap.
     pub not_converged: usize,
+    /// Texels whose samples a polynomial separates exactly.
     pub separable: usize,
+    /// Texels whose samples are all 0 or all 1.
     pub constant: usize,
     /// Ridge λ (relative) and ρ (absolute, λ·mean eigenvalue of AᵀΩA).
     pub lambda: f64,
+    /// Ridge ρ, absolute (λ times the mean eigenvalue of AᵀΩA).
     pub ridge: f64,
+    /// The Newton stopping tolerance used.
     pub tolerance: f64,
+    /// The iteration cap used.
     pub max_iterations: u32,
     /// The kernel build that ran (`avx512f`, `avx2+fma`, `portable`).
     pub kernel: &'static str,

@@ -1,22 +1,10 @@
-//! Helpers shared by the fit crate's integration tests: a seeded generator, a Fibonacci dome,
+//! Helpers shared by the fit crate's integration tests: the seeded generator, a Fibonacci dome,
 //! and a fully covered distant-light stack from its K planes.
 #![allow(dead_code)]
 use ptm_fit::{LightSet, SampleStack};
 
-/// Deterministic uniform numbers in [0, 1) (splitmix64).
-pub struct Rng(pub u64);
-impl Rng {
-    pub fn next(&mut self) -> f64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    }
-    pub fn range(&mut self, lo: f64, hi: f64) -> f64 {
-        lo + (hi - lo) * self.next()
-    }
-}
+/// Deterministic uniform numbers (the workspace's splitmix64 stream).
+pub use ptm_fit::hash::SplitMix as Rng;
 
 /// Fibonacci hemisphere, elevations above `min_el` degrees.
 pub fn fibonacci(n: usize, min_el: f64) -> LightSet {

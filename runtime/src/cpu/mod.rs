@@ -64,10 +64,13 @@ pub fn render_with(p: &Prepared, opacity: Option<&OpacityFn<'_>>) -> Image {
 /// of the fit (overshoot at grazing angles), reported beside the image.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct KExcursion {
+    /// Smallest unclamped K evaluated.
     pub min: f32,
+    /// Largest unclamped K evaluated.
     pub max: f32,
     /// Fraction of (pixel, light above the horizon) evaluations clamped.
     pub clamped_fraction: f64,
+    /// (pixel, light above the horizon) pairs K was evaluated for.
     pub evaluations: u64,
 }
 

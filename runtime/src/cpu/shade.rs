@@ -346,7 +346,9 @@ fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4]))
 /// The shader's storage buffers: the prepared scene and what the GPU builds from it (the
 /// summed-area table, the separable maps).
 pub struct Twin<'a> {
+    /// The prepared scene (`Frame`, lights, PTM, caster buffers).
     pub p: &'a Prepared,
+    /// Summed-area table of the caster opacity (SAT blur), as the GPU builds it.
     pub sat: &'a [u32],
     /// Separable blur: the per-light blurred maps.
     pub sep: &'a [f32],
@@ -413,6 +415,7 @@ impl Twin<'_> {
         c
     }
 
+    /// `albedo_at` of `shade.wgsl`: linear rgb albedo at world point `p`, the texture tiled or the constant.
     pub fn albedo_at(&self, p: [f32; 2]) -> [f32; 3] {
         let f = self.f();
         if !self.p.variant.albedo_texture {

@@ -46,9 +46,6 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
             Blur::Separable => "BLUR_SEPARABLE",
         });
     }
-    if v.colored {
-        d.push("COLORED");
-    }
     d
 }
 

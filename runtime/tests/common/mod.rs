@@ -4,12 +4,7 @@
 use ptm_fit::{Basis, Ptm};
 use ptm_runtime::{Caster, Gpu, Light};
 
-pub fn hash(i: u64) -> u64 {
-    let mut x = i.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
+pub use ptm_fit::hash::splitmix64 as hash;
 
 /// Uniform in [lo, hi) from a key.
 pub fn rand(key: u64, lo: f32, hi: f32) -> f32 {

@@ -1,0 +1,205 @@
+//! The workspace's one OBJ reader, in f64: `ptm bake` reads swatch files with it (recentring a
+//! mesh far from the origin before f32 can round it), and [`Mesh::read_obj`] reads back what
+//! [`Mesh::write_obj`] wrote. Errors name the file and the line.
+use std::path::Path;
+
+use crate::mesh::Mesh;
+use crate::{Error, Result};
+
+/// An OBJ file as read, in f64: coordinates far from the origin keep their precision until
+/// [`Obj::recentred`] moves the mesh next to it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Obj {
+    /// Vertex positions as written, in the file's units.
+    pub positions: Vec<[f64; 3]>,
+    /// 0-based, checked against `positions`.
+    pub triangles: Vec<[u32; 3]>,
+    /// The `# tile W H` header `ptm swatch` writes, when present.
+    pub tile: Option<[f64; 2]>,
+}
+
+/// Reads an OBJ file: see [`parse_obj`].
+pub fn read_obj(path: &Path) -> Result<Obj> {
+    let bytes = std::fs::read(path).map_err(|source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    parse_obj(&bytes, &path.display().to_string())
+}
+
+/// Parses OBJ bytes (`origin` names them in errors): `v x y z` lines, `f` lines (polygons
+/// fan-triangulated, `/vt/vn` parts ignored, negative indices relative to the vertices so far),
+/// every object into one mesh, and a `# tile W H` comment before the first vertex. Other lines
+/// (`vt`, `vn`, `o`, `g`, `usemtl`, …) are ignored, and so are bytes that are not UTF-8
+/// outside `v` and `f` lines (a Latin-1 comment).
+pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
+    let bad = |line: usize, reason: String| Error::InvalidMesh {
+        path: origin.into(),
+        reason: format!("line {line}: {reason}"),
+    };
+    if bytes.iter().all(u8::is_ascii_whitespace) {
+        return Err(Error::InvalidMesh {
+            path: origin.into(),
+            reason: "empty file".into(),
+        });
+    }
+    let mut obj = Obj::default();
+    // Line of each triangle's face, for an index checked at the end.
+    let mut face_lines: Vec<usize> = Vec::new();
+    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let n = n + 1;
+        let line = String::from_utf8_lossy(raw);
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("#") if obj.positions.is_empty() && line.starts_with("# tile ") => {
+                let v: Vec<f64> = it.filter_map(|t| t.parse().ok()).collect();
+                match v[..] {
+                    [w, h] if w > 0.0 && h > 0.0 && w.is_finite() && h.is_finite() => {
+                        obj.tile = Some([w, h])
+                    }
+                    _ => {
+                        return Err(bad(
+                            n,
+                            format!(
+                                "{:?} needs two positive numbers W H (the tile size)",
+                                line.trim()
+                            ),
+                        ))
+                    }
+                }
+            }
+            Some("v") => {
+                let mut v = [0.0; 3];
+                for (k, c) in v.iter_mut().enumerate() {
+                    let t = it.next().ok_or_else(|| {
+                        bad(n, format!("a vertex needs 3 coordinates, found {k}"))
+                    })?;
+                    *c = t
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|c| c.is_finite())
+                        .ok_or_else(|| {
+                            bad(
+                                n,
+                                format!("vertex coordinate {t:?} is non-finite or not a number"),
+                            )
+                        })?;
+                }
+                obj.positions.push(v);
+            }
+            Some("f") => {
+                let nv = obj.positions.len() as i64;
+                let mut idx = Vec::with_capacity(4);
+                for t in it {
+                    let first = t.split('/').next().unwrap_or("");
+                    let k = first
+                        .parse::<i64>()
+                        .map_err(|_| bad(n, format!("face index {t:?} is not an integer")))?;
+                    let k = match k {
+                        0 => {
+                            return Err(bad(
+                                n,
+                                "face index 0: OBJ indices start at 1 (negative ones count \
+                                 back from the last vertex)"
+                                    .into(),
+                            ))
+                        }
+                        k if k > 0 => k - 1,
+                        k => nv + k,
+                    };
+                    let k = u32::try_from(k).map_err(|_| {
+                        bad(
+                            n,
+                            format!("face index {first} is outside the {nv} vertices so far"),
+                        )
+                    })?;
+                    idx.push(k);
+                }
+                if idx.len() < 3 {
+                    return Err(bad(
+                        n,
+                        format!("a face needs at least 3 vertices, found {}", idx.len()),
+                    ));
+                }
+                for k in 1..idx.len() - 1 {
+                    obj.triangles.push([idx[0], idx[k], idx[k + 1]]);
+                    face_lines.push(n);
+                }
+            }
+            _ => {}
+        }
+    }
+    let nv = obj.positions.len();
+    if let Some((t, &n)) = obj
+        .triangles
+        .iter()
+        .zip(&face_lines)
+        .find(|(t, _)| t.iter().any(|&k| k as usize >= nv))
+    {
+        let k = t.iter().max().copied().unwrap_or(0) as u64 + 1;
+        return Err(bad(
+            n,
+            format!("face index {k} but the file has {nv} vertices"),
+        ));
+    }
+    Ok(obj)
+}
+
+impl Obj {
+    /// The mesh in f32, moved in f64 next to the origin first, and the (x, y) shift applied.
+    /// With a tile the shift is a whole number of tiles (the periodic bake is unchanged),
+    /// without one it puts the bounding box at (0, 0) as the bake's `PreparedMesh::from_mesh`
+    /// would; z moves
+    /// only when the mesh lies further from z = 0 than its own height. An f32 step at 1e6 is
+    /// 0.0625: converting first would bake a different mesh.
+    pub fn recentred(self, tile: Option<[f64; 2]>) -> (Mesh, [f64; 2]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for &k in self.triangles.iter().flatten() {
+            for a in 0..3 {
+                lo[a] = lo[a].min(self.positions[k as usize][a]);
+                hi[a] = hi[a].max(self.positions[k as usize][a]);
+            }
+        }
+        let mut shift = [0.0; 3];
+        if !self.triangles.is_empty() {
+            for a in 0..2 {
+                shift[a] = match tile {
+                    Some(t) if t[a] > 0.0 && t[a].is_finite() => {
+                        // floor: a mesh over [0, W] (or overhanging it a little) stays.
+                        let whole = (((lo[a] + hi[a]) / 2.0) / t[a]).floor() * t[a];
+                        if whole.is_finite() {
+                            -whole
+                        } else {
+                            0.0
+                        }
+                    }
+                    _ => -lo[a],
+                };
+            }
+            if lo[2].abs() > hi[2] - lo[2] {
+                shift[2] = -lo[2];
+            }
+        }
+        let mesh = Mesh {
+            positions: self
+                .positions
+                .iter()
+                .map(|p| [0, 1, 2].map(|a| (p[a] + shift[a]) as f32))
+                .collect(),
+            triangles: self.triangles,
+            tile: [0.0; 2],
+        };
+        (mesh, [shift[0], shift[1]])
+    }
+
+    /// The mesh in f32 as written (no recentring), its tile from the `# tile W H` header or
+    /// [0, 0] without one.
+    pub fn into_mesh(self) -> Mesh {
+        Mesh {
+            positions: self.positions.iter().map(|p| p.map(|c| c as f32)).collect(),
+            triangles: self.triangles,
+            tile: self.tile.map_or([0.0; 2], |t| t.map(|c| c as f32)),
+        }
+    }
+}
