@@ -47,9 +47,15 @@ pub enum Error {
     /// A file that is not what it should be (not a PTM, a missing channel, a bad attribute).
     #[error("{path}: {reason}")]
     Format { path: String, reason: String },
-    /// Arguments that make no file (plane sizes, a basis the format cannot hold).
+    /// Arguments that make no file (plane sizes, mismatched maps).
     #[error("{0}")]
     Invalid(String),
+    /// HP's PTM 1.2 holds only the 6-term biquadratic; this PTM has another basis.
+    #[error("{path}: HP's .ptm format holds only the 6-term biquadratic, not {}", basis.name())]
+    HpNeedsPtm6 { path: String, basis: Basis },
+    /// A coefficient (largest magnitude `magnitude`, or NaN) that a half float cannot hold.
+    #[error("{path}: a coefficient of magnitude {magnitude:e} does not fit in a half float; save as float32")]
+    HalfOverflow { path: String, magnitude: f32 },
 }
 
 pub type Result<T> = std::result::Result<T, Error>;

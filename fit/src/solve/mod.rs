@@ -23,7 +23,7 @@
 use std::time::Instant;
 
 use crate::logistic::{self, Footprint, Kernel, Source, Tables};
-use crate::{Error, LightSet, Link, Ptm, Result};
+use crate::{Diagnostic, Error, LightSet, Link, Ptm, Result};
 
 mod accumulator;
 mod factor;
@@ -164,16 +164,16 @@ fn fit_logistic(
     let t_mips = t2.elapsed().as_secs_f64();
     let mut warnings = prep.warnings.clone();
     if stats.not_converged > 0 {
-        warnings.push(format!(
-            "{} texels stopped at the logistic iteration cap ({}) before the tolerance {:e}: raise --max-iterations, or the ridge (--regularize)",
-            stats.not_converged, opts.max_iterations, opts.tolerance
-        ));
+        warnings.push(Diagnostic::NotConverged {
+            texels: stats.not_converged,
+            max_iterations: opts.max_iterations,
+            tolerance: opts.tolerance,
+        });
     }
     if lambda == 0.0 && stats.separable + stats.constant > 0 {
-        warnings.push(format!(
-            "{} texels are separable (K is 0 or 1 and a polynomial boundary splits them exactly) and the ridge is 0: their maximum-likelihood coefficients are infinite, so they stopped where the iteration cap left them; give --regularize > 0",
-            stats.separable + stats.constant
-        ));
+        warnings.push(Diagnostic::Separable {
+            texels: stats.separable + stats.constant,
+        });
     }
     check_strict(opts, &warnings)?;
     let mask_vec = masked.to_vec();
