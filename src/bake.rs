@@ -223,7 +223,7 @@ fn fit_accumulator(
     let mut acc = Accumulator::new(lights, width, height, &opts)?;
     acc.set_spp(args.spp)?;
     for w in acc.warnings() {
-        eprintln!("ptm bake: fit warning: {w}");
+        eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
     }
     Ok((Some(acc), shard_mips))
 }
@@ -380,7 +380,7 @@ fn write_outputs(
             t_fit = t1.elapsed().as_secs_f64();
             t1 = Instant::now();
             for w in &fit.warnings {
-                eprintln!("ptm bake: fit warning: {w}");
+                eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
             }
             crate::fit::print_logistic("ptm bake", &fit);
             let summary = json!({
@@ -395,7 +395,7 @@ fn write_outputs(
                 "condition_number": finite(fit.cond),
                 "rms_error_mean": fit.rms.mean,
                 "rms_error_p99": fit.rms.p99,
-                "warnings": fit.warnings,
+                "warnings": crate::errors::fit_warnings(&fit.warnings),
             });
             match part {
                 // The part takes the fit itself: no copy of its planes.

@@ -6,6 +6,7 @@
 
 mod bake;
 mod batch;
+mod errors;
 mod fit;
 mod merge;
 mod preview;
@@ -77,7 +78,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            eprintln!("ptm: error: {e:#}");
+            eprintln!("ptm: error: {}", errors::explain(&e));
             ExitCode::FAILURE
         }
     }

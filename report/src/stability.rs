@@ -71,8 +71,8 @@ pub struct LayoutFit {
     /// Rank and condition number of the (weighted) design matrix.
     pub rank: usize,
     pub cond: f64,
-    /// The fit's warnings, as `ptm fit` prints them (empty: ok).
-    pub warnings: Vec<String>,
+    /// The fit's diagnostics (empty: ok); their words are `Diagnostic`'s `Display`.
+    pub warnings: Vec<ptm_fit::Diagnostic>,
     /// Largest |coefficient| over covered texels.
     pub max_abs_coef: f64,
     /// Against the truth on the held-out lights.

@@ -232,7 +232,7 @@ fn layouts(rows: &[LayoutRow]) -> Table {
                     if f.warnings.is_empty() {
                         "ok".into()
                     } else {
-                        f.warnings.join(" ")
+                        ptm_fit::diagnostic::words(&f.warnings).join(" ")
                     },
                     g3(f.max_abs_coef),
                     g3(f.errors.rms),
