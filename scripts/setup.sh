@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent fresh-machine setup for ptm: system packages (libclang for bindgen, lavapipe
-# software Vulkan for wgpu) and Embree 4.4 from the pinned PyPI wheel `embreex`, unpacked into
+# software Vulkan for wgpu, Xvfb and the X11 libraries winit opens for the preview window's
+# tests) and Embree 4.4 from the pinned PyPI wheel `embreex`, unpacked into
 # the ignored folder `.deps/embree`. Safe to run any number of times; quiet when nothing to do.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -9,7 +10,10 @@ say() { printf 'setup: %s\n' "$*" >&2; }
 
 # --- system packages -------------------------------------------------------------------------
 need_pkgs=()
-for p in libclang-dev mesa-vulkan-drivers libvulkan1 fonts-dejavu-core; do
+# xvfb + xauth: a virtual X server and xvfb-run (which needs xauth, only recommended by xvfb).
+# winit dlopens libX11, libX11-xcb, libXcursor, libXi and libxkbcommon-x11 at run time.
+for p in libclang-dev mesa-vulkan-drivers libvulkan1 fonts-dejavu-core \
+    xvfb xauth libx11-6 libx11-xcb1 libxcursor1 libxi6 libxkbcommon-x11-0; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || need_pkgs+=("$p")
 done
 if ((${#need_pkgs[@]})); then

@@ -33,5 +33,15 @@ cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warning
 echo "== cargo test" >&2
 cargo test --workspace
 
+# The preview window's tests need a display: a virtual X server (Xvfb, installed by setup.sh)
+# with lavapipe presenting to it. PTM_REQUIRE_DISPLAY=1 turns their "SKIPPED <name>" (no
+# display) into a failure, so they cannot pass here without running.
+echo "== cargo test --features window (preview window under Xvfb)" >&2
+PTM_REQUIRE_DISPLAY=1 xvfb-run -a -s "-screen 0 1024x768x24" \
+    cargo test -p ptm-runtime --features window --lib -- window::
+
+echo "== mutation fuzzing of the readers, 2000 mutants each (scripts/fuzz.sh N for more)" >&2
+bash scripts/fuzz.sh 2000
+
 echo "== farm bake on a real single-node Slurm (scripts/test-slurm.sh)" >&2
 bash scripts/test-slurm.sh

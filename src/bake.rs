@@ -22,7 +22,12 @@ pub struct Args {
     #[arg(long, default_value = "builtin:plain-weave")]
     pub swatch: String,
     /// Tile size W,H in mesh units (default: a builtin's tile, or the OBJ's x/y bounding box).
-    #[arg(long, value_name = "W,H", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "W,H",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
     pub tile: Option<Vec<f64>>,
     /// Texels over the central tile: N (square) or W,H.
     #[arg(long, value_name = "N|W,H", value_delimiter = ',', num_args = 1..=2, default_values_t = [64])]

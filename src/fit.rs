@@ -5,7 +5,7 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use ptm_fit::atomic::{same_file, Transaction};
 use ptm_fit::hp::encode_hp_lrgb;
-use ptm_fit::images::read_image_stack;
+use ptm_fit::images::{read_image_stack, Decoding};
 use ptm_fit::solve::{fit_stack, ErrorStats, FitOptions, FitReport, Weight};
 use ptm_fit::{Basis, SampleStack, SaveOptions};
 use serde_json::{json, Value};
@@ -165,11 +165,15 @@ pub struct Args {
     /// Fit an RTI image stack instead (glob, e.g. 'dir/*.png'; white = lit, K = 1 − value).
     #[arg(long, value_name = "GLOB", requires = "lights")]
     pub images: Option<String>,
+    /// With --images: take 8-bit values as they are instead of decoding them from sRGB to
+    /// linear light before K = 1 − value (16-bit images are always taken as linear).
+    #[arg(long, requires = "images")]
+    pub raw_values: bool,
     /// `.lp` light file for --images (N, then `file x y z` per line).
     #[arg(long, value_name = "FILE.lp")]
     pub lights: Option<PathBuf>,
     /// Tile size W,H in swatch units for --images.
-    #[arg(long, value_name = "W,H", value_delimiter = ',', default_values_t = [1.0, 1.0])]
+    #[arg(long, value_name = "W,H", value_delimiter = ',', default_values_t = [1.0, 1.0], allow_hyphen_values = true)]
     pub tile: Vec<f64>,
     /// Also write a 6-term map in HP's PTM 1.2 LRGB format (visibility 1 − K, 8-bit).
     #[arg(long, value_name = "OUT.ptm")]
@@ -219,6 +223,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     outputs.extend(args.export_hp.iter().cloned());
     let mut tx = Transaction::new(&outputs)?;
     let t0 = Instant::now();
+    let mut images = Value::Null;
     let (stack, source) = match (&args.input, &args.images) {
         (Some(_), Some(_)) => bail!("give either a sample stack or --images, not both"),
         (None, None) => bail!("nothing to fit: give a sample stack (samples.exr) or --images 'dir/*.png' --lights file.lp"),
@@ -228,21 +233,40 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         ),
         (None, Some(pattern)) => {
             let lp = args.lights.as_ref().expect("clap requires --lights");
-            if args.tile.len() != 2 || args.tile.iter().any(|&x| x.is_nan() || x <= 0.0) {
-                bail!("--tile takes two positive sizes W,H, got {:?}", args.tile);
+            if args.tile.len() != 2 || args.tile.iter().any(|&x| !(x.is_finite() && x > 0.0)) {
+                bail!(
+                    "--tile takes two positive finite sizes W,H, got {:?}",
+                    args.tile
+                );
             }
-            let (stack, unused) = read_image_stack(pattern, lp, [args.tile[0], args.tile[1]])?;
-            if !unused.is_empty() {
+            let decoding = if args.raw_values {
+                Decoding::Raw
+            } else {
+                Decoding::Srgb
+            };
+            let (stack, info) =
+                read_image_stack(pattern, lp, [args.tile[0], args.tile[1]], decoding)?;
+            if !info.unused.is_empty() {
                 eprintln!(
                     "ptm fit: warning: {} images are not listed in {} and were ignored",
-                    unused.len(),
+                    info.unused.len(),
                     lp.display()
                 );
             }
+            images = json!({ "decoding": decoding.name(), "srgb_decoded": info.srgb_decoded,
+                             "linear": info.linear });
             (stack, pattern.clone())
         }
     };
     let t_read = t0.elapsed().as_secs_f64();
+    if stack.coverage.iter().all(|&c| c <= 0.0) {
+        bail!(
+            "{source}: every one of its {}×{} texels is masked (coverage 0): there is nothing to \
+             fit; was the swatch missed by the camera (check --tile and the mesh's position)?",
+            stack.width,
+            stack.height
+        );
+    }
     eprintln!(
         "ptm fit: {source}: {}×{} texels, {} lights{}",
         stack.width,
@@ -349,6 +373,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "storage": if args.half { "half" } else { "float32" },
         "half_error_bound": half_bound,
         "hp_export": hp,
+        "images": images,
         "seconds": seconds,
     }))
 }

@@ -199,6 +199,12 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     } else {
         scene.view[3] = scene.view[1] + (scene.view[2] - scene.view[0]) / aspect;
     }
+    if args.albedo.iter().any(|c| !(c.is_finite() && *c >= 0.0)) {
+        bail!(
+            "--albedo {:?}: each of r,g,b must be a finite number ≥ 0 (linear reflectance)",
+            args.albedo
+        );
+    }
     scene.albedo = args.albedo;
     if let Some(path) = &args.albedo_texture {
         let (w, h, texels) = output::read_rgba8(path)?;
@@ -262,6 +268,12 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     scene.colored_shadow = args.colored_shadow;
     scene.blur = args.blur.into();
     if let Some(eye) = args.camera {
+        if !(eye.iter().all(|c| c.is_finite()) && eye[2] > 0.0) {
+            bail!(
+                "--camera {eye:?}: the eye must be finite and above the cloth (z > 0; the cloth \
+                 is the plane z = 0, seen from above)"
+            );
+        }
         scene.perspective = Some(Perspective {
             eye,
             target: args.look_at.unwrap_or([centre[0], centre[1], 0.0]),

@@ -164,6 +164,36 @@ fn bad_inputs_are_refused_and_nothing_is_written() {
             "tile",
         ),
         (
+            vec!["--swatch", "ok.obj", "--tile", "-1,1"],
+            "ok.obj",
+            "tile size -1×1 must be positive and finite",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--tile", "inf,1"],
+            "ok.obj",
+            "tile size inf×1 must be positive and finite",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--tile", "1e-30,1e-30"],
+            "ok.obj",
+            "at most 16 tiles per axis",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--threads", "100000"],
+            "--threads 100000",
+            "at most 1024",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--light-distance", "1e-30"],
+            "--light-distance 1e-30",
+            "inside the swatch",
+        ),
+        (
+            vec!["--swatch", "ok.obj", "--dome", "fibonacci:1000000000000"],
+            "1000000000000 lights",
+            "at most 1048576",
+        ),
+        (
             vec!["--swatch", "builtin:no-such-weave"],
             "no-such-weave",
             "unknown",

@@ -157,6 +157,22 @@ fn fit_command_errors_name_the_problem() {
         "{err}"
     );
 
+    // Every texel masked: nothing to fit, not an RMS of 0.
+    let (mut s, _) = stack(&dome(12), 4, 4, false);
+    s.coverage = vec![0.0; 16];
+    let masked = dir.path().join("masked.exr");
+    s.write(&masked).unwrap();
+    let out = ptm()
+        .args(["fit", p(&masked), "-o", p(&dir.path().join("m.ptm.exr"))])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("every one of its 4×4 texels is masked"),
+        "{err}"
+    );
+    assert!(!dir.path().join("m.ptm.exr").exists());
+
     // A single elevation ring: warns by default, fails with --strict.
     let ring = LightSet::from_dirs((0..16).map(|i| {
         let a = i as f64 * std::f64::consts::TAU / 16.0;
@@ -500,6 +516,7 @@ fn fit_command_reads_an_rti_image_stack() {
         p(&lp_path),
         "--tile",
         "2,1",
+        "--raw-values",
         "-o",
         p(&out),
     ]);
@@ -507,6 +524,8 @@ fn fit_command_reads_an_rti_image_stack() {
         (j["width"].as_u64(), j["height"].as_u64()),
         (Some(9), Some(5))
     );
+    assert_eq!(j["images"]["decoding"], "raw");
+    assert_eq!(j["images"]["linear"], 20);
     // 8-bit quantisation of the images bounds the residual.
     assert!(
         j["rms_error"]["max"].as_f64().unwrap() < 3e-3,
@@ -517,4 +536,24 @@ fn fit_command_reads_an_rti_image_stack() {
     assert_eq!(fitted.tile, [2.0, 1.0]);
     let k = fitted.eval(8, 2, 0.9, 0.1) as f64;
     assert!((k - (0.3 + 0.2 * 0.9 * 8.0 / 9.0)).abs() < 5e-3, "{k}");
+    // By default 8-bit values are sRGB: decoded to linear light, a lit fraction 1 − K = 0.7
+    // becomes 0.45, so K grows.
+    let srgb = dir.path().join("srgb.ptm.exr");
+    let j = run_json(&[
+        "fit",
+        "--images",
+        &pattern,
+        "--lights",
+        p(&lp_path),
+        "-o",
+        p(&srgb),
+    ]);
+    assert_eq!(j["images"]["decoding"], "srgb");
+    assert_eq!(j["images"]["srgb_decoded"], 20);
+    let k = Ptm::load(&srgb).unwrap().eval(0, 2, 0.0, 0.0) as f64;
+    let lin = |v: f64| ((v + 0.055) / 1.055).powf(2.4);
+    assert!(
+        (k - (1.0 - lin((255.0f64 * 0.7).round() / 255.0))).abs() < 5e-3,
+        "{k}"
+    );
 }

@@ -186,4 +186,27 @@ fn preview_errors_name_the_problem() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("nonexistent.ptm.exr"));
+    // Values that would render an all-black image are refused, naming the value.
+    for (args, says) in [
+        (["--albedo=nan,0.5,0.5"], "--albedo [NaN, 0.5, 0.5]"),
+        (["--albedo=-0.2,0.5,0.5"], "--albedo [-0.2, 0.5, 0.5]"),
+        (
+            ["--camera=0.5,0.5,-2"],
+            "--camera [0.5, 0.5, -2.0]: the eye must be",
+        ),
+    ] {
+        let out = ptm()
+            .arg("preview")
+            .args(args)
+            .arg("-o")
+            .arg(dir.path().join("x.png"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(says),
+            "{args:?}: {err}"
+        );
+        assert!(!dir.path().join("x.png").exists());
+    }
 }

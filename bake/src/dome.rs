@@ -6,12 +6,22 @@ use ptm_fit::LightSet;
 
 use crate::{Error, Result};
 
+/// The most lights a dome may have. Each light is a K plane of the stack and a row of the
+/// fit's design matrix; RTI domes have tens to hundreds (relight's `.lp` reader allows 1000).
+/// Checked before a dome is built, so `fibonacci:1000000000000` is refused, not allocated.
+pub const MAX_LIGHTS: usize = 1 << 20;
+
 /// `n` spherical Fibonacci directions, equal-area in z over the cap above `min_elevation_deg`
 /// degrees: zᵢ = z_min + (1 − z_min)·(1 − (i + ½)/n), φᵢ = i·golden angle (Keinert et al.
 /// 2015). The ½ keeps every light strictly above the minimum elevation and off the pole.
 pub fn fibonacci(n: usize, min_elevation_deg: f64) -> Result<LightSet> {
     if n == 0 {
         return Err(Error::Dome("--dirs must be at least 1".into()));
+    }
+    if n > MAX_LIGHTS {
+        return Err(Error::Dome(format!(
+            "{n} lights: a dome has at most {MAX_LIGHTS}"
+        )));
     }
     if !(0.0..90.0).contains(&min_elevation_deg) {
         return Err(Error::Dome(format!(
@@ -49,6 +59,12 @@ pub fn rings(spec: &str) -> Result<LightSet> {
             .ok()
             .filter(|c| *c > 0)
             .ok_or_else(|| bad(format!("count {c:?} must be a positive integer")))?;
+        if c > MAX_LIGHTS - dirs.len() {
+            return Err(bad(format!(
+                "{} lights or more: a dome has at most {MAX_LIGHTS}",
+                dirs.len() as u128 + c as u128
+            )));
+        }
         let (z, r) = (e.to_radians().sin(), e.to_radians().cos());
         for k in 0..c {
             let phi = 2.0 * PI * k as f64 / c as f64;
@@ -121,6 +137,14 @@ mod tests {
         ] {
             let e = parse(bad, 5.0).unwrap_err().to_string();
             assert!(e.contains("--dome"), "{bad}: {e}");
+        }
+        for huge in [
+            "rings:30x100000000000",
+            "rings:30x1000000,60x1000000",
+            "fibonacci:1000000000000",
+        ] {
+            let e = parse(huge, 5.0).unwrap_err().to_string();
+            assert!(e.contains("at most 1048576"), "{huge}: {e}");
         }
         assert_eq!(
             parse("fibonacci:7", 5.0).unwrap(),

@@ -57,7 +57,14 @@ impl Swatch {
                 })?;
                 Self::from_mesh(mesh, tile, spec)
             }
-            None => Self::from_mesh(load_obj(Path::new(spec))?, tile, spec),
+            None => {
+                let obj = read_obj(Path::new(spec))?;
+                let tile = tile.or(obj.tile);
+                let (mesh, shift) = obj.recentred(tile);
+                let mut swatch = Self::from_mesh(mesh, tile, spec)?;
+                swatch.shift = [0, 1].map(|a| swatch.shift[a] + shift[a]);
+                Ok(swatch)
+            }
         }
     }
 
@@ -98,13 +105,50 @@ impl Swatch {
                 [-all.min[0], -all.min[1]],
             ),
         };
+        let extent = [0, 1, 2].map(|a| all.max[a] - all.min[a]);
         if !(tile[0] > 0.0 && tile[1] > 0.0 && tile[0].is_finite() && tile[1].is_finite()) {
             return Err(bad(format!(
-                "tile size {}×{} must be positive; the mesh's x/y extent is {}×{}: pass --tile W,H",
+                "tile size {}×{} must be positive and finite; the mesh's x/y extent is {}×{}: \
+                 pass --tile W,H",
+                tile[0], tile[1], extent[0], extent[1]
+            )));
+        }
+        // Tolerances are fractions of the longer side: a tile 1e13 times longer than wide
+        // widened every copy's box by 1e7 tiles of the short side.
+        let aspect = tile[0].max(tile[1]) / tile[0].min(tile[1]);
+        if aspect > MAX_TILE_ASPECT {
+            return Err(bad(format!(
+                "tile {:e}×{:e} is {aspect:.3e} times longer than wide; at most \
+                 {MAX_TILE_ASPECT:e}: pass --tile W,H (the mesh's x/y extent is {:.4e}×{:.4e})",
+                tile[0], tile[1], extent[0], extent[1]
+            )));
+        }
+        // Every tile the mesh spans is a copy in every scene: a mesh thousands of tiles wide (a
+        // tile given in other units, a stray vertex) would build millions of copies.
+        if (0..2).any(|a| extent[a] > MAX_TILES_SPANNED * tile[a]) {
+            return Err(bad(format!(
+                "the mesh is {:.4e}×{:.4e} wide ({:.3e}×{:.3e} tiles of {:e}×{:e}); a mesh may \
+                 span at most {MAX_TILES_SPANNED} tiles per axis: give the tile (--tile W,H or \
+                 the `# tile` header) in the mesh's units, or remove stray vertices",
+                extent[0],
+                extent[1],
+                extent[0] / tile[0],
+                extent[1] / tile[1],
                 tile[0],
-                tile[1],
-                all.max[0] - all.min[0],
-                all.max[1] - all.min[1]
+                tile[1]
+            )));
+        }
+        // Heights are bounded too: tolerances are fractions of the largest of width, height
+        // and depth, and a mesh 1e12 tall over a unit tile widened every copy's box by 1e6 tiles.
+        if extent[2] > MAX_TILES_TALL * tile[0].min(tile[1]) {
+            return Err(bad(format!(
+                "the mesh is {:.4e} tall, {:.3e} times the smaller side of the {:e}×{:e} tile; \
+                 a mesh may be at most {MAX_TILES_TALL} tiles tall: give the tile (--tile W,H or \
+                 the `# tile` header) in the mesh's units, or remove stray vertices",
+                extent[2],
+                extent[2] / tile[0].min(tile[1]),
+                tile[0],
+                tile[1]
             )));
         }
         let mut positions = mesh.positions;
@@ -128,6 +172,14 @@ impl Swatch {
             })
             .collect();
         if triangles.is_empty() {
+            let size = extent[0].max(extent[1]).max(extent[2]);
+            if size < 1e-6 * scale {
+                return Err(bad(format!(
+                    "the mesh ({:e}×{:e}×{:e}) is too small for f32 against the {:e}×{:e} tile: \
+                     give the tile (--tile W,H or the `# tile` header) in the mesh's units",
+                    extent[0], extent[1], extent[2], tile[0], tile[1]
+                )));
+            }
             return Err(bad(format!("all {total} triangles have zero area")));
         }
         let bounds = bounds(&positions, &triangles);
@@ -205,64 +257,211 @@ impl Swatch {
     }
 }
 
-/// Reads an OBJ file (all objects, polygons triangulated) into one mesh.
-pub fn load_obj(path: &Path) -> Result<Mesh> {
+/// The most tiles a mesh may span along x or y (knits and pile overhang theirs by a fraction).
+pub const MAX_TILES_SPANNED: f64 = 16.0;
+
+/// The longest side of a tile over its shortest (a strip of 1024 threads by one is 1024).
+pub const MAX_TILE_ASPECT: f64 = 1e4;
+
+/// The most tiles a mesh may be tall (long pile over a small tile), as its shadow runs are.
+pub const MAX_TILES_TALL: f64 = crate::tiling::MAX_RUN_TILES;
+
+/// An OBJ file as read, in f64: coordinates far from the origin keep their precision until
+/// [`Obj::recentred`] moves the mesh next to it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Obj {
+    pub positions: Vec<[f64; 3]>,
+    /// 0-based, checked against `positions`.
+    pub triangles: Vec<[u32; 3]>,
+    /// The `# tile W H` header `ptm swatch` writes, when present.
+    pub tile: Option<[f64; 2]>,
+}
+
+/// Reads an OBJ file: see [`parse_obj`].
+pub fn read_obj(path: &Path) -> Result<Obj> {
     let name = path.display().to_string();
-    let bad = |reason: String| Error::InvalidMesh {
-        path: name.clone(),
-        reason,
-    };
-    // Read it ourselves first so an unreadable file gives the OS error, not tobj's.
-    let text = std::fs::read(path).map_err(|e| Error::Io {
+    let bytes = std::fs::read(path).map_err(|e| Error::Io {
         path: name.clone(),
         source: e,
     })?;
-    if text.iter().all(u8::is_ascii_whitespace) {
-        return Err(bad("empty file".into()));
+    parse_obj(&bytes, &name)
+}
+
+/// Parses OBJ bytes (`origin` names them in errors): `v x y z` lines, `f` lines (polygons
+/// fan-triangulated, `/vt/vn` parts ignored, negative indices relative to the vertices so far),
+/// every object into one mesh, and a `# tile W H` comment before the first vertex. Other lines
+/// (`vt`, `vn`, `o`, `g`, `usemtl`, …) are ignored, and so are bytes that are not UTF-8
+/// outside `v` and `f` lines (a Latin-1 comment).
+pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
+    let bad = |line: usize, reason: String| Error::InvalidMesh {
+        path: origin.to_string(),
+        reason: format!("line {line}: {reason}"),
+    };
+    if bytes.iter().all(u8::is_ascii_whitespace) {
+        return Err(Error::InvalidMesh {
+            path: origin.to_string(),
+            reason: "empty file".into(),
+        });
     }
-    let opts = tobj::LoadOptions {
-        triangulate: true,
-        single_index: false,
-        ignore_points: true,
-        ignore_lines: true,
-    };
-    let (models, _) = tobj::load_obj_buf(&mut text.as_slice(), &opts, |_| {
-        // Materials do not matter for occlusion.
-        Ok((Vec::new(), Default::default()))
-    })
-    .map_err(|e| match e {
-        tobj::LoadError::FaceVertexOutOfBounds => {
-            bad("a face refers to a vertex index beyond the vertex list".into())
-        }
-        e => bad(format!("not a readable OBJ: {e}")),
-    })?;
-    // `ptm swatch` writes the tile as a `# tile W H` header; knits and pile overhang their
-    // tile, so their bounding box is not the tile.
-    let mut mesh = Mesh {
-        tile: std::str::from_utf8(&text)
-            .ok()
-            .and_then(ptm_swatches::mesh::obj_tile)
-            .unwrap_or_default(),
-        ..Mesh::default()
-    };
-    for m in models {
-        let base = mesh.positions.len();
-        let nv = m.mesh.positions.len() / 3;
-        mesh.positions
-            .extend(m.mesh.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
-        for t in m.mesh.indices.chunks_exact(3) {
-            let tri = [t[0], t[1], t[2]];
-            if let Some(&k) = tri.iter().find(|&&k| k as usize >= nv) {
-                return Err(bad(format!(
-                    "object {:?} has vertex index {} but {nv} vertices",
-                    m.name,
-                    k as u64 + 1
-                )));
+    let mut obj = Obj::default();
+    // Line of each triangle's face, for an index checked at the end.
+    let mut face_lines: Vec<usize> = Vec::new();
+    for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
+        let n = n + 1;
+        let line = String::from_utf8_lossy(raw);
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("#") if obj.positions.is_empty() && line.starts_with("# tile ") => {
+                let v: Vec<f64> = it.filter_map(|t| t.parse().ok()).collect();
+                match v[..] {
+                    [w, h] if w > 0.0 && h > 0.0 && w.is_finite() && h.is_finite() => {
+                        obj.tile = Some([w, h])
+                    }
+                    _ => {
+                        return Err(bad(
+                            n,
+                            format!(
+                                "{:?} needs two positive numbers W H (the tile size)",
+                                line.trim()
+                            ),
+                        ))
+                    }
+                }
             }
-            mesh.triangles.push(tri.map(|k| k + base as u32));
+            Some("v") => {
+                let mut v = [0.0; 3];
+                for (k, c) in v.iter_mut().enumerate() {
+                    let t = it.next().ok_or_else(|| {
+                        bad(n, format!("a vertex needs 3 coordinates, found {k}"))
+                    })?;
+                    *c = t
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|c| c.is_finite())
+                        .ok_or_else(|| {
+                            bad(
+                                n,
+                                format!("vertex coordinate {t:?} is non-finite or not a number"),
+                            )
+                        })?;
+                }
+                obj.positions.push(v);
+            }
+            Some("f") => {
+                let nv = obj.positions.len() as i64;
+                let mut idx = Vec::with_capacity(4);
+                for t in it {
+                    let first = t.split('/').next().unwrap_or("");
+                    let k = first
+                        .parse::<i64>()
+                        .map_err(|_| bad(n, format!("face index {t:?} is not an integer")))?;
+                    let k = match k {
+                        0 => {
+                            return Err(bad(
+                                n,
+                                "face index 0: OBJ indices start at 1 (negative ones count \
+                                 back from the last vertex)"
+                                    .into(),
+                            ))
+                        }
+                        k if k > 0 => k - 1,
+                        k => nv + k,
+                    };
+                    let k = u32::try_from(k).map_err(|_| {
+                        bad(
+                            n,
+                            format!("face index {first} is outside the {nv} vertices so far"),
+                        )
+                    })?;
+                    idx.push(k);
+                }
+                if idx.len() < 3 {
+                    return Err(bad(
+                        n,
+                        format!("a face needs at least 3 vertices, found {}", idx.len()),
+                    ));
+                }
+                for k in 1..idx.len() - 1 {
+                    obj.triangles.push([idx[0], idx[k], idx[k + 1]]);
+                    face_lines.push(n);
+                }
+            }
+            _ => {}
         }
     }
-    Ok(mesh)
+    let nv = obj.positions.len();
+    if let Some((t, &n)) = obj
+        .triangles
+        .iter()
+        .zip(&face_lines)
+        .find(|(t, _)| t.iter().any(|&k| k as usize >= nv))
+    {
+        let k = t.iter().max().copied().unwrap_or(0) as u64 + 1;
+        return Err(bad(
+            n,
+            format!("face index {k} but the file has {nv} vertices"),
+        ));
+    }
+    Ok(obj)
+}
+
+impl Obj {
+    /// The mesh in f32, moved in f64 next to the origin first, and the (x, y) shift applied.
+    /// With a tile the shift is a whole number of tiles (the periodic bake is unchanged),
+    /// without one it puts the bounding box at (0, 0) as [`Swatch::from_mesh`] would; z moves
+    /// only when the mesh lies further from z = 0 than its own height. An f32 step at 1e6 is
+    /// 0.0625: converting first would bake a different mesh.
+    pub fn recentred(self, tile: Option<[f64; 2]>) -> (Mesh, [f64; 2]) {
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
+        for &k in self.triangles.iter().flatten() {
+            for a in 0..3 {
+                lo[a] = lo[a].min(self.positions[k as usize][a]);
+                hi[a] = hi[a].max(self.positions[k as usize][a]);
+            }
+        }
+        let mut shift = [0.0; 3];
+        if !self.triangles.is_empty() {
+            for a in 0..2 {
+                shift[a] = match tile {
+                    Some(t) if t[a] > 0.0 && t[a].is_finite() => {
+                        // floor: a mesh over [0, W] (or overhanging it a little) stays.
+                        let whole = (((lo[a] + hi[a]) / 2.0) / t[a]).floor() * t[a];
+                        if whole.is_finite() {
+                            -whole
+                        } else {
+                            0.0
+                        }
+                    }
+                    _ => -lo[a],
+                };
+            }
+            if lo[2].abs() > hi[2] - lo[2] {
+                shift[2] = -lo[2];
+            }
+        }
+        let mesh = Mesh {
+            positions: self
+                .positions
+                .iter()
+                .map(|p| [0, 1, 2].map(|a| (p[a] + shift[a]) as f32))
+                .collect(),
+            triangles: self.triangles,
+            tile: [0.0; 2],
+        };
+        (mesh, [shift[0], shift[1]])
+    }
+}
+
+/// Reads an OBJ file (all objects, polygons triangulated) into one f32 mesh, as written; see
+/// [`read_obj`] for the f64 reading.
+pub fn load_obj(path: &Path) -> Result<Mesh> {
+    let obj = read_obj(path)?;
+    Ok(Mesh {
+        positions: obj.positions.iter().map(|p| p.map(|c| c as f32)).collect(),
+        triangles: obj.triangles,
+        tile: obj.tile.map_or([0.0; 2], |t| t.map(|c| c as f32)),
+    })
 }
 
 fn bounds(positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Bounds {
@@ -404,17 +603,57 @@ mod tests {
             (
                 "nan.obj",
                 Some("v 0 0 NaN\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
-                "non-finite",
+                "line 1: vertex coordinate \"NaN\" is non-finite or not a number",
             ),
             (
                 "inf.obj",
                 Some("v 0 0 0\nv inf 0 0\nv 0 1 0\nf 1 2 3\n"),
-                "non-finite",
+                "line 2: vertex coordinate \"inf\" is non-finite or not a number",
             ),
             (
                 "range.obj",
                 Some("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 9\n"),
-                "index",
+                "line 4: face index 9 but the file has 3 vertices",
+            ),
+            (
+                "zero.obj",
+                Some("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 0 1 2\n"),
+                "line 4: face index 0: OBJ indices start at 1",
+            ),
+            (
+                "back.obj",
+                Some("v 0 0 0\nv 1 0 0\nf 1 2 -3\nv 0 1 0\n"),
+                "line 3: face index -3 is outside the 2 vertices so far",
+            ),
+            (
+                "short.obj",
+                Some("v 0 0 0\nv 1 0\n"),
+                "line 2: a vertex needs 3 coordinates, found 2",
+            ),
+            (
+                "tiny-tile.obj",
+                Some("# tile 1e-30 1e-30\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+                "a mesh may span at most 16 tiles",
+            ),
+            (
+                "stray.obj",
+                Some("# tile 1 1\nv 0 0 0\nv 1 0 0\nv 0 1 0\nv 1e11 0 0\nf 1 2 3\nf 1 2 4\n"),
+                "the mesh is 1.0000e11×1.0000e0 wide (1.000e11×1.000e0 tiles of 1e0×1e0)",
+            ),
+            (
+                "strip.obj",
+                Some("v 0 0 0\nv 1 0 0\nv 1 1e13 0\nf 1 2 3\n"),
+                "times longer than wide; at most 1e4",
+            ),
+            (
+                "tall.obj",
+                Some("v 0 0 0\nv 1 0 0\nv 1 1 1e12\nf 1 2 3\n"),
+                "a mesh may be at most 256 tiles tall",
+            ),
+            (
+                "bad-tile.obj",
+                Some("# tile 1 nan\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"),
+                "line 1: \"# tile 1 nan\" needs two positive numbers",
             ),
             (
                 "line.obj",
@@ -437,13 +676,56 @@ mod tests {
                 .to_string();
             assert!(e.contains(name) && e.contains(want), "{name}: {e}");
         }
-        // Zero-size tile given explicitly.
+        // Zero-size, infinite, far too small and far too large tiles given explicitly.
         let p = dir.join("quad.obj");
-        let e = Swatch::load(p.to_str().unwrap(), Some([0.0, 1.0]))
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("--tile"), "{e}");
+        for (t, want) in [
+            ([0.0, 1.0], "must be positive and finite"),
+            (
+                [f64::INFINITY, 1.0],
+                "tile size inf×1 must be positive and finite",
+            ),
+            ([1e-30, 1e-30], "(2.000e30×1.000e30 tiles of 1e-30×1e-30)"),
+            ([0.01, 0.01], "at most 16 tiles per axis"),
+            ([1e30, 1e30], "too small for f32 against the 1e30×1e30 tile"),
+        ] {
+            let e = Swatch::load(p.to_str().unwrap(), Some(t))
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("--tile") && e.contains(want), "{t:?}: {e}");
+        }
+        // A Latin-1 byte in a comment is no reason to refuse the mesh.
+        let latin1 = dir.join("latin1.obj");
+        std::fs::write(&latin1, b"# caf\xe9\nv 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n").unwrap();
+        assert_eq!(
+            Swatch::load(latin1.to_str().unwrap(), None)
+                .unwrap()
+                .triangles
+                .len(),
+            1
+        );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn far_meshes_are_recentred_in_f64() {
+        // A unit quad at x = 1e9 + [0, 1] (f32 steps there are 64): recentred by whole tiles
+        // before the f32 conversion, it is the quad at [0, 1] exactly.
+        for (off, tile) in [(1e9f64, Some([1.0, 1.0])), (1e6 + 0.25, None)] {
+            let text = format!(
+                "v {a} 0 {z}\nv {b} 0 {z}\nv {b} 1 {z}\nv {a} 1 {z}\nf 1 2 3 4\n",
+                a = off,
+                b = off + 1.0,
+                z = off
+            );
+            let obj = parse_obj(text.as_bytes(), "far.obj").unwrap();
+            let (mesh, shift) = obj.recentred(tile);
+            let want_x = if tile.is_some() { off.floor() } else { off };
+            assert_eq!(shift, [-want_x, 0.0]);
+            let xs: Vec<f32> = mesh.positions.iter().map(|p| p[0]).collect();
+            let x0 = (off - want_x) as f32;
+            assert_eq!(xs, [x0, x0 + 1.0, x0 + 1.0, x0], "{off}");
+            assert!(mesh.positions.iter().all(|p| p[2] == 0.0));
+        }
     }
 
     #[test]

@@ -75,12 +75,20 @@ pub fn copies_for_direction(
     margin: f64,
 ) -> Vec<[i32; 2]> {
     let hz = bounds.max[2] - bounds.min[2];
-    let mut s = [l[0] / l[2] * hz, l[1] / l[2] * hz];
-    let run = s[0].hypot(s[1]);
+    // The run along the horizontal direction of l, capped before it is formed: l[0] / l[2]
+    // overflows to infinity for a subnormal l_z, and ∞·0 would make the hull NaN.
+    let horiz = l[0].hypot(l[1]);
     let max_run = MAX_RUN_TILES * tile[0].min(tile[1]);
-    if run > max_run {
-        s = s.map(|c| c * max_run / run);
-    }
+    let run = if horiz > 0.0 && hz > 0.0 {
+        (hz * horiz / l[2]).min(max_run)
+    } else {
+        0.0
+    };
+    let s = if run > 0.0 {
+        [l[0] / horiz * run, l[1] / horiz * run]
+    } else {
+        [0.0, 0.0]
+    };
     let moved: Vec<[f64; 2]> = [
         [0.0, 0.0],
         [tile[0], 0.0],
@@ -149,7 +157,7 @@ fn extent(pts: &[[f64; 2]]) -> ([f64; 2], [f64; 2]) {
 
 /// Andrew's monotone chain; counter-clockwise, no repeated points.
 fn convex_hull(mut pts: Vec<[f64; 2]>) -> Vec<[f64; 2]> {
-    pts.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    pts.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
     pts.dedup();
     if pts.len() < 3 {
         return pts;
@@ -256,6 +264,18 @@ mod tests {
         let c = copies_for_direction([1.0, 1.0], &unit_bounds(0.5), l, 1e-9);
         assert_eq!(rings(&c), MAX_RUN_TILES as u32 + 1);
         assert!(c.len() < 4 * MAX_RUN_TILES as usize);
+        // A subnormal l_z (an `.lp` line `a 1 0 1e-320`) overflows l_x / l_z: the same capped
+        // run, not a NaN hull.
+        let sub = copies_for_direction([1.0, 1.0], &unit_bounds(0.5), [1.0, 0.0, 1e-320], 1e-9);
+        assert_eq!(sub, c);
+        let diag = [0.5f64.sqrt(), 0.5f64.sqrt(), 5e-324];
+        let d = copies_for_direction([1.0, 1.0], &unit_bounds(0.5), diag, 1e-9);
+        let k = (MAX_RUN_TILES / 2f64.sqrt()).ceil() as u32;
+        assert!(
+            (k..=k + 1).contains(&rings(&d)) && d.contains(&[0, 0]),
+            "{}",
+            rings(&d)
+        );
     }
 
     #[test]

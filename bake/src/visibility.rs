@@ -35,6 +35,50 @@ pub struct BakeConfig {
     pub threads: usize,
 }
 
+/// The most worker threads a bake may ask for. The output does not depend on the count, and
+/// each thread costs a stack and an Embree worker: `--threads 100000` ran for minutes starting
+/// them.
+pub const MAX_THREADS: usize = 1024;
+
+/// Point lights beyond this many swatch sizes are refused: their directions differ from a
+/// distant light's by less than 1e-6 rad across the tile, while the f32 ray directions Embree
+/// squares overflow near 1e19 (at `--light-distance 1e38` 73 % of K came out 1).
+pub const MAX_LIGHT_DISTANCE: f64 = 1e6;
+
+/// Checks a point-light distance `r` (mesh units) against the swatch: every light of the
+/// hemisphere of radius `r` about (W/2, H/2, 0) must lie outside the swatch's bounding box
+/// (a light inside the cloth shadows nothing sensible), and `r` must stay within
+/// [`MAX_LIGHT_DISTANCE`] swatch sizes.
+pub fn check_light_distance(r: f64, swatch: &Swatch) -> Result<()> {
+    let b = &swatch.bounds;
+    let centre = [swatch.tile[0] / 2.0, swatch.tile[1] / 2.0, 0.0];
+    // Farthest corner of the bounds from the centre: the bounding box lies inside that sphere.
+    let reach = (0..3)
+        .map(|a| {
+            let d = (b.min[a] - centre[a])
+                .abs()
+                .max((b.max[a] - centre[a]).abs());
+            d * d
+        })
+        .sum::<f64>()
+        .sqrt();
+    let far = MAX_LIGHT_DISTANCE * swatch.scale();
+    if !(r.is_finite() && r > reach) {
+        return Err(Error::Config(format!(
+            "--light-distance {r:e} puts lights inside the swatch, whose bounds reach {reach:.4e} \
+             (mesh units) from the tile centre: give a distance above that"
+        )));
+    }
+    if r > far {
+        return Err(Error::Config(format!(
+            "--light-distance {r:e} is over {MAX_LIGHT_DISTANCE:e} times the swatch size ({:.4e}): \
+             such lights are distant to f32 precision; leave --light-distance out",
+            swatch.scale()
+        )));
+    }
+    Ok(())
+}
+
 /// Figures of one bake, for `--json` and the benchmark.
 #[derive(Clone, Debug, Default)]
 pub struct BakeReport {
@@ -136,12 +180,15 @@ impl Baker {
                 rows.start, rows.end
             )));
         }
+        if cfg.threads > MAX_THREADS {
+            return Err(Error::Config(format!(
+                "--threads {}: at most {MAX_THREADS} (0 uses one per core; the output is the \
+                 same for any count)",
+                cfg.threads
+            )));
+        }
         if let Some(r) = cfg.light_distance {
-            if !(r.is_finite() && r > 0.0) {
-                return Err(Error::Config(format!(
-                    "--light-distance {r} must be positive"
-                )));
-            }
+            check_light_distance(r, swatch)?;
         }
         let t0 = Instant::now();
         let pool = rayon::ThreadPoolBuilder::new()
@@ -661,6 +708,57 @@ mod tests {
         let flags = baker.pool.broadcast(|_| embree::ftz_daz_enabled());
         assert_eq!(flags, vec![true, true]);
         assert_eq!(baker.coverage(), &[1.0; 16]);
+    }
+
+    #[test]
+    fn light_distance_and_threads_are_bounded() {
+        // A unit square at z ∈ [0, 0.5]: its bounds reach √(0.5² + 0.5² + 0.5²) ≈ 0.866 from
+        // the tile centre.
+        let mesh = ptm_swatches::Mesh {
+            positions: vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [1.0, 1.0, 0.5],
+                [0.0, 1.0, 0.0],
+            ],
+            triangles: vec![[0, 1, 2], [0, 2, 3]],
+            tile: [1.0, 1.0],
+        };
+        let swatch = Swatch::from_mesh(mesh, None, "quad").unwrap();
+        assert!(check_light_distance(0.9, &swatch).is_ok());
+        assert!(check_light_distance(1e6, &swatch).is_ok());
+        for r in [0.5, 1e-30, 0.0, -3.0, f64::NAN] {
+            let e = check_light_distance(r, &swatch).unwrap_err().to_string();
+            assert!(
+                e.contains("inside the swatch") && e.contains("8.6603e-1"),
+                "{r}: {e}"
+            );
+        }
+        for r in [1e38, 1e300, f64::INFINITY] {
+            let e = check_light_distance(r, &swatch).unwrap_err().to_string();
+            assert!(
+                e.contains("leave --light-distance out") || e.contains("inside"),
+                "{r}: {e}"
+            );
+        }
+        let cfg = |threads, light_distance| BakeConfig {
+            res: [4, 4],
+            spp: 1,
+            seed: 0,
+            light_distance,
+            packets: true,
+            threads,
+        };
+        let e = Baker::new(&swatch, &cfg(100_000, None))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("--threads 100000: at most 1024"), "{e}");
+        let e = Baker::new(&swatch, &cfg(1, Some(1e38)))
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(e.contains("distant to f32 precision"), "{e}");
     }
 
     #[test]

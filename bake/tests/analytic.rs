@@ -383,3 +383,58 @@ fn point_lights_record_per_texel_directions() {
         );
     }
 }
+
+/// An OBJ far from the origin (x = 1e6 or 1e9, where f32 steps are 0.0625 and 64) bakes the
+/// K of the same mesh at the origin: the reader recentres in f64 before converting to f32.
+#[test]
+fn offset_obj_bakes_the_same_k() {
+    let lights = LightSet::from_dirs([light(15.0, 45.0), light(60.0, 200.0)]);
+    let spp = 4;
+    let m = sphere_scene();
+    let dir = std::env::temp_dir().join(format!("ptm-bake-offset-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bake = |off: [f64; 3]| {
+        let mut text = format!("# tile {} {}\n", m.tile[0], m.tile[1]);
+        for p in &m.positions {
+            let q = [0, 1, 2].map(|a| p[a] as f64 + off[a]);
+            text += &format!("v {:?} {:?} {:?}\n", q[0], q[1], q[2]);
+        }
+        for t in &m.triangles {
+            text += &format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1);
+        }
+        let path = dir.join(format!("sphere-{}.obj", off[0]));
+        std::fs::write(&path, text).unwrap();
+        let s = Swatch::load(path.to_str().unwrap(), None).unwrap();
+        bake_planes(&s, &lights, &cfg(32, spp)).unwrap()
+    };
+    let (reference, cov, _) = bake([0.0; 3]);
+    for off in [
+        [1e6, 0.0, 0.0],
+        [1e6, -1e6, 1e6],
+        [1e9, 1e9, 0.0],
+        [-1e9, 0.0, 1e9],
+    ] {
+        let (k, c, _) = bake(off);
+        // 1e6 + an f32 is exact in f64; at 1e9 the f64 sum rounds below 1e-7: a sample on a
+        // shadow edge may flip, nothing more.
+        let exact = off.iter().all(|c| c.abs() <= 1e6);
+        let mut differ = 0;
+        for (a, b) in reference.k.iter().flatten().zip(k.k.iter().flatten()) {
+            assert!(
+                (a - b).abs() <= 1.0 / spp as f32 + 1e-6,
+                "{off:?}: {a} vs {b}"
+            );
+            differ += (a != b) as usize;
+        }
+        let total = reference.k.len() * 32 * 32;
+        if exact {
+            assert_eq!(differ, 0, "{off:?}");
+            assert_eq!(c, cov, "{off:?}");
+        }
+        assert!(
+            differ * 200 <= total,
+            "{off:?}: {differ} of {total} texels differ"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -46,10 +46,13 @@ impl LightSet {
             line,
             reason,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty());
+        // RTIBuilder and text editors on Windows write a UTF-8 byte-order mark; `#` lines are
+        // comments (relight's exports carry a header comment).
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let mut lines = text.lines().enumerate().filter(|(_, l)| {
+            let l = l.trim();
+            !l.is_empty() && !l.starts_with('#')
+        });
         let (l0, first) = lines
             .next()
             .ok_or_else(|| bad(1, "empty file: expected the light count N on line 1".into()))?;
@@ -61,6 +64,15 @@ impl LightSet {
         })?;
         if n == 0 {
             return Err(bad(l0 + 1, "light count is 0".into()));
+        }
+        // The count is checked against the lines that follow before anything is allocated for
+        // it: a header of 10¹⁸ must not reserve memory for 10¹⁸ lights.
+        let listed = lines.clone().count();
+        if n != listed {
+            return Err(bad(
+                l0 + 1,
+                format!("header says {n} lights but the file lists {listed}"),
+            ));
         }
         let mut set = LightSet {
             names: Vec::with_capacity(n),
@@ -91,15 +103,6 @@ impl LightSet {
             }
             set.names.push(toks[..toks.len() - 3].join(" "));
             set.dirs.push(normalize(v));
-        }
-        if set.dirs.len() != n {
-            return Err(bad(
-                1,
-                format!(
-                    "header says {n} lights but the file lists {}",
-                    set.dirs.len()
-                ),
-            ));
         }
         Ok(set)
     }
@@ -145,6 +148,14 @@ mod tests {
     }
 
     #[test]
+    fn lp_with_bom_and_comments() {
+        let text = "\u{feff}# written by RTIBuilder\n2\n# first ring\na.jpg 0 0 1\n  # indented\nb.jpg 1 0 0\n";
+        let s = LightSet::parse_lp(text, "t.lp").unwrap();
+        assert_eq!(s.names, ["a.jpg", "b.jpg"]);
+        assert_eq!(s.dirs, [[0.0, 0.0, 1.0], [1.0, 0.0, 0.0]]);
+    }
+
+    #[test]
     fn lp_names_with_spaces_and_errors() {
         let s = LightSet::parse_lp("2\nmy img 1.png 0 0 2\nb.png 1 0 0\n", "t.lp").unwrap();
         assert_eq!(s.names[0], "my img 1.png");
@@ -153,6 +164,20 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("t.lp") && e.contains("3 lights"), "{e}");
+        // Huge counts are refused before anything is reserved for them.
+        for n in [
+            "1000000000000000000",
+            "1000000000000",
+            "18446744073709551615",
+        ] {
+            let e = LightSet::parse_lp(&format!("{n}\na 0 0 1\n"), "t.lp")
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains(&format!("header says {n} lights but the file lists 1")),
+                "{e}"
+            );
+        }
         let e = LightSet::parse_lp("1\na 0 0 nan\n", "t.lp")
             .unwrap_err()
             .to_string();

@@ -365,4 +365,26 @@ mod tests {
         assert!(e.contains("K.0001"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }
+
+    #[test]
+    fn headers_claiming_more_pixels_than_the_file_holds_are_refused() {
+        // Fuzz findings (fuzz/corpus/stack/regress-size-*): a mutated data window made the exr
+        // crate allocate up to 5e18 bytes and abort; now a message, before any allocation.
+        let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fuzz/corpus");
+        for f in [
+            "stack/regress-size-485.exr",
+            "stack/regress-size-8459.exr",
+            "ptm/regress-size-9988.ptm.exr",
+        ] {
+            let e = SampleStack::read(&dir.join(f)).unwrap_err().to_string();
+            assert!(
+                e.contains("claims") && e.contains("truncated or corrupt"),
+                "{f}: {e}"
+            );
+        }
+        let e = crate::Ptm::load(&dir.join("ptm/regress-size-1348.ptm.exr"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("67108862×3 pixels"), "{e}");
+    }
 }

@@ -1,5 +1,5 @@
 //! RTI image stacks: PNGs + `.lp` → sample stack (K = 1 − luminance) → fit.
-use ptm_fit::images::read_image_stack;
+use ptm_fit::images::{read_image_stack, Decoding};
 use ptm_fit::solve::{fit_stack, FitOptions};
 use ptm_fit::{Basis, LightSet};
 
@@ -37,8 +37,13 @@ fn png_stack_with_lp_fits_the_visibility_polynomial() {
     lp.names = names;
     lp.write_lp(&dir.join("dome.lp")).unwrap();
     let pattern = format!("{}/*.png", dir.display());
-    let (stack, unused) = read_image_stack(&pattern, &dir.join("dome.lp"), [2.0, 1.0]).unwrap();
-    assert_eq!(unused.len(), 1);
+    // 16-bit images are linear: no sRGB decoding even by default.
+    let (stack, info) =
+        read_image_stack(&pattern, &dir.join("dome.lp"), [2.0, 1.0], Decoding::Srgb).unwrap();
+    assert_eq!(
+        (info.unused.len(), info.linear, info.srgb_decoded),
+        (1, 24, 0)
+    );
     assert_eq!((stack.width, stack.height, stack.lights.len()), (6, 4, 24));
     let (ptm, rep) = fit_stack(&stack, &FitOptions::new(Basis::Ptm6)).unwrap();
     assert!(rep.rms.max < 1e-4, "{:?}", rep.rms);
@@ -48,7 +53,7 @@ fn png_stack_with_lp_fits_the_visibility_polynomial() {
     assert!((ptm.eval(5, 3, u as f32, v as f32) - want).abs() < 1e-4);
     // An .lp entry without an image is named.
     std::fs::remove_file(dir.join("img 03.png")).unwrap();
-    let e = read_image_stack(&pattern, &dir.join("dome.lp"), [1.0, 1.0])
+    let e = read_image_stack(&pattern, &dir.join("dome.lp"), [1.0, 1.0], Decoding::Srgb)
         .unwrap_err()
         .to_string();
     assert!(e.contains("img 03.png") && e.contains("light 3"), "{e}");

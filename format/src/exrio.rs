@@ -222,15 +222,72 @@ pub struct Contents {
     pub attrs: HashMap<String, Attr>,
 }
 
+/// The most uncompressed pixel bytes per byte of file a header may claim. Deflate cannot
+/// exceed about 1032:1; RLE, PIZ and B44 stay far below. A header is read before its pixels
+/// and the exr crate allocates whatever it claims: a mutated data window asked for 500 PB.
+const MAX_COMPRESSION_RATIO: f64 = 4096.0;
+
+/// Refuses a file whose headers claim more pixel data than `file_len` bytes can hold.
+fn check_claimed_size(path: &Path, file_len: u64) -> Result<()> {
+    use exr::meta::attribute::LevelMode;
+    use exr::meta::BlockDescription;
+    let bad = |reason: String| Error::Format {
+        path: path.display().to_string(),
+        reason,
+    };
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| {
+        bad(format!(
+            "not a readable OpenEXR file (truncated or foreign?): {e}"
+        ))
+    })?;
+    for h in meta.headers.iter() {
+        // In f64: a corrupt size must be measured, not overflow.
+        let (w, ht) = (h.layer_size.0 as f64, h.layer_size.1 as f64);
+        let per_pixel: f64 = h
+            .channels
+            .list
+            .iter()
+            .map(|c| {
+                let sub = (c.sampling.0.max(1) * c.sampling.1.max(1)) as f64;
+                c.sample_type.bytes_per_sample() as f64 / sub
+            })
+            .sum();
+        let levels = match h.blocks {
+            BlockDescription::Tiles(t) => match t.level_mode {
+                LevelMode::Singular => 1.0,
+                LevelMode::MipMap => 4.0 / 3.0 + 1e-9,
+                LevelMode::RipMap => 4.0,
+            },
+            BlockDescription::ScanLines => 1.0,
+        };
+        let claimed = w * ht * per_pixel * levels + 8.0 * h.chunk_count as f64;
+        if claimed > MAX_COMPRESSION_RATIO * file_len as f64 + (64u64 << 20) as f64 {
+            return Err(bad(format!(
+                "its header claims {}×{} pixels of {} channels ({:.3e} bytes) but the file has \
+                 {file_len} bytes: it is truncated or corrupt",
+                h.layer_size.0,
+                h.layer_size.1,
+                h.channels.list.len(),
+                claimed
+            )));
+        }
+    }
+    Ok(())
+}
+
 /// Reads every channel and attribute of the first layer. Attributes of other types are skipped.
 pub fn read(path: &Path) -> Result<Contents> {
     let shown = path.display().to_string();
-    if let Err(e) = std::fs::metadata(path) {
-        return Err(Error::Io {
-            path: shown,
-            source: e,
-        });
-    }
+    let file_len = match std::fs::metadata(path) {
+        Ok(m) => m.len(),
+        Err(e) => {
+            return Err(Error::Io {
+                path: shown,
+                source: e,
+            })
+        }
+    };
+    check_claimed_size(path, file_len)?;
     let image = exr::prelude::read()
         .no_deep_data()
         .all_resolution_levels()

@@ -259,7 +259,7 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
         let twin = cpu::render(&p);
         let finite = lit.pixels.iter().flatten().all(|v| v.is_finite());
         let [lx, _, lz] = c.light.position.map(f64::from);
-        let (r, d_ca) = (c.light.radius as f64, p.frame.caster[0] as f64);
+        let (r, d_ca) = (c.light.radius as f64, p.frame.caster_height as f64);
         let d_lc = lz - d_ca;
         let w = caster_radius(r, d_lc, d_ca);
         // Where the ray from cloth point x to the light centre meets the caster plane.
@@ -290,7 +290,7 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
             .collect();
         // Texels straddling the edge are averaged by the caster's resolution: skip the two
         // pixels whose footprint (on the caster) holds the edge texel.
-        let texel = 8.0 / (p.frame.counts[1] as f64);
+        let texel = 8.0 / (p.frame.caster_size[0] as f64);
         let max_dev = xs
             .iter()
             .zip(measured.iter().zip(&analytic))
@@ -318,7 +318,7 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
             does: c.does,
             blur: c.blur,
             caster_downsample: p.caster_downsample,
-            caster_texels: [p.frame.counts[1], p.frame.counts[2]],
+            caster_texels: p.frame.caster_size,
             analytic_width: width(width_10_90(&xs, &analytic)),
             measured_width: width(width_10_90(&xs, &measured)),
             caster_texel_on_cloth: (d_lc > 0.0).then(|| texel * lz / d_lc),

@@ -2,7 +2,7 @@
 //! one table of errors (linear radiance) and GPU times.
 
 use crate::scene::{Blur, Scene};
-use crate::{cpu, gpu, Gpu, Image, Result};
+use crate::{gpu, reference, Gpu, Image, Result};
 
 /// One method's row of the comparison.
 #[derive(Clone, Debug, PartialEq)]
@@ -30,7 +30,7 @@ pub fn mean_abs_diff(a: &Image, b: &Image) -> f32 {
 
 /// Renders `scene` with each blur method and compares with the Monte Carlo reference.
 pub fn compare_blur(g: &Gpu, scene: &Scene, mc_samples: u32) -> Result<Vec<BlurRow>> {
-    let reference = cpu::render_reference(&scene.prepare()?, mc_samples);
+    let reference = reference::render_reference(&scene.prepare()?, mc_samples);
     let mut rows = Vec::new();
     for blur in Blur::ALL {
         let mut s = scene.clone();

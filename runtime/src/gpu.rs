@@ -8,9 +8,10 @@ use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
+use crate::layout::{Frame, LightGpu, SatParams};
 use crate::output::Image;
 use crate::scene::{Blur, Prepared};
-use crate::{sat, shader, Error, Result};
+use crate::{shader, Error, Result};
 
 /// Seconds per pass, in execution order (e.g. `upload`, `sat_build`, `shade`, `readback`).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -27,7 +28,8 @@ impl Timings {
     }
 }
 
-/// A headless device and queue.
+/// A headless device and queue (cloning shares them).
+#[derive(Clone)]
 pub struct Gpu {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
@@ -102,6 +104,11 @@ impl Gpu {
     }
 
     fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
+        self.storage_with(label, bytes, wgpu::BufferUsages::empty())
+    }
+
+    /// A storage buffer with further `usage` (e.g. `COPY_DST` to rewrite it).
+    fn storage_with(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
         // Storage bindings cannot be empty; a feature the scene lacks has no binding at all, but
         // e.g. zero lights still binds a (never read) buffer of at least one element.
         let padded;
@@ -115,15 +122,23 @@ impl Gpu {
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(label),
                 contents,
-                usage: wgpu::BufferUsages::STORAGE,
+                usage: wgpu::BufferUsages::STORAGE | usage,
             })
     }
 }
 
-/// A scene uploaded to the GPU with its pipeline: render repeatedly with [`Renderer::frame`].
-pub struct Renderer<'g> {
-    gpu: &'g Gpu,
+/// A scene uploaded to the GPU with its pipeline: render repeatedly with [`Renderer::frame`];
+/// [`Renderer::set_lights`] moves the lights without rebuilding anything.
+pub struct Renderer {
+    gpu: Gpu,
     pipeline: wgpu::RenderPipeline,
+    /// The light buffer (`COPY_DST`: rewritten by `set_lights`) and its light count.
+    lights: wgpu::Buffer,
+    light_count: usize,
+    /// The uniform block, and the blur radius per light a separable variant's pre-blurred maps
+    /// were made with (empty for other variants).
+    frame: Frame,
+    separable_radii: Vec<[f32; 2]>,
     bind_group: wgpu::BindGroup,
     target: wgpu::Texture,
     size: [u32; 2],
@@ -133,8 +148,8 @@ pub struct Renderer<'g> {
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 
-impl<'g> Renderer<'g> {
-    pub fn new(gpu: &'g Gpu, p: &Prepared) -> Result<Renderer<'g>> {
+impl Renderer {
+    pub fn new(gpu: &Gpu, p: &Prepared) -> Result<Renderer> {
         let v = &p.variant;
         let mut setup = Timings::default();
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
@@ -180,8 +195,12 @@ impl<'g> Renderer<'g> {
                 contents: bytemuck::bytes_of(&p.frame),
                 usage: wgpu::BufferUsages::UNIFORM,
             });
-        let lights = gpu.storage("lights", bytemuck::cast_slice(&p.lights));
-        let mut entries = vec![(0u32, uniform), (1, lights)];
+        let lights = gpu.storage_with(
+            "lights",
+            bytemuck::cast_slice(&p.lights),
+            wgpu::BufferUsages::COPY_DST,
+        );
+        let mut entries = vec![(0u32, uniform), (1, lights.clone())];
         if v.basis.is_some() {
             entries.push((2, gpu.storage("coeffs", bytemuck::cast_slice(&p.coeffs))));
         }
@@ -205,14 +224,20 @@ impl<'g> Renderer<'g> {
             let table = build_sat(
                 gpu,
                 opacity.as_ref().expect("caster without opacity"),
-                p.frame.counts[1],
-                p.frame.counts[2],
+                p.frame.caster_size[0],
+                p.frame.caster_size[1],
                 v.sat_channels(),
             )?;
             setup.passes.push(("sat_build", t.elapsed().as_secs_f64()));
             entries.push((5, table));
         }
 
+        if v.basis.is_some() && v.coverage {
+            entries.push((
+                10,
+                gpu.storage("coverage", bytemuck::cast_slice(&p.coverage)),
+            ));
+        }
         if v.ptm_mip {
             entries.push((
                 9,
@@ -268,13 +293,40 @@ impl<'g> Renderer<'g> {
             });
         }
         Ok(Renderer {
-            gpu,
+            gpu: gpu.clone(),
             pipeline,
+            lights,
+            light_count: p.lights.len(),
+            frame: p.frame,
+            separable_radii: p.separable.radii.clone(),
             bind_group,
             target,
             size,
             setup,
         })
+    }
+
+    /// Rewrites the light buffer (`queue.write_buffer`) for the next [`Renderer::frame`], e.g.
+    /// with [`crate::Scene::gpu_lights`] of the scene with its lights moved. Nothing else is
+    /// rebuilt, so it refuses what would need more: another number of lights, or (separable
+    /// blur) other blur radii, which follow from the lights' heights and sizes.
+    pub fn set_lights(&self, lights: &[LightGpu]) -> Result<()> {
+        let radii_kept = self.separable_radii.is_empty()
+            || crate::separable::plan(&self.frame, lights).radii == self.separable_radii;
+        if lights.len() != self.light_count || !radii_kept {
+            return Err(Error::Scene(format!(
+                "moving {} lights in place needs the same number of lights ({} here) and, for \
+                 the separable blur, the same heights and radii: rebuild the renderer",
+                lights.len(),
+                self.light_count
+            )));
+        }
+        if !lights.is_empty() {
+            self.gpu
+                .queue
+                .write_buffer(&self.lights, 0, bytemuck::cast_slice(lights));
+        }
+        Ok(())
     }
 
     /// Renders one frame and waits for it; returns the seconds it took.
@@ -319,7 +371,7 @@ impl<'g> Renderer<'g> {
         let [w, h] = self.size;
         let pixel_bytes = 16u32;
         let bytes_per_row = (w * pixel_bytes).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
-        let rows = read_texture(self.gpu, &self.target, bytes_per_row, h)?;
+        let rows = read_texture(&self.gpu, &self.target, bytes_per_row, h)?;
         let mut pixels = Vec::with_capacity((w * h) as usize);
         for row in rows.chunks_exact(bytes_per_row as usize) {
             // The Vec<u8> need not be 4-byte aligned: copy out rather than cast in place.
@@ -412,13 +464,17 @@ pub fn build_sat(
         .device
         .create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("sat.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(sat::SAT_WGSL.into()),
+            source: wgpu::ShaderSource::Wgsl(shader::SAT_WGSL.into()),
         });
     let params = gpu
         .device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("sat params"),
-            contents: bytemuck::cast_slice(&[w, h, channels, 0]),
+            contents: bytemuck::bytes_of(&SatParams {
+                size: [w, h],
+                channels,
+                pad: 0,
+            }),
             usage: wgpu::BufferUsages::UNIFORM,
         });
     // wgpu zero-initialises buffers: row 0 and column 0 of the table stay 0.
@@ -470,13 +526,9 @@ pub fn build_sat(
 /// Runs the separable blur passes (`separable.wgsl`) for every light; returns the padded maps.
 pub fn separable_passes(gpu: &Gpu, p: &Prepared, opacity: &wgpu::Buffer) -> Result<wgpu::Buffer> {
     let plan = &p.separable;
-    let (w, h, channels) = (
-        p.frame.counts[1],
-        p.frame.counts[2],
-        p.variant.sat_channels(),
-    );
-    let lights = plan.radii.len() as u32;
-    let [_, _, pw, ph] = plan.dims();
+    let sep = plan.params(p.frame.caster_size, p.variant.sat_channels());
+    let (h, channels, lights) = (sep.size[1], sep.channels, sep.lights);
+    let [pw, ph] = sep.padded;
     let module = gpu
         .device
         .create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -487,16 +539,7 @@ pub fn separable_passes(gpu: &Gpu, p: &Prepared, opacity: &wgpu::Buffer) -> Resu
         .device
         .create_buffer_init(&wgpu::util::BufferInitDescriptor {
             label: Some("separable params"),
-            contents: bytemuck::cast_slice(&[
-                w,
-                h,
-                channels,
-                lights,
-                plan.margin[0],
-                plan.margin[1],
-                pw,
-                ph,
-            ]),
+            contents: bytemuck::bytes_of(&sep),
             usage: wgpu::BufferUsages::UNIFORM,
         });
     let radii = gpu.storage("separable radii", bytemuck::cast_slice(&plan.radii));

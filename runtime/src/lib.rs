@@ -3,22 +3,29 @@
 //!
 //! Data flow: a [`Scene`] (public-field config) is [`Scene::prepare`]d into [`Prepared`] — the
 //! uniform block, light list, texel-major PTM coefficients and caster opacity exactly as the GPU
-//! sees them. [`gpu::render`] runs the WGSL variant assembled for that scene ([`shader`]);
-//! [`cpu::render`] is its twin in Rust (same names, same maths) and the reference the tests
-//! compare the GPU with. [`penumbra`] holds the blur-radius geometry and the Monte Carlo ground
-//! truth; [`sat`] the summed-area table of the caster opacity (u32 counts, exact).
+//! sees them ([`layout`] holds every GPU struct, field for field with its WGSL). [`gpu::render`]
+//! runs the WGSL variant assembled for that scene ([`shader`]); [`cpu::render`] is its twin in
+//! Rust (one module per WGSL file, same function names, same maths) and what the tests compare
+//! the GPU with. [`caster`] prepares the caster's opacity, [`mip`] and [`separable`] the blur
+//! methods' inputs; [`penumbra`] holds the blur-radius geometry and the analytic profile,
+//! [`reference`] the Monte Carlo ground truth.
+//!
+//! Imports run one way: `layout` ← `caster`, `mip`, `separable` ← `scene` ← `shader`, `cpu`,
+//! `gpu` ← `reference`, `window`.
 
 // Per-channel loops index several parallel arrays (rgb of albedo, colour, opacity) at once, as
 // the WGSL does with vectors; iterator zips would hide that correspondence.
 #![allow(clippy::needless_range_loop)]
 
+pub mod caster;
 pub mod compare;
 pub mod cpu;
 pub mod gpu;
+pub mod layout;
 pub mod mip;
 pub mod output;
 pub mod penumbra;
-pub mod sat;
+pub mod reference;
 pub mod scene;
 pub mod separable;
 pub mod shader;

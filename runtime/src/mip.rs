@@ -1,11 +1,14 @@
-//! MIP chain of the caster opacity and its trilinear lookup (the CPU twin of `blur_mip`).
+//! MIP chains: of the caster opacity (looked up by `blur_mip`), and of a PTM's coefficients for
+//! files that store no levels.
 //!
 //! Built once per caster on the CPU (a static caster needs no per-frame rebuild; wgpu has no
 //! automatic mip generation). Level k texel covers 2^k × 2^k level-0 texels; texels beyond the
 //! caster count as transparent, so every level keeps "outside = 0".
 
-/// Levels concatenated (rgb opacity in 0..1, a unused) and per level (offset, w, h, 0).
-pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[u32; 4]>) {
+use crate::layout::{MipLevel, PtmLevel};
+
+/// Levels concatenated (rgb opacity in 0..1, a unused) and where each level lies in them.
+pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<MipLevel>) {
     let mut texels: Vec<[f32; 4]> = opacity
         .iter()
         .map(|o| {
@@ -13,7 +16,7 @@ pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[
             [c[0], c[1], c[2], 0.0]
         })
         .collect();
-    let mut levels = vec![[0, w as u32, h as u32, 0]];
+    let mut levels = vec![MipLevel::new(0, w, h)];
     let (mut lw, mut lh, mut off) = (w, h, 0usize);
     while lw > 1 || lh > 1 {
         let (nw, nh) = (lw.div_ceil(2), lh.div_ceil(2));
@@ -33,54 +36,10 @@ pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<[
                 texels.push(s.map(|v| 0.25 * v));
             }
         }
-        levels.push([next_off as u32, nw as u32, nh as u32, 0]);
+        levels.push(MipLevel::new(next_off, nw, nh));
         (lw, lh, off) = (nw, nh, next_off);
     }
     (texels, levels)
-}
-
-fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
-    [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
-}
-
-fn mip_texel(mip: &[[f32; 4]], l: [u32; 4], x: i32, y: i32) -> [f32; 3] {
-    if x < 0 || y < 0 || x >= l[1] as i32 || y >= l[2] as i32 {
-        return [0.0; 3];
-    }
-    let t = mip[(l[0] + y as u32 * l[1] + x as u32) as usize];
-    [t[0], t[1], t[2]]
-}
-
-/// Bilinear sample of `level` at level-0 texel coordinate t.
-pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[[u32; 4]], level: u32, t: [f32; 2]) -> [f32; 3] {
-    let l = levels[level as usize];
-    let scale = (1u32 << level) as f32;
-    let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
-    let c0 = [c[0].floor(), c[1].floor()];
-    let a = [c[0] - c0[0], c[1] - c0[1]];
-    let (x, y) = (c0[0] as i32, c0[1] as i32);
-    mix3(
-        mix3(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
-        mix3(
-            mip_texel(mip, l, x, y + 1),
-            mip_texel(mip, l, x + 1, y + 1),
-            a[0],
-        ),
-        a[1],
-    )
-}
-
-/// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
-pub fn blur_mip(mip: &[[f32; 4]], levels: &[[u32; 4]], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
-    let top = levels.len() as u32 - 1;
-    let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
-    let l0 = lod as u32;
-    let l1 = (l0 + 1).min(top);
-    mix3(
-        mip_bilinear(mip, levels, l0, t),
-        mip_bilinear(mip, levels, l1, t),
-        lod - l0 as f32,
-    )
 }
 
 /// Appends the MIP chain of a tiled PTM to its texel-major coefficients (`n` per texel, `w`×`h`
@@ -119,9 +78,59 @@ pub fn build_ptm_chain(coeffs: &mut Vec<f32>, n: usize, w: usize, h: usize) -> V
     levels
 }
 
+/// A PTM's level-0 coverage followed by its box averages at every further level of `levels`
+/// (as `Prepared::coeffs` lays levels out: level k's texels start at `levels[k].offset`). Each
+/// level averages blocks of the level above: 2 texels along a side that shrank (an odd last
+/// texel of a rounded-down level is dropped, as the file's levels drop it), 1 along a side that
+/// did not. Without levels: level 0 alone.
+pub fn coverage_chain(coverage: &[f32], levels: &[PtmLevel]) -> Vec<f32> {
+    let mut out = coverage.to_vec();
+    for pair in levels.windows(2) {
+        let (up, lv) = (&pair[0], &pair[1]);
+        let (uw, uh) = (up.width as usize, up.height as usize);
+        let (w, h) = (lv.width as usize, lv.height as usize);
+        let fx = if w < uw { 2 } else { 1 };
+        let fy = if h < uh { 2 } else { 1 };
+        let scale = 1.0 / (fx * fy) as f32;
+        debug_assert_eq!(out.len(), lv.offset as usize);
+        for j in 0..h {
+            for i in 0..w {
+                let mut sum = 0f32;
+                for dy in 0..fy {
+                    for dx in 0..fx {
+                        sum += out[up.offset as usize + (j * fy + dy) * uw + i * fx + dx];
+                    }
+                }
+                out.push(sum * scale);
+            }
+        }
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn coverage_chain_box_averages_rounded_down_and_exact_levels() {
+        // 5×2 → 2×1 (rounded down: column 4 dropped) → 1×1.
+        let cov = [0.0, 1.0, 1.0, 1.0, 0.5, 0.0, 0.0, 1.0, 0.0, 0.5];
+        let levels = [
+            PtmLevel::exact(0, 5, 2),
+            PtmLevel::exact(10, 2, 1),
+            PtmLevel::exact(12, 1, 1),
+        ];
+        let c = coverage_chain(&cov, &levels);
+        assert_eq!(&c[10..], &[0.25, 0.75, 0.5]);
+        // An exact chain that keeps an odd side: 4×3 → 2×3 averages pairs along x only.
+        let cov: Vec<f32> = (0..12).map(|i| (i % 4) as f32 / 4.0).collect();
+        let levels = [PtmLevel::exact(0, 4, 3), PtmLevel::exact(12, 2, 3)];
+        let c = coverage_chain(&cov, &levels);
+        assert_eq!(&c[12..], &[0.125, 0.625, 0.125, 0.625, 0.125, 0.625]);
+        // No chain: level 0 only.
+        assert_eq!(coverage_chain(&cov, &[]), cov);
+    }
 
     #[test]
     fn ptm_chain_averages_blocks_and_stops_at_odd_sides() {
@@ -141,11 +150,11 @@ mod tests {
         let (w, h) = (5, 3);
         let op: Vec<u32> = (0..15).map(|i| (i * 17) as u32 * 0x010101).collect();
         let (tex, levels) = build_chain(&op, w, h);
-        let dims: Vec<(u32, u32)> = levels.iter().map(|l| (l[1], l[2])).collect();
+        let dims: Vec<(u32, u32)> = levels.iter().map(|l| (l.width, l.height)).collect();
         assert_eq!(dims, vec![(5, 3), (3, 2), (2, 1), (1, 1)]);
         // The top texel covers 8 × 8 level-0 texels; outside the 5 × 3 caster is 0.
         let total: f32 = op.iter().map(|o| (o & 255) as f32 / 255.0).sum();
-        let top = tex[levels[3][0] as usize][0];
+        let top = tex[levels[3].offset as usize][0];
         assert!(
             (top - total / 64.0).abs() < 1e-6,
             "{top} vs {}",

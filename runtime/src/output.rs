@@ -129,7 +129,21 @@ pub fn write_png_rgba8(path: &Path, width: usize, height: usize, rgba: &[u8]) ->
 pub fn read_rgba8(path: &Path) -> Result<(usize, usize, Vec<[u8; 4]>)> {
     let img = image::open(path).map_err(|e| Error::Image {
         path: path.display().to_string(),
-        reason: format!("{e}; give an 8-bit PNG"),
+        reason: match e {
+            // The decoder's allocation limit (512 MB), not the bit depth, refused it.
+            image::ImageError::Limits(_) => {
+                let size = image::ImageReader::open(path)
+                    .ok()
+                    .and_then(|r| r.with_guessed_format().ok())
+                    .and_then(|r| r.into_dimensions().ok())
+                    .map_or("its".into(), |(w, h)| format!("its {w}×{h}"));
+                format!(
+                    "{size} pixels need more than the decoder's 512 MB: downscale the image \
+                     (a caster is blurred over its penumbra anyway; 4096×4096 is plenty)"
+                )
+            }
+            e => format!("{e}; give an 8-bit PNG"),
+        },
     })?;
     let rgba = img.to_rgba8();
     let (w, h) = rgba.dimensions();

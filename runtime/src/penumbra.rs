@@ -1,14 +1,11 @@
-//! Penumbra-map geometry (blur radius by similar triangles) and the references the blur
-//! methods are judged against: Monte Carlo over the spherical light with exact ray–plane hits
-//! on the caster, and the analytic half-plane penumbra.
+//! Penumbra-map geometry (blur radius by similar triangles) and the analytic half-plane
+//! penumbra the blur methods are judged against (the Monte Carlo reference is
+//! [`crate::reference`]).
 //!
 //! Distances: d_lc = light centre → caster plane, d_ca = caster plane → acceptor, measured
 //! along the normal (the planes are parallel, so ratios along any ray are the same).
 
 use std::f64::consts::PI;
-
-use crate::cpu::opacity_at;
-use crate::scene::{Frame, LightGpu};
 
 /// Blur radius on the caster plane: the cone from an acceptor point to a light of radius R cuts
 /// the caster plane in a circle of radius w = R·d_ca/(d_lc + d_ca).
@@ -38,120 +35,4 @@ pub fn half_plane_fraction(d: f64, w: f64) -> f64 {
     // Area of the segment beyond a chord at distance t·w from the centre, over π w².
     let segment = (t.acos() - t * (1.0 - t * t).sqrt()) / PI;
     1.0 - segment
-}
-
-fn hash(mut x: u64) -> u64 {
-    // splitmix64 finaliser.
-    x = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    x ^ (x >> 31)
-}
-
-fn unit(x: u64) -> f64 {
-    (x >> 11) as f64 / (1u64 << 53) as f64
-}
-
-/// Ground truth: mean caster opacity over a spherical light seen from acceptor point p,
-/// cosine-weighted over the light's solid angle (irradiance-weighted), `samples` stratified
-/// directions in the cone subtended by the sphere, each ray intersected exactly with the
-/// caster plane and the caster's texels looked up (nearest, as the methods see them).
-/// Deterministic: the random numbers hash (pixel key, sample).
-pub fn mc_opacity(
-    frame: &Frame,
-    opacity: &[u32],
-    p: [f32; 2],
-    light: &LightGpu,
-    samples: u32,
-    key: u64,
-) -> [f32; 3] {
-    let h = frame.caster[0] as f64;
-    let [lx, ly, lz, r] = light.position_radius.map(|x| x as f64);
-    let c = [lx - p[0] as f64, ly - p[1] as f64, lz];
-    let d = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
-    if d <= 0.0 || lz <= 0.0 {
-        return [0.0; 3];
-    }
-    let axis = c.map(|x| x / d);
-    // Orthonormal frame around the axis.
-    let helper = if axis[2].abs() < 0.9 {
-        [0.0, 0.0, 1.0]
-    } else {
-        [1.0, 0.0, 0.0]
-    };
-    let e1 = normalize(cross(helper, axis));
-    let e2 = cross(axis, e1);
-    let cos_max = if r >= d {
-        -1.0
-    } else {
-        (1.0 - (r / d) * (r / d)).sqrt()
-    };
-    let (w, ht) = (frame.counts[1], frame.counts[2]);
-    let rect = frame.caster_rect.map(|x| x as f64);
-    let [_, sin_t, cos_t, _] = frame.caster.map(|x| x as f64);
-    let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]), h];
-    let (normal, along) = ([0.0, -sin_t, cos_t], [0.0, cos_t, sin_t]);
-    // The caster's centre as seen from p (p at the origin of the rays).
-    let below = [centre[0] - p[0] as f64, centre[1] - p[1] as f64, h];
-    let strata = (samples as f64).sqrt().ceil() as u32;
-    let mut sum_w = 0.0;
-    let mut sum_o = [0.0f64; 3];
-    for s in 0..strata * strata {
-        let (si, sj) = (s % strata, s / strata);
-        let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
-        let u1 = (si as f64 + unit(hs)) / strata as f64;
-        let u2 = (sj as f64 + unit(hash(hs))) / strata as f64;
-        // Uniform in solid angle within the cone.
-        let cos_t = 1.0 - u1 * (1.0 - cos_max);
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let phi = 2.0 * PI * u2;
-        let dir: [f64; 3] = std::array::from_fn(|k| {
-            axis[k] * cos_t + (e1[k] * phi.cos() + e2[k] * phi.sin()) * sin_t
-        });
-        let weight = dir[2];
-        if weight <= 0.0 {
-            continue;
-        }
-        // Nearest hit of the sphere along dir (the light surface the ray reaches first).
-        let b = dot(dir, c);
-        let disc = b * b - (d * d - r * r);
-        let t_light = if disc > 0.0 { b - disc.sqrt() } else { b };
-        // Exact hit of the (tilted) caster plane, in the caster's own axes X and e2.
-        let t_caster = dot(normal, below) / dot(normal, dir);
-        let mut o = [0.0; 3];
-        if t_caster > 0.0 && t_caster < t_light {
-            let off: [f64; 3] = std::array::from_fn(|k| t_caster * dir[k] - below[k]);
-            let hit = [centre[0] + off[0], centre[1] + dot(off, along)];
-            let tc = [
-                ((hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64) as f32,
-                ((rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64) as f32,
-            ];
-            o = opacity_at(opacity, w, ht, tc).map(|x| x as f64);
-        }
-        sum_w += weight;
-        for k in 0..3 {
-            sum_o[k] += weight * o[k];
-        }
-    }
-    if sum_w <= 0.0 {
-        return [0.0; 3];
-    }
-    sum_o.map(|x| (x / sum_w) as f32)
-}
-
-fn dot(a: [f64; 3], b: [f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn normalize(a: [f64; 3]) -> [f64; 3] {
-    let n = dot(a, a).sqrt();
-    a.map(|x| x / n)
 }

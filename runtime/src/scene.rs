@@ -6,12 +6,9 @@
 
 use ptm_fit::{Link, Ptm, UvMap};
 
+pub use crate::caster::{Caster, MAX_CASTER_SIDE};
+use crate::layout::{Frame, LightGpu, PtmLevel};
 use crate::{Error, Result};
-
-/// Largest caster side kept as is. A u32 summed-area table of 8-bit opacity gives exact box sums
-/// for any box up to 4096×4096 texels (4096²·255 < 2³²); larger casters are box-downsampled by
-/// an integer factor first and the factor is reported.
-pub const MAX_CASTER_SIDE: usize = 4096;
 
 /// Upper bound on the explicit blur's samples per axis (it grows as 4 × the radius in texels,
 /// so it is capped from a radius of 64 texels on). Also a lavapipe limit: Mesa 22.3.6 llvmpipe
@@ -66,26 +63,6 @@ impl Blur {
     pub fn from_name(name: &str) -> Option<Blur> {
         Blur::ALL.into_iter().find(|b| b.name() == name)
     }
-}
-
-/// A planar RGBA caster above the acceptor, parallel to it or tilted about the line through its
-/// centre parallel to X.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Caster {
-    /// Texels per row.
-    pub width: usize,
-    /// Rows; row 0 is the far edge (largest y), as for every image in ptm.
-    pub height: usize,
-    /// Straight (non-premultiplied) sRGB-encoded RGBA8, row-major.
-    pub rgba: Vec<[u8; 4]>,
-    /// World rectangle [x0, y0, x1, y1] the caster image covers.
-    pub rect: [f32; 4],
-    /// Height of the caster plane above the acceptor (d_ca, swatch units, ≥ 0); with a tilt, the
-    /// height of its centre line.
-    pub elevation: f32,
-    /// Rotation in degrees about the caster's centre line parallel to X (|tilt| < 90): positive
-    /// lifts the far (+Y) edge. The image keeps its size; `rect` is the untilted footprint.
-    pub tilt_deg: f32,
 }
 
 /// A perspective camera (the default camera is orthographic top-down over `Scene::view`).
@@ -164,6 +141,20 @@ impl Scene {
         out
     }
 
+    /// The light buffer as the shader reads it (what [`Scene::prepare`] puts in
+    /// [`Prepared::lights`]; a moved light needs only this, see `gpu::Renderer::set_lights`).
+    pub fn gpu_lights(&self) -> Vec<LightGpu> {
+        self.lights
+            .iter()
+            .map(|l| LightGpu {
+                position: l.position,
+                radius: l.radius.max(0.0),
+                color: l.color.map(|c| c * l.intensity),
+                pad: 0.0,
+            })
+            .collect()
+    }
+
     /// Validates and lays the scene out as the shader's buffers.
     pub fn prepare(&self) -> Result<Prepared> {
         let [w, h] = self.size;
@@ -201,25 +192,28 @@ impl Scene {
         }
         let mut frame = Frame {
             view: self.view,
-            screen: [w as f32, h as f32, x1 - x0, y1 - y0],
-            albedo: [self.albedo[0], self.albedo[1], self.albedo[2], 1.0],
+            screen: [w as f32, h as f32],
+            tile: [x1 - x0, y1 - y0],
+            albedo: self.albedo,
+            light_count: self.lights.len() as u32,
+            explicit_samples: MAX_EXPLICIT_SAMPLES,
             ..Frame::zeroed()
         };
-        frame.counts[0] = self.lights.len() as u32;
         if let Some(cam) = &self.perspective {
             let [right, up, forward] = camera_basis(cam, w as f32 / h as f32)?;
-            frame.eye = [cam.eye[0], cam.eye[1], cam.eye[2], 1.0];
-            frame.cam_right = [right[0], right[1], right[2], 0.0];
-            frame.cam_up = [up[0], up[1], up[2], 0.0];
-            frame.cam_forward = [forward[0], forward[1], forward[2], 0.0];
+            frame.perspective = 1;
+            frame.eye = cam.eye;
+            frame.cam_right = right;
+            frame.cam_up = up;
+            frame.cam_forward = forward;
         }
-        frame.counts[3] = MAX_EXPLICIT_SAMPLES;
 
         let mut coeffs = Vec::new();
         let mut ptm_levels: Vec<PtmLevel> = Vec::new();
         let mut nonfinite_coeffs = 0;
         let mut warnings = Vec::new();
         let mut basis = None;
+        let mut coverage = Vec::new();
         let (mut link, mut uv) = (Link::Identity, UvMap::Projected);
         if let Some(ptm) = &self.ptm {
             let n = ptm.basis.len();
@@ -232,9 +226,9 @@ impl Scene {
                     ptm.basis.name()
                 )));
             }
-            if !ptm.mips.is_empty() {
-                // Stored levels must be the round-down chain with every plane: the lookup
-                // trusts their sizes.
+            if !ptm.mips.is_empty() || ptm.coverage.is_some() {
+                // Stored levels must be the round-down chain with every plane, coverage a
+                // fraction per texel: the lookups trust their sizes.
                 ptm.validate()?;
             }
             if !(ptm.tile[0] > 0.0 && ptm.tile[1] > 0.0) {
@@ -255,10 +249,8 @@ impl Scene {
                 *c = 0.0;
                 nonfinite_coeffs += 1;
             }
-            frame.screen[2] = ptm.tile[0] as f32;
-            frame.screen[3] = ptm.tile[1] as f32;
-            frame.sizes[0] = ptm.width as u32;
-            frame.sizes[1] = ptm.height as u32;
+            frame.tile = [ptm.tile[0] as f32, ptm.tile[1] as f32];
+            frame.ptm_size = [ptm.width as u32, ptm.height as u32];
             basis = Some(ptm.basis);
             link = ptm.link;
             uv = ptm.uv;
@@ -273,8 +265,8 @@ impl Scene {
             } else {
                 ((x1 - x0) / w as f32).max((y1 - y0) / h as f32)
             };
-            frame.cam_up[3] = pixel * texels_per_unit;
-            if self.perspective.is_some() || frame.cam_up[3] > 1.0 {
+            frame.ptm_texels_per_pixel = pixel * texels_per_unit;
+            if self.perspective.is_some() || frame.ptm_texels_per_pixel > 1.0 {
                 let levels = if ptm.mips.is_empty() {
                     // Averaged coefficients average K only for the identity link.
                     let levels = crate::mip::build_ptm_chain(&mut coeffs, n, ptm.width, ptm.height);
@@ -287,7 +279,7 @@ impl Scene {
                 };
                 // Odd sides give no level beyond 0: then there is no chain at all.
                 if levels.len() > 1 {
-                    frame.cam_forward[3] = levels.len() as f32;
+                    frame.ptm_level_count = levels.len() as u32;
                     if ptm.mips.is_empty() && ptm.link == Link::Logistic {
                         warnings.push(Warning::LogisticMipsDerived {
                             levels: levels.len(),
@@ -295,6 +287,9 @@ impl Scene {
                     }
                     ptm_levels = levels;
                 }
+            }
+            if let Some(cov) = &ptm.coverage {
+                coverage = crate::mip::coverage_chain(cov, &ptm_levels);
             }
         }
 
@@ -307,28 +302,10 @@ impl Scene {
                 )));
             }
             albedo = texels.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
-            frame.sizes[2] = *aw as u32;
-            frame.sizes[3] = *ah as u32;
+            frame.albedo_size = [*aw as u32, *ah as u32];
         }
 
-        let lights: Vec<LightGpu> = self
-            .lights
-            .iter()
-            .map(|l| LightGpu {
-                position_radius: [
-                    l.position[0],
-                    l.position[1],
-                    l.position[2],
-                    l.radius.max(0.0),
-                ],
-                color: [
-                    l.color[0] * l.intensity,
-                    l.color[1] * l.intensity,
-                    l.color[2] * l.intensity,
-                    0.0,
-                ],
-            })
-            .collect();
+        let lights = self.gpu_lights();
 
         let mut opacity = Vec::new();
         let mut mip = Vec::new();
@@ -372,13 +349,14 @@ impl Scene {
                     c.tilt_deg
                 )));
             }
-            let (cw, ch, texels, factor) = fit_caster(c);
+            let (cw, ch, texels, factor) = crate::caster::fit_caster(c);
             caster_downsample = factor;
-            opacity = opacity_texels(&texels, self.colored_shadow);
+            opacity = crate::caster::opacity_texels(&texels, self.colored_shadow);
             frame.caster_rect = c.rect;
-            frame.caster = [c.elevation, tilt.sin(), tilt.cos(), 0.0];
-            frame.counts[1] = cw as u32;
-            frame.counts[2] = ch as u32;
+            frame.caster_height = c.elevation;
+            frame.caster_sin_tilt = tilt.sin();
+            frame.caster_cos_tilt = tilt.cos();
+            frame.caster_size = [cw as u32, ch as u32];
             match self.blur {
                 Blur::Mip => {
                     let (texels, levels) = crate::mip::build_chain(&opacity, cw, ch);
@@ -387,7 +365,8 @@ impl Scene {
                 }
                 Blur::Separable => {
                     separable = crate::separable::plan(&frame, &lights);
-                    frame.blur = separable.dims();
+                    frame.sep_margin = separable.margin;
+                    frame.sep_padded = separable.padded;
                 }
                 _ => {}
             }
@@ -399,6 +378,7 @@ impl Scene {
             caster: self.caster.as_ref().map(|_| self.blur),
             colored: self.caster.is_some() && self.colored_shadow,
             ptm_mip: !ptm_levels.is_empty(),
+            coverage: !coverage.is_empty(),
             link,
             uv,
         };
@@ -407,6 +387,7 @@ impl Scene {
             lights,
             coeffs,
             ptm_levels,
+            coverage,
             albedo,
             opacity,
             mip,
@@ -461,36 +442,6 @@ fn stored_levels(ptm: &Ptm, coeffs: &mut Vec<f32>, nonfinite: &mut usize) -> Vec
     levels
 }
 
-/// One level of the PTM's MIP chain as the shader reads it, field for field with `struct
-/// PtmLevel` in `shade.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct PtmLevel {
-    /// First texel of the level in `Prepared::coeffs` (texels, not floats).
-    pub offset: u32,
-    pub width: u32,
-    pub height: u32,
-    pub pad: u32,
-    /// The tile's extent in this level's texels (x, y): (width, height) when the level tiles
-    /// exactly; w/2^k, h/2^k (up to one texel more) for a stored level of an odd side.
-    pub period: [f32; 2],
-    pub pad2: [f32; 2],
-}
-
-impl PtmLevel {
-    /// A level that tiles exactly (its period is its size).
-    pub fn exact(offset: u32, width: u32, height: u32) -> PtmLevel {
-        PtmLevel {
-            offset,
-            width,
-            height,
-            pad: 0,
-            period: [width as f32, height as f32],
-            pad2: [0.0; 2],
-        }
-    }
-}
-
 /// Data-dependent trouble found while preparing a scene, reported beside it (never an error).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Warning {
@@ -525,6 +476,8 @@ pub struct Variant {
     pub colored: bool,
     /// The PTM is minified somewhere in the view: trilinear lookups in its MIP chain.
     pub ptm_mip: bool,
+    /// The PTM's file has per-texel coverage: radiance is scaled by it (0 in holes).
+    pub coverage: bool,
     /// The PTM's link (identity without a PTM): only its code is compiled.
     pub link: Link,
     /// The PTM's (u, v) map (projected without a PTM): only its code is compiled.
@@ -540,14 +493,16 @@ impl Variant {
             Some(ptm_fit::Basis::Ptm6),
             Some(ptm_fit::Basis::Ptm11),
         ] {
-            // Link, map and MIP chain exist only with a PTM.
-            let mut ptm_kinds = vec![(Link::Identity, UvMap::Projected, false)];
+            // Link, map, MIP chain and coverage exist only with a PTM.
+            let mut ptm_kinds = vec![(Link::Identity, UvMap::Projected, false, false)];
             if basis.is_some() {
                 ptm_kinds.clear();
                 for link in Link::ALL {
                     for uv in UvMap::ALL {
                         for ptm_mip in [false, true] {
-                            ptm_kinds.push((link, uv, ptm_mip));
+                            for coverage in [false, true] {
+                                ptm_kinds.push((link, uv, ptm_mip, coverage));
+                            }
                         }
                     }
                 }
@@ -558,13 +513,14 @@ impl Variant {
                         if caster.is_none() && colored {
                             continue;
                         }
-                        for &(link, uv, ptm_mip) in &ptm_kinds {
+                        for &(link, uv, ptm_mip, coverage) in &ptm_kinds {
                             out.push(Variant {
                                 basis,
                                 albedo_texture,
                                 caster,
                                 colored,
                                 ptm_mip,
+                                coverage,
                                 link,
                                 uv,
                             });
@@ -588,6 +544,9 @@ impl Variant {
         if self.ptm_mip {
             parts.push("ptm-mip".into());
         }
+        if self.coverage {
+            parts.push("coverage".into());
+        }
         if self.albedo_texture {
             parts.push("albedo".into());
         }
@@ -608,36 +567,6 @@ impl Variant {
             1
         }
     }
-}
-
-/// The uniform block, field for field with `struct Frame` in `shade.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct Frame {
-    /// World rectangle x0, y0, x1, y1 seen by the orthographic camera.
-    pub view: [f32; 4],
-    /// Output width, height (pixels); tile period W, H (swatch units) of PTM and albedo.
-    pub screen: [f32; 4],
-    /// Constant linear albedo (rgb; a unused).
-    pub albedo: [f32; 4],
-    /// World rectangle x0, y0, x1, y1 of the caster.
-    pub caster_rect: [f32; 4],
-    /// Caster: x = height d_ca of its centre line above the acceptor, y, z = sin, cos of its tilt
-    /// about that line (parallel to X); w unused.
-    pub caster: [f32; 4],
-    /// PTM texels nx, ny; albedo texels nx, ny.
-    pub sizes: [u32; 4],
-    /// Light count; caster texels w, h (after downsampling); explicit-blur sample cap per axis.
-    pub counts: [u32; 4],
-    /// Separable blur: margins mx, my (texels) around the caster and the padded map's w, h.
-    pub blur: [u32; 4],
-    /// Perspective camera eye (xyz; w = 1 for perspective, 0 for the orthographic top view).
-    pub eye: [f32; 4],
-    /// Camera right × tan(fov/2)·aspect (w unused), up × tan(fov/2) (w: PTM texels per pixel,
-    /// at unit depth for perspective), forward (unit; w: PTM MIP levels, 0 without a chain).
-    pub cam_right: [f32; 4],
-    pub cam_up: [f32; 4],
-    pub cam_forward: [f32; 4],
 }
 
 /// Right, up (scaled to the image's half-extent at unit distance) and forward unit vectors.
@@ -676,22 +605,6 @@ fn camera_basis(cam: &Perspective, aspect: f32) -> Result<[[f32; 3]; 3]> {
     Ok([r.map(|x| x * t * aspect), u.map(|x| x * t), f])
 }
 
-impl Frame {
-    fn zeroed() -> Frame {
-        bytemuck::Zeroable::zeroed()
-    }
-}
-
-/// One light as the shader reads it, field for field with `struct Light` in `shade.wgsl`.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct LightGpu {
-    /// Centre xyz (world), radius R.
-    pub position_radius: [f32; 4],
-    /// Colour × intensity (linear rgb); a unused.
-    pub color: [f32; 4],
-}
-
 /// A scene laid out as shader buffers; the GPU and the CPU twin both read exactly this.
 #[derive(Clone, Debug)]
 pub struct Prepared {
@@ -703,6 +616,10 @@ pub struct Prepared {
     /// or else coefficients averaged 2×2 ([`crate::mip::build_ptm_chain`]); empty when the view
     /// never minifies the PTM.
     pub ptm_levels: Vec<PtmLevel>,
+    /// The PTM's coverage (0 = a hole, 1 = all cloth) per texel of every level in
+    /// `ptm_levels` (texel offsets as for `coeffs`), box-averaged level by level; level 0 only
+    /// without a chain; empty when the file has none ([`crate::mip::coverage_chain`]).
+    pub coverage: Vec<f32>,
     /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
     pub albedo: Vec<[f32; 4]>,
     /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three
@@ -710,8 +627,8 @@ pub struct Prepared {
     pub opacity: Vec<u32>,
     /// MIP chain of the opacity (rgb in 0..1, a unused), all levels concatenated.
     pub mip: Vec<[f32; 4]>,
-    /// Per MIP level: offset into `mip`, width, height, 0.
-    pub mip_levels: Vec<[u32; 4]>,
+    /// Per MIP level of `mip`: where its texels start, its size.
+    pub mip_levels: Vec<crate::layout::MipLevel>,
     /// Separable blur: per-light radii and the padded map layout.
     pub separable: crate::separable::Plan,
     pub variant: Variant,
@@ -721,49 +638,4 @@ pub struct Prepared {
     pub nonfinite_coeffs: usize,
     /// What the caller should tell the user about this scene (each at most once).
     pub warnings: Vec<Warning>,
-}
-
-/// Box-downsamples a caster whose larger side exceeds [`MAX_CASTER_SIDE`] by the smallest
-/// integer factor that fits; returns (width, height, texels, factor).
-fn fit_caster(c: &Caster) -> (usize, usize, Vec<[u8; 4]>, usize) {
-    let factor = c.width.max(c.height).div_ceil(MAX_CASTER_SIDE);
-    if factor <= 1 {
-        return (c.width, c.height, c.rgba.clone(), 1);
-    }
-    let (w, h) = (c.width.div_ceil(factor), c.height.div_ceil(factor));
-    let mut out = Vec::with_capacity(w * h);
-    for j in 0..h {
-        for i in 0..w {
-            let mut sum = [0u32; 4];
-            let mut n = 0u32;
-            for y in j * factor..((j + 1) * factor).min(c.height) {
-                for x in i * factor..((i + 1) * factor).min(c.width) {
-                    let p = c.rgba[y * c.width + x];
-                    for k in 0..4 {
-                        sum[k] += p[k] as u32;
-                    }
-                    n += 1;
-                }
-            }
-            out.push(sum.map(|s| ((s + n / 2) / n) as u8));
-        }
-    }
-    (w, h, out, factor)
-}
-
-/// Caster opacity per channel as 8-bit integers (exact in a u32 summed-area table).
-/// Grey: o = α. Coloured: o_c = α·(1 − rgb_c), so an opaque red pane passes red light only;
-/// rgb is taken as stored (its transmittance), quantised to the nearest 1/255.
-pub fn opacity_texels(rgba: &[[u8; 4]], colored: bool) -> Vec<u32> {
-    rgba.iter()
-        .map(|p| {
-            let a = p[3] as u32;
-            let o = if colored {
-                [0, 1, 2].map(|c| (a * (255 - p[c] as u32) + 127) / 255)
-            } else {
-                [a; 3]
-            };
-            o[0] | (o[1] << 8) | (o[2] << 16)
-        })
-        .collect()
 }

@@ -104,3 +104,10 @@ fn golden_ptm6_separable_and_mip() {
     );
     check_golden("ptm6_mip_colored", &scene(Basis::Ptm6, Blur::Mip, true));
 }
+
+#[test]
+fn golden_ptm6_sat_with_a_hole() {
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.ptm = Some(holed_ptm(Basis::Ptm6, 12, 10, 11));
+    check_golden("ptm6_sat_hole", &s);
+}

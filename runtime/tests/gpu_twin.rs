@@ -80,7 +80,7 @@ fn gpu_sat_equals_cpu_sat_bit_for_bit() {
         .collect();
     for channels in [1u32, 3] {
         let gpu_table = gpu::sat_table(&g, &op, w as u32, h as u32, channels).unwrap();
-        let cpu_table = ptm_runtime::sat::build_cpu(&op, w, h, channels as usize);
+        let cpu_table = ptm_runtime::cpu::sat::build(&op, w, h, channels as usize);
         assert_eq!(gpu_table.len(), cpu_table.len());
         let first = gpu_table.iter().zip(&cpu_table).position(|(a, b)| a != b);
         assert_eq!(
@@ -360,4 +360,77 @@ fn stored_levels_of_odd_sizes_match_twin_under_perspective() {
         ]
     );
     check(&s, "perspective, stored odd-size levels");
+}
+
+#[test]
+fn holes_render_black_and_match_twin_plain_minified_and_stored() {
+    // 16×12 texels, 1 tile over 64×48 px: 4 px per texel, no chain. The hole's texels span
+    // x ∈ [4/16, 8/16), y (from the far edge) ∈ [3/12, 6/12); pixels whose bilinear taps all
+    // lie in the hole are black, pixels far from it equal the render without coverage.
+    let mut s = scene(Some(Basis::Ptm6), [64, 48]);
+    s.ptm = Some(holed_ptm(Basis::Ptm6, 16, 12, 9));
+    s.view = [0.0, 0.0, 1.0, 1.0];
+    let p = s.prepare().unwrap();
+    assert!(p.variant.coverage && !p.variant.ptm_mip);
+    assert_eq!(p.coverage.len(), 16 * 12);
+    check(&s, "PTM with a hole, 1:1");
+    let (img, _) = gpu::render(&gpu(), &p).unwrap();
+    let mut full = s.clone();
+    full.ptm.as_mut().unwrap().coverage = None;
+    let (open, _) = gpu::render(&gpu(), &full.prepare().unwrap()).unwrap();
+    let at = |img: &ptm_runtime::Image, x: usize, y: usize| img.pixels[y * 64 + x];
+    // Texel columns 5..7, rows 4..5 (centres) → pixels 22..26, 18..19: inside the hole's
+    // interior, all four taps have coverage 0.
+    for (x, y) in [(22, 18), (25, 19), (23, 18)] {
+        assert_eq!(
+            at(&img, x, y)[..3],
+            [0.0; 3],
+            "pixel ({x}, {y}) in the hole"
+        );
+        assert!(
+            at(&open, x, y)[0] > 0.0,
+            "the hole's pixel is lit without coverage"
+        );
+    }
+    for (x, y) in [(2, 2), (60, 40), (50, 5)] {
+        // Coverage 1 at all four taps: the weights' sum, 1 within an ulp or two.
+        let (a, b) = (at(&img, x, y), at(&open, x, y));
+        for c in 0..3 {
+            assert!(
+                (a[c] - b[c]).abs() <= 1e-6 * b[c],
+                "pixel ({x}, {y}) far from the hole: {a:?} vs {b:?}"
+            );
+        }
+    }
+
+    // Minified (4 tiles across 32 px: 2 texels per pixel): a derived chain, coverage averaged.
+    let mut m = s.clone();
+    m.size = [32, 24];
+    m.view = [0.0, 0.0, 4.0, 3.0];
+    let p = m.prepare().unwrap();
+    assert!(p.variant.coverage && p.variant.ptm_mip);
+    assert_eq!(p.coverage.len(), p.coeffs.len() / 6);
+    check(&m, "PTM with a hole, minified (derived chain)");
+
+    // Stored levels of odd sizes (rounded down) under perspective.
+    let mut ptm = holed_ptm(Basis::Ptm6, 13, 9, 4);
+    ptm.mips = ptm_fit::ptm::mip_sizes(13, 9)
+        .into_iter()
+        .enumerate()
+        .map(|(k, (w, h))| ptm_fit::ptm::Level {
+            width: w,
+            height: h,
+            planes: random_ptm(Basis::Ptm6, w, h, 50 + k as u64).planes,
+        })
+        .collect();
+    let mut q = scene(Some(Basis::Ptm6), [96, 64]);
+    q.ptm = Some(ptm);
+    q.perspective = Some(ptm_runtime::scene::Perspective {
+        eye: [-2.0, 0.5, 0.8],
+        target: [3.0, 1.5, 0.0],
+        fov_y_deg: 60.0,
+    });
+    let p = q.prepare().unwrap();
+    assert!(p.variant.coverage && p.variant.ptm_mip && p.ptm_levels.len() == 4);
+    check(&q, "PTM with a hole, stored odd-size levels, perspective");
 }

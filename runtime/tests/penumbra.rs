@@ -7,7 +7,8 @@ mod common;
 
 use common::*;
 use ptm_fit::{Basis, Ptm};
-use ptm_runtime::penumbra::{acceptor_radius, caster_radius, half_plane_fraction, mc_opacity};
+use ptm_runtime::penumbra::{acceptor_radius, caster_radius, half_plane_fraction};
+use ptm_runtime::reference::{mc_opacity, render_reference};
 use ptm_runtime::{cpu, gpu, Blur, Caster, Image, Scene};
 
 const W: u32 = 256;
@@ -218,7 +219,7 @@ fn casters_beyond_4096_are_downsampled_and_still_render() {
     s.caster = Some(c);
     let p = s.prepare().unwrap();
     assert_eq!(p.caster_downsample, 3);
-    assert_eq!((p.frame.counts[1], p.frame.counts[2]), (2734, 1));
+    assert_eq!((p.frame.caster_size[0], p.frame.caster_size[1]), (2734, 1));
     let (img, _) = gpu::render(&gpu(), &p).unwrap();
     let twin = cpu::render(&p);
     assert!(img.max_abs_diff(&twin).unwrap() < 1e-3);
@@ -385,7 +386,7 @@ fn tilted_caster_soft_shadow_follows_monte_carlo() {
     let mut s = strip_y(light([0.1, -0.2, 3.0], 0.4, 4.0));
     s.caster = Some(tilted_band(30.0));
     let g = gpu();
-    let reference = cpu::render_reference(&s.prepare().unwrap(), 1024);
+    let reference = render_reference(&s.prepare().unwrap(), 1024);
     let mut flat = s.clone();
     flat.caster = Some(tilted_band(0.0));
     let (untilted, _) = gpu::render(&g, &flat.prepare().unwrap()).unwrap();

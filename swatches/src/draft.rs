@@ -349,19 +349,28 @@ pub fn parse_wif(text: &str, source: &str) -> Result<Pattern> {
             ));
         }
         let tlimit = format!("[WEAVING] Treadles={treadles}");
-        let mut tieup = vec![Vec::new(); treadles];
+        // Keyed by treadle, not a vector of `Treadles=` entries: the header's count is only a
+        // bound (Treadles=1000000000000 must not allocate a terabyte).
+        let mut tieup = BTreeMap::new();
         for (t, s, _) in wif.lists("TIEUP", "treadle", treadles, "shaft", shafts, &limit)? {
-            tieup[t - 1] = s;
+            tieup.insert(t, s);
         }
         for (pick, ts, _) in wif.lists("TREADLING", "pick", wefts, "treadle", treadles, &tlimit)? {
             lifted[pick - 1] = ts
                 .iter()
-                .flat_map(|&t| tieup[t - 1].iter().copied())
+                .flat_map(|t| tieup.get(t).into_iter().flatten().copied())
                 .collect();
         }
     }
+    // Sorted and deduplicated, so each crossing is a merge of two short lists.
+    for l in lifted.iter_mut().chain(shafts_of.iter_mut()) {
+        l.sort_unstable();
+        l.dedup();
+    }
     Ok(Pattern::from_fn(warps, wefts, |i, j| {
-        let up = shafts_of[i].iter().any(|s| lifted[j].contains(s));
+        let up = shafts_of[i]
+            .iter()
+            .any(|s| lifted[j].binary_search(s).is_ok());
         up == rising
     }))
 }

@@ -288,3 +288,29 @@ fn grids_read_top_row_first_and_refuse_bad_rows() {
     let s = build("grid?rows=10/01&segments=4&along=4").unwrap();
     assert_eq!(s.mesh.tile, [2.0, 2.0]);
 }
+
+#[test]
+fn huge_wif_counts_are_bounds_not_allocations() {
+    // Treadles=1e18 panicked (capacity overflow) and 1e12 aborted: the counts only bound the
+    // indices, the cloth is the same twill.
+    let expect = draft::parse_wif(TWILL_WIF, "twill.wif").unwrap();
+    for n in [
+        "1000000000000000000",
+        "1000000000000",
+        "18446744073709551615",
+    ] {
+        let t = TWILL_WIF
+            .replace("Treadles=4", &format!("Treadles={n}"))
+            .replace("Shafts=4", &format!("Shafts={n}"));
+        assert_eq!(draft::parse_wif(&t, "huge.wif").unwrap(), expect, "{n}");
+    }
+    // Repeated shafts in a list are harmless.
+    let t = TWILL_WIF.replace("[TIEUP]\n1=1,2", "[TIEUP]\n1=1,2,2,1,1");
+    assert_eq!(draft::parse_wif(&t, "dup.wif").unwrap(), expect);
+    let t = TWILL_WIF.replace("Treadles=4", "Treadles=99999999999999999999");
+    let (sec, _, why) = wif_err(&t);
+    assert!(
+        sec == "WEAVING" && why.contains("not a non-negative integer"),
+        "{why}"
+    );
+}

@@ -85,3 +85,24 @@ pub fn random_caster(w: usize, h: usize, rect: [f32; 4], elevation: f32, seed: u
         tilt_deg: 0.0,
     }
 }
+
+/// `random_ptm` with a hole: coverage 0 (and coefficients 0, as the fit writes holes) on the
+/// texels of columns 4..8, rows 3..6, ½ on the ring of texels around it, 1 elsewhere. The PTM
+/// must be at least 10×8 texels.
+pub fn holed_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
+    let mut ptm = random_ptm(basis, width, height, seed);
+    let mut coverage = vec![1.0f32; width * height];
+    for (t, c) in coverage.iter_mut().enumerate() {
+        let (x, y) = (t % width, t / width);
+        if (4..8).contains(&x) && (3..6).contains(&y) {
+            *c = 0.0;
+            for p in &mut ptm.planes {
+                p[t] = 0.0;
+            }
+        } else if (3..9).contains(&x) && (2..7).contains(&y) {
+            *c = 0.5;
+        }
+    }
+    ptm.coverage = Some(coverage);
+    ptm
+}

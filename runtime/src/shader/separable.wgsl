@@ -1,37 +1,41 @@
 // separable.wgsl: per light, a horizontal then a vertical box pass (half-sides from `radii`, in
 // caster texels) over the caster opacity, with running sums at both box edges; output padded
-// by margins (mx, my) so the penumbra reaches past the caster. CPU twin: separable.rs.
+// by margins (mx, my) so the penumbra reaches past the caster. CPU twin: cpu/separable.rs.
 
+// Field for field with `layout::SepParams`.
 struct SepParams {
-    dims: vec4<u32>, // caster w, h; channels; lights
-    pad: vec4<u32>,  // margins mx, my; padded w, h
+    size: vec2<u32>,   // caster w, h
+    channels: u32,
+    lights: u32,
+    margin: vec2<u32>, // margins mx, my
+    padded: vec2<u32>, // padded map w, h
 }
 
 @group(0) @binding(0) var<uniform> params: SepParams;
 @group(0) @binding(1) var<storage, read> opacity_tex: array<u32>;
-@group(0) @binding(2) var<storage, read> radii: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> radii: array<vec2<f32>>; // box half-sides x, y
 @group(0) @binding(3) var<storage, read_write> hmap: array<f32>; // [light][row][padded col][ch]
 @group(0) @binding(4) var<storage, read_write> vmap: array<f32>; // [light][padded row][col][ch]
 
 fn texel(j: u32, i: u32, ch: u32) -> u32 {
-    if (i >= params.dims.x) {
+    if (i >= params.size.x) {
         return 0u;
     }
-    return (opacity_tex[j * params.dims.x + i] >> (8u * ch)) & 255u;
+    return (opacity_tex[j * params.size.x + i] >> (8u * ch)) & 255u;
 }
 
 // One thread per (light, caster row, channel).
 @compute @workgroup_size(64)
 fn sep_h(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = params.dims.x;
-    let h = params.dims.y;
-    let channels = params.dims.z;
-    let pw = params.pad.z;
-    let mx = f32(params.pad.x);
+    let w = params.size.x;
+    let h = params.size.y;
+    let channels = params.channels;
+    let pw = params.padded.x;
+    let mx = f32(params.margin.x);
     let ch = id.x % channels;
     let j = (id.x / channels) % h;
     let li = id.x / (channels * h);
-    if (li >= params.dims.w) {
+    if (li >= params.lights) {
         return;
     }
     let r = radii[li].x;
@@ -58,25 +62,25 @@ fn sep_h(@builtin(global_invocation_id) id: vec3<u32>) {
 }
 
 fn hval(li: u32, j: u32, i: u32, ch: u32) -> f32 {
-    let h = params.dims.y;
+    let h = params.size.y;
     if (j >= h) {
         return 0.0;
     }
-    return hmap[((li * h + j) * params.pad.z + i) * params.dims.z + ch];
+    return hmap[((li * h + j) * params.padded.x + i) * params.channels + ch];
 }
 
 // One thread per (light, padded column, channel).
 @compute @workgroup_size(64)
 fn sep_v(@builtin(global_invocation_id) id: vec3<u32>) {
-    let h = params.dims.y;
-    let channels = params.dims.z;
-    let pw = params.pad.z;
-    let ph = params.pad.w;
-    let my = f32(params.pad.y);
+    let h = params.size.y;
+    let channels = params.channels;
+    let pw = params.padded.x;
+    let ph = params.padded.y;
+    let my = f32(params.margin.y);
     let ch = id.x % channels;
     let i = (id.x / channels) % pw;
     let li = id.x / (channels * pw);
-    if (li >= params.dims.w) {
+    if (li >= params.lights) {
         return;
     }
     let r = radii[li].y;

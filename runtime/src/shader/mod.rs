@@ -13,6 +13,9 @@ use crate::{Error, Result};
 /// The shading shader, with directives.
 pub const SHADE_WGSL: &str = include_str!("shade.wgsl");
 
+/// The summed-area table passes.
+pub const SAT_WGSL: &str = include_str!("sat.wgsl");
+
 /// The defines a variant switches on.
 pub fn defines(v: &Variant) -> Vec<&'static str> {
     let mut d = Vec::new();
@@ -21,6 +24,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     }
     if v.basis.is_some() && v.ptm_mip {
         d.push("PTM_MIP");
+    }
+    if v.basis.is_some() && v.coverage {
+        d.push("PTM_COVERAGE");
     }
     if v.basis.is_some() && v.link == Link::Logistic {
         d.push("PTM_LOGISTIC");
@@ -140,9 +146,9 @@ mod tests {
     #[test]
     fn every_shade_variant_validates_with_naga() {
         let all = Variant::all();
-        // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain;
-        // × albedo × caster.
-        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2) * 2 * 9);
+        // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
+        // and without coverage; × albedo × caster.
+        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2) * 2 * 9);
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -159,7 +165,7 @@ mod tests {
 
     #[test]
     fn compute_shaders_validate_with_naga() {
-        validate("sat.wgsl", crate::sat::SAT_WGSL).unwrap();
+        validate("sat.wgsl", SAT_WGSL).unwrap();
         validate("separable.wgsl", SEPARABLE_WGSL).unwrap();
     }
 
@@ -171,6 +177,7 @@ mod tests {
             caster: None,
             colored: false,
             ptm_mip: false,
+            coverage: false,
             link: Link::Identity,
             uv: UvMap::Projected,
         };
@@ -184,7 +191,7 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         let module = validate("plain", &src).unwrap();
-        for name in ["mip", "sep_map", "ptm_levels", "ptm_lod"] {
+        for name in ["mip", "sep_map", "ptm_levels", "ptm_lod", "ptm_coverage"] {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");
@@ -210,43 +217,6 @@ mod tests {
                 assert_eq!(src.contains(name), want, "{}: {name}", v.name());
             }
         }
-    }
-
-    #[test]
-    fn ptm_level_layout_matches_the_wgsl_struct() {
-        use crate::scene::PtmLevel;
-        use core::mem::offset_of;
-        let v = Variant::all()
-            .into_iter()
-            .find(|v| v.ptm_mip)
-            .expect("a MIP variant");
-        let module = validate(&v.name(), &shade_source(&v).unwrap()).unwrap();
-        let (members, span) = module
-            .types
-            .iter()
-            .find_map(|(_, t)| match &t.inner {
-                naga::TypeInner::Struct { members, span }
-                    if t.name.as_deref() == Some("PtmLevel") =>
-                {
-                    Some((members.clone(), *span))
-                }
-                _ => None,
-            })
-            .expect("struct PtmLevel in shade.wgsl");
-        let want = [
-            ("offset", offset_of!(PtmLevel, offset)),
-            ("width", offset_of!(PtmLevel, width)),
-            ("height", offset_of!(PtmLevel, height)),
-            ("pad", offset_of!(PtmLevel, pad)),
-            ("period", offset_of!(PtmLevel, period)),
-            ("pad2", offset_of!(PtmLevel, pad2)),
-        ];
-        let got: Vec<(&str, usize)> = members
-            .iter()
-            .map(|m| (m.name.as_deref().unwrap_or("?"), m.offset as usize))
-            .collect();
-        assert_eq!(got, want);
-        assert_eq!(span as usize, std::mem::size_of::<PtmLevel>());
     }
 
     #[test]

@@ -3,8 +3,11 @@
 // column 0 zero: sat[j][i] = Σ opacity over rows < j, columns < i. Two passes, one thread per
 // row (then per column) and channel, each a sequential running sum: O(w·h) work, no float.
 
+// Field for field with `layout::SatParams`. CPU twin: cpu/sat.rs.
 struct SatParams {
-    size: vec4<u32>, // caster w, h; channels; unused
+    size: vec2<u32>, // caster w, h
+    channels: u32,   // opacity channels (1 grey, 3 coloured)
+    pad: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: SatParams;
@@ -15,7 +18,7 @@ struct SatParams {
 fn sat_rows(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = params.size.x;
     let h = params.size.y;
-    let channels = params.size.z;
+    let channels = params.channels;
     let j = id.x / channels;
     let ch = id.x % channels;
     if (j >= h) {
@@ -32,7 +35,7 @@ fn sat_rows(@builtin(global_invocation_id) id: vec3<u32>) {
 fn sat_columns(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = params.size.x;
     let h = params.size.y;
-    let channels = params.size.z;
+    let channels = params.channels;
     let i = id.x / channels + 1u;
     let ch = id.x % channels;
     if (i > w) {

@@ -1,28 +1,44 @@
 // shade.wgsl: the acceptor plane seen from above under spherical lights, radiance multiplied by
 // (1 − K) from the occlusion PTM and by (1 − opacity) from the penumbra map of a planar caster.
 //
-// Source-level variants (shader.rs): `//#if NAME` … `//#else` … `//#endif` lines keep or drop
+// Source-level variants (shader/mod.rs): `//#if NAME` … `//#else` … `//#endif` lines keep or drop
 // code and bindings; {{NC}}, {{PTM_EVAL}} and {{SAT_CHANNELS}} are filled in. The CPU twin is
-// cpu.rs: same function names, same maths.
+// cpu/shade.rs: same function names, same maths.
 
+// The uniform block, field for field with `layout::Frame` (tested against naga's offsets).
 struct Frame {
-    view: vec4<f32>,        // world rect x0, y0, x1, y1 of the orthographic camera
-    screen: vec4<f32>,      // output width, height (px); tile period W, H (swatch units)
-    albedo: vec4<f32>,      // constant linear albedo rgb
-    caster_rect: vec4<f32>, // world rect x0, y0, x1, y1 of the caster
-    caster: vec4<f32>,      // x: height d_ca of the caster's centre line; y, z: sin, cos of its tilt
-    sizes: vec4<u32>,       // PTM texels nx, ny; albedo texels nx, ny
-    counts: vec4<u32>,      // lights; caster texels w, h; explicit samples cap per axis
-    blur: vec4<u32>,        // separable: margins mx, my; padded map w, h
-    eye: vec4<f32>,         // perspective eye xyz; w = 1 perspective, 0 orthographic top view
-    cam_right: vec4<f32>,   // right · tan(fov/2) · aspect
-    cam_up: vec4<f32>,      // up · tan(fov/2); w: PTM texels per pixel (at unit depth if perspective)
-    cam_forward: vec4<f32>, // forward (unit); w: PTM MIP levels
+    view: vec4<f32>,            // world rect x0, y0, x1, y1 of the orthographic camera
+    screen: vec2<f32>,          // output width, height (px)
+    tile: vec2<f32>,            // tile period W, H (swatch units) of PTM and albedo
+    albedo: vec3<f32>,          // constant linear albedo rgb
+    light_count: u32,
+    caster_rect: vec4<f32>,     // world rect x0, y0, x1, y1 of the caster
+    caster_height: f32,         // height d_ca of the caster's centre line
+    caster_sin_tilt: f32,       // sin, cos of its tilt about that line (parallel to X)
+    caster_cos_tilt: f32,
+    explicit_samples: u32,      // explicit blur: cap on samples per axis
+    ptm_size: vec2<u32>,        // PTM texels nx, ny
+    albedo_size: vec2<u32>,     // albedo texels nx, ny
+    caster_size: vec2<u32>,     // caster texels w, h
+    sep_margin: vec2<u32>,      // separable: margins mx, my around the caster
+    sep_padded: vec2<u32>,      // separable: padded map w, h
+    ptm_texels_per_pixel: f32,  // at unit depth for the perspective camera
+    ptm_level_count: u32,       // PTM MIP levels (0 without a chain)
+    eye: vec3<f32>,             // perspective eye
+    perspective: u32,           // 1 perspective, 0 orthographic top view
+    cam_right: vec3<f32>,       // right · tan(fov/2) · aspect
+    pad0: f32,
+    cam_up: vec3<f32>,          // up · tan(fov/2)
+    pad1: f32,
+    cam_forward: vec3<f32>,     // forward (unit)
+    pad2: f32,
 }
 
 struct Light {
-    position_radius: vec4<f32>, // centre xyz, radius R
-    color: vec4<f32>,           // colour × intensity
+    position: vec3<f32>, // centre
+    radius: f32,         // sphere radius R
+    color: vec3<f32>,    // colour × intensity
+    pad: f32,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -41,13 +57,22 @@ struct Light {
 //#endif
 //#if BLUR_MIP
 @group(0) @binding(6) var<storage, read> mip: array<vec4<f32>>;
-@group(0) @binding(7) var<storage, read> mip_levels: array<vec4<u32>>; // offset, w, h, 0
+// One level of the caster opacity's MIP chain (`layout::MipLevel`): its texels start at
+// `offset` in `mip`.
+struct MipLevel {
+    offset: u32,
+    width: u32,
+    height: u32,
+    pad: u32,
+}
+
+@group(0) @binding(7) var<storage, read> mip_levels: array<MipLevel>;
 //#endif
 //#if BLUR_SEPARABLE
 @group(0) @binding(8) var<storage, read> sep_map: array<f32>; // [light][row][col][channel]
 //#endif
 //#if PTM_MIP
-// One level of the PTM's MIP chain (scene.rs `PtmLevel`): its texels start at `offset` in
+// One level of the PTM's MIP chain (`layout::PtmLevel`): its texels start at `offset` in
 // `coeffs`; `period` is the tile's extent in this level's texels, = (width, height) when the level
 // tiles exactly (a derived chain) and up to one texel more for a stored level of an odd side
 // (sizes rounded down: texel i covers level-0 texels 2^k·i … 2^k·(i + 1), the rest is a gap).
@@ -62,6 +87,10 @@ struct PtmLevel {
 
 @group(0) @binding(9) var<storage, read> ptm_levels: array<PtmLevel>;
 //#endif
+//#if PTM_COVERAGE
+// Per PTM texel (levels laid out as in `coeffs`): the fraction with cloth under it, 0 in a hole.
+@group(0) @binding(10) var<storage, read> coverage: array<f32>;
+//#endif
 
 // Full-screen triangle: vertices (−1, −1), (3, −1), (−1, 3).
 @vertex
@@ -73,17 +102,17 @@ fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
 
 // Perspective ray direction through pixel `frag` (its forward component is 1).
 fn view_dir(frag: vec2<f32>) -> vec3<f32> {
-    let t = frag / frame.screen.xy;
-    return frame.cam_forward.xyz + (2.0 * t.x - 1.0) * frame.cam_right.xyz
-        + (1.0 - 2.0 * t.y) * frame.cam_up.xyz;
+    let t = frag / frame.screen;
+    return frame.cam_forward + (2.0 * t.x - 1.0) * frame.cam_right
+        + (1.0 - 2.0 * t.y) * frame.cam_up;
 }
 
 // Cloth point (x, y) seen through a pixel centre and whether the pixel sees the cloth (z: 1/0);
 // `frag` is @builtin(position).xy (pixel + 0.5). Orthographic: row 0 is y1 of the view.
 // Perspective: the ray eye + s·dir meets z = 0 at s = −eye.z/dir.z (needs dir.z < 0 < eye.z).
 fn pixel_world(frag: vec2<f32>) -> vec3<f32> {
-    let t = frag / frame.screen.xy;
-    if (frame.eye.w == 0.0) {
+    let t = frag / frame.screen;
+    if (frame.perspective == 0u) {
         return vec3<f32>(
             frame.view.x + (frame.view.z - frame.view.x) * t.x,
             frame.view.w - (frame.view.w - frame.view.y) * t.y,
@@ -99,14 +128,14 @@ fn pixel_world(frag: vec2<f32>) -> vec3<f32> {
 }
 
 // Four texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights for a texture of `n` texels
-// tiled with period frame.screen.zw; texel centres at (i + 0.5)/n, row 0 at the far edge.
+// tiled with period frame.tile; texel centres at (i + 0.5)/n, row 0 at the far edge.
 struct Bilinear {
     index: vec4<u32>,
     weight: vec4<f32>,
 }
 
 fn tile_bilinear(p: vec2<f32>, n: vec2<u32>) -> Bilinear {
-    let s = p / frame.screen.zw;
+    let s = p / frame.tile;
     let f = vec2<f32>(s.x - floor(s.x), 1.0 - (s.y - floor(s.y)));
     let c = f * vec2<f32>(n) - 0.5;
     let c0 = floor(c);
@@ -137,12 +166,12 @@ const NC: u32 = {{NC}}u;
 // along the plane's steepest direction; the larger side is taken (isotropic, like trilinear
 // texture filtering).
 fn ptm_lod(frag: vec2<f32>) -> f32 {
-    var texels = frame.cam_up.w;
-    if (frame.eye.w != 0.0) {
+    var texels = frame.ptm_texels_per_pixel;
+    if (frame.perspective != 0u) {
         let dir = view_dir(frag);
         texels = texels * frame.eye.z * length(dir) / (dir.z * dir.z);
     }
-    return clamp(log2(max(texels, 1.0)), 0.0, frame.cam_forward.w - 1.0);
+    return clamp(log2(max(texels, 1.0)), 0.0, f32(frame.ptm_level_count) - 1.0);
 }
 
 // One axis of `level_bilinear`: texel indices (x0, x1) and the weight of x1 at level-texel
@@ -164,7 +193,7 @@ fn level_axis(c: f32, n: u32, period: f32) -> vec3<f32> {
 
 // As tile_bilinear, for a MIP level whose tile spans `period` texels (see PtmLevel).
 fn level_bilinear(p: vec2<f32>, lv: PtmLevel) -> Bilinear {
-    let s = p / frame.screen.zw;
+    let s = p / frame.tile;
     let f = vec2<f32>(s.x - floor(s.x), 1.0 - (s.y - floor(s.y)));
     let c = f * lv.period - 0.5;
     let ax = level_axis(c.x, lv.width, lv.period.x);
@@ -210,7 +239,7 @@ fn ptm_coeffs(p: vec2<f32>, lod: f32) -> array<f32, {{NC}}> {
 //#else
 // Bilinearly filtered coefficients at p (K is linear in them, so filtering them filters K).
 fn ptm_coeffs(p: vec2<f32>, lod: f32) -> array<f32, {{NC}}> {
-    let b = tile_bilinear(p, frame.sizes.xy);
+    let b = tile_bilinear(p, frame.ptm_size);
     var c: array<f32, {{NC}}>;
     for (var k = 0u; k < NC; k++) {
         c[k] = b.weight.x * coeffs[b.index.x * NC + k] + b.weight.y * coeffs[b.index.y * NC + k]
@@ -218,6 +247,37 @@ fn ptm_coeffs(p: vec2<f32>, lod: f32) -> array<f32, {{NC}}> {
     }
     return c;
 }
+//#endif
+
+//#if PTM_COVERAGE
+//#if PTM_MIP
+// Bilinearly filtered coverage of MIP level `level` at p.
+fn coverage_level(p: vec2<f32>, level: u32) -> f32 {
+    let lv = ptm_levels[level];
+    let b = level_bilinear(p, lv);
+    let i = b.index + vec4<u32>(lv.offset);
+    return b.weight.x * coverage[i.x] + b.weight.y * coverage[i.y] + b.weight.z * coverage[i.z]
+        + b.weight.w * coverage[i.w];
+}
+
+// Coverage at p, filtered as the coefficients are (trilinear between the levels around lod).
+fn ptm_coverage(p: vec2<f32>, lod: f32) -> f32 {
+    let l0 = floor(lod);
+    let f = lod - l0;
+    var c = coverage_level(p, u32(l0));
+    if (f > 0.0) {
+        c = c + f * (coverage_level(p, u32(l0) + 1u) - c);
+    }
+    return c;
+}
+//#else
+// Coverage at p, filtered as the coefficients are (bilinear).
+fn ptm_coverage(p: vec2<f32>, lod: f32) -> f32 {
+    let b = tile_bilinear(p, frame.ptm_size);
+    return b.weight.x * coverage[b.index.x] + b.weight.y * coverage[b.index.y]
+        + b.weight.z * coverage[b.index.z] + b.weight.w * coverage[b.index.w];
+}
+//#endif
 //#endif
 
 //#if PTM_HEMISPHERICAL
@@ -260,11 +320,11 @@ fn ptm_k(c: array<f32, {{NC}}>, l: vec3<f32>) -> f32 {
 
 fn albedo_at(p: vec2<f32>) -> vec3<f32> {
 //#if ALBEDO_TEX
-    let b = tile_bilinear(p, frame.sizes.zw);
+    let b = tile_bilinear(p, frame.albedo_size);
     return (b.weight.x * albedo_tex[b.index.x] + b.weight.y * albedo_tex[b.index.y]
         + b.weight.z * albedo_tex[b.index.z] + b.weight.w * albedo_tex[b.index.w]).xyz;
 //#else
-    return frame.albedo.xyz;
+    return frame.albedo;
 //#endif
 }
 
@@ -272,7 +332,7 @@ fn albedo_at(p: vec2<f32>) -> vec3<f32> {
 // Continuous caster texel coordinates (column, row from the far edge) of a caster-plane point.
 fn caster_texel_coords(q: vec2<f32>) -> vec2<f32> {
     let r = frame.caster_rect;
-    let size = vec2<f32>(frame.counts.yz);
+    let size = vec2<f32>(frame.caster_size);
     return vec2<f32>((q.x - r.x) / (r.z - r.x) * size.x, (r.w - q.y) / (r.w - r.y) * size.y);
 }
 
@@ -281,11 +341,11 @@ fn caster_texel_coords(q: vec2<f32>) -> vec2<f32> {
 //#if BLUR_EXPLICIT
 // Opacity of the texel containing texel coordinate t as 8-bit counts per channel (0 outside).
 fn opacity_raw(t: vec2<f32>) -> vec3<u32> {
-    let size = vec2<f32>(frame.counts.yz);
+    let size = vec2<f32>(frame.caster_size);
     if (t.x < 0.0 || t.y < 0.0 || t.x >= size.x || t.y >= size.y) {
         return vec3<u32>(0u);
     }
-    let o = opacity_tex[u32(t.y) * frame.counts.y + u32(t.x)];
+    let o = opacity_tex[u32(t.y) * frame.caster_size.x + u32(t.x)];
     return vec3<u32>(o & 255u, (o >> 8u) & 255u, (o >> 16u) & 255u);
 }
 
@@ -293,7 +353,7 @@ fn opacity_raw(t: vec2<f32>) -> vec3<u32> {
 // (texels) around t; n grows with the radius: spacing ≤ ½ texel, n ≥ 16, ≤ counts.w. Sums are
 // integer counts (exact, ≤ 256²·255 < 2³²), divided once at the end.
 fn blur_explicit(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
-    let n = clamp(u32(ceil(4.0 * max(wt.x, wt.y))), 16u, frame.counts.w);
+    let n = clamp(u32(ceil(4.0 * max(wt.x, wt.y))), 16u, frame.explicit_samples);
     var sum = vec3<u32>(0u);
     var count = 0u;
     for (var k = 0u; k < n * n; k++) {
@@ -311,7 +371,7 @@ fn blur_explicit(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
 const SAT_CHANNELS: u32 = {{SAT_CHANNELS}}u;
 
 fn sat_load(i: u32, j: u32, ch: u32) -> u32 {
-    return sat[(j * (frame.counts.y + 1u) + i) * SAT_CHANNELS + ch];
+    return sat[(j * (frame.caster_size.x + 1u) + i) * SAT_CHANNELS + ch];
 }
 
 // One axis of a box [lo, hi] (texel units, clamped to the table) split into whole-texel spans
@@ -344,11 +404,11 @@ fn sat_spans(lo: f32, hi: f32, n: u32) -> Spans {
 // transparent, so the sum is divided by the full box area. Corner differences are taken in
 // wrapping u32 (exact for any box up to 4096² texels), converted to f32 only after.
 fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
-    let size = vec2<f32>(frame.counts.yz);
+    let size = vec2<f32>(frame.caster_size);
     let lo = clamp(t - wt, vec2<f32>(0.0), size);
     let hi = clamp(t + wt, vec2<f32>(0.0), size);
-    let sx = sat_spans(lo.x, hi.x, frame.counts.y);
-    let sy = sat_spans(lo.y, hi.y, frame.counts.z);
+    let sx = sat_spans(lo.x, hi.x, frame.caster_size.x);
+    let sy = sat_spans(lo.y, hi.y, frame.caster_size.y);
     var out = vec3<f32>(0.0);
     for (var ch = 0u; ch < SAT_CHANNELS; ch++) {
         var s: array<array<u32, 4>, 4>;
@@ -379,11 +439,11 @@ fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
 //#endif
 
 //#if BLUR_MIP
-fn mip_texel(l: vec4<u32>, x: i32, y: i32) -> vec3<f32> {
-    if (x < 0 || y < 0 || x >= i32(l.y) || y >= i32(l.z)) {
+fn mip_texel(l: MipLevel, x: i32, y: i32) -> vec3<f32> {
+    if (x < 0 || y < 0 || x >= i32(l.width) || y >= i32(l.height)) {
         return vec3<f32>(0.0);
     }
-    return mip[l.x + u32(y) * l.y + u32(x)].xyz;
+    return mip[l.offset + u32(y) * l.width + u32(x)].xyz;
 }
 
 // Bilinear sample of MIP `level` at level-0 texel coordinate t (transparent outside).
@@ -415,8 +475,8 @@ fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
 const SEP_CHANNELS: u32 = {{SAT_CHANNELS}}u;
 
 fn sep_tap(li: u32, x: i32, y: i32, ch: u32) -> f32 {
-    let pw = i32(frame.blur.z);
-    let ph = i32(frame.blur.w);
+    let pw = i32(frame.sep_padded.x);
+    let ph = i32(frame.sep_padded.y);
     if (x < 0 || y < 0 || x >= pw || y >= ph) {
         return 0.0;
     }
@@ -425,7 +485,7 @@ fn sep_tap(li: u32, x: i32, y: i32, ch: u32) -> f32 {
 
 // Bilinear lookup of light li's pre-blurred map (separable.wgsl) at caster texel coordinate t.
 fn blur_separable(li: u32, t: vec2<f32>) -> vec3<f32> {
-    let c = t + vec2<f32>(frame.blur.xy) - 0.5;
+    let c = t + vec2<f32>(frame.sep_margin) - 0.5;
     let c0 = floor(c);
     let a = c - c0;
     let x = i32(c0.x);
@@ -454,11 +514,11 @@ fn blur_separable(li: u32, t: vec2<f32>) -> vec3<f32> {
 // beyond the caster plane as seen from p (s outside [0, 1)) casts no caster shadow.
 fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
     let r = frame.caster_rect;
-    let centre = vec3<f32>(0.5 * (r.xy + r.zw), frame.caster.x);
-    let n = vec3<f32>(0.0, -frame.caster.y, frame.caster.z);
-    let e2 = vec3<f32>(0.0, frame.caster.z, frame.caster.y);
+    let centre = vec3<f32>(0.5 * (r.xy + r.zw), frame.caster_height);
+    let n = vec3<f32>(0.0, -frame.caster_sin_tilt, frame.caster_cos_tilt);
+    let e2 = vec3<f32>(0.0, frame.caster_cos_tilt, frame.caster_sin_tilt);
     let pp = vec3<f32>(p, 0.0);
-    let ray = l.position_radius.xyz - pp;
+    let ray = l.position - pp;
     let denom = dot(n, ray);
     if (denom == 0.0) {
         return vec3<f32>(0.0);
@@ -469,9 +529,9 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
     }
     let off = pp + s * ray - centre;
     let q = centre.xy + vec2<f32>(off.x, dot(off, e2));
-    let w = l.position_radius.w * s;
-    let stretch = abs(frame.caster.z + dot(ray, e2) * frame.caster.y / denom);
-    let texel = (r.zw - r.xy) / vec2<f32>(frame.counts.yz);
+    let w = l.radius * s;
+    let stretch = abs(frame.caster_cos_tilt + dot(ray, e2) * frame.caster_sin_tilt / denom);
+    let texel = (r.zw - r.xy) / vec2<f32>(frame.caster_size);
     let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
     let t = caster_texel_coords(q);
 //#if BLUR_SAT
@@ -490,7 +550,7 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
 //#endif
 
 // Linear radiance leaving acceptor point p (normal +Z):
-// Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K).
+// Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K), × coverage with one.
 // `lod`: the PTM's level of detail at this pixel (0 without a MIP chain).
 fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
     let albedo = albedo_at(p);
@@ -498,9 +558,9 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
     let c = ptm_coeffs(p, lod);
 //#endif
     var radiance = vec3<f32>(0.0);
-    for (var i = 0u; i < frame.counts.x; i++) {
+    for (var i = 0u; i < frame.light_count; i++) {
         let light = lights[i];
-        let to_light = vec3<f32>(light.position_radius.xy - p, light.position_radius.z);
+        let to_light = vec3<f32>(light.position.xy - p, light.position.z);
         let d2 = dot(to_light, to_light);
         if (d2 <= 0.0 || to_light.z <= 0.0) {
             continue;
@@ -514,8 +574,12 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
         // Clamped: f32 texel coordinates make box weights sum to 1 ± ulp(t)/(2w).
         visible *= 1.0 - clamp(light_opacity(p, light, i), vec3<f32>(0.0), vec3<f32>(1.0));
 //#endif
-        radiance += albedo * light.color.xyz * (l.z / d2) * visible;
+        radiance += albedo * light.color * (l.z / d2) * visible;
     }
+//#if PTM_COVERAGE
+    // A hole shows nothing (black, as a ray that misses the cloth); partly covered texels blend.
+    radiance *= ptm_coverage(p, lod);
+//#endif
     return radiance;
 }
 

@@ -1,0 +1,205 @@
+//! The CPU twin of the shaders, one module per WGSL file with the WGSL functions' names
+//! (vello's `cpu/` beside `shaders/`): [`shade`] for `shader/shade.wgsl`, [`sat`] for
+//! `shader/sat.wgsl`, [`separable`] for `shader/separable.wgsl`. [`TWINS`] pairs every WGSL
+//! function with its twin; a test fails when a WGSL function has none.
+//!
+//! [`render`] runs the whole pipeline the GPU runs (tables, then one `fs_main` per pixel) on the
+//! same [`Prepared`] buffers; tests compare the GPU image with it.
+
+pub mod sat;
+pub mod separable;
+pub mod shade;
+
+use rayon::prelude::*;
+
+use crate::output::Image;
+use crate::scene::{Blur, Prepared};
+use shade::{pixel_world, ptm_k_unclamped, ptm_lod, OpacityFn, Twin};
+
+/// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
+/// result does not depend on the thread count).
+pub fn render(p: &Prepared) -> Image {
+    render_with(p, None)
+}
+
+/// As [`render`], with the caster opacity of each (cloth point, light) taken from `opacity`
+/// instead of the blur method when given (the Monte Carlo reference,
+/// [`crate::reference::render_reference`]).
+pub fn render_with(p: &Prepared, opacity: Option<&OpacityFn<'_>>) -> Image {
+    let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
+    let [cw, ch] = p.frame.caster_size;
+    let channels = p.variant.sat_channels();
+    let table = match p.variant.caster {
+        Some(Blur::Sat) => sat::build(&p.opacity, cw as usize, ch as usize, channels as usize),
+        _ => Vec::new(),
+    };
+    let sep = match p.variant.caster {
+        Some(Blur::Separable) => {
+            let params = p.separable.params([cw, ch], channels);
+            let hmap = separable::sep_h(&params, &p.opacity, &p.separable.radii);
+            separable::sep_v(&params, &hmap, &p.separable.radii)
+        }
+        _ => Vec::new(),
+    };
+    let twin = Twin {
+        p,
+        sat: &table,
+        sep: &sep,
+        opacity,
+    };
+    let mut pixels = vec![[0f32; 4]; w * h];
+    pixels.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        for (i, px) in row.iter_mut().enumerate() {
+            *px = twin.fs_main([i as f32 + 0.5, j as f32 + 0.5]);
+        }
+    });
+    Image {
+        width: w,
+        height: h,
+        pixels,
+    }
+}
+
+/// How far the unclamped K strays from [0, 1] over the rendered pixels and lights: a property
+/// of the fit (overshoot at grazing angles), reported beside the image.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct KExcursion {
+    pub min: f32,
+    pub max: f32,
+    /// Fraction of (pixel, light above the horizon) evaluations clamped.
+    pub clamped_fraction: f64,
+    pub evaluations: u64,
+}
+
+/// K before clamping at every pixel for every light, exactly as the shader evaluates it;
+/// `None` without a PTM or without a light above the acceptor.
+pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
+    let basis = p.variant.basis?;
+    let twin = Twin {
+        p,
+        sat: &[],
+        sep: &[],
+        opacity: None,
+    };
+    let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
+    let lights = &p.lights[..p.frame.light_count as usize];
+    let rows: Vec<(f32, f32, u64, u64)> = (0..h)
+        .into_par_iter()
+        .map(|j| {
+            let (mut lo, mut hi, mut out, mut n) = (f32::INFINITY, f32::NEG_INFINITY, 0u64, 0u64);
+            for i in 0..w {
+                let frag = [i as f32 + 0.5, j as f32 + 0.5];
+                let Some(pos) = pixel_world(&p.frame, frag) else {
+                    continue;
+                };
+                let c = twin.ptm_coeffs(pos, ptm_lod(&p.frame, frag));
+                for l in lights {
+                    let lp = l.position;
+                    let d = [lp[0] - pos[0], lp[1] - pos[1], lp[2]];
+                    let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                    if d[2] <= 0.0 || len <= 0.0 {
+                        continue;
+                    }
+                    let l = d.map(|x| x / len);
+                    let k = ptm_k_unclamped(basis, p.variant.link, p.variant.uv, &c, l);
+                    lo = lo.min(k);
+                    hi = hi.max(k);
+                    out += u64::from(!(0.0..=1.0).contains(&k));
+                    n += 1;
+                }
+            }
+            (lo, hi, out, n)
+        })
+        .collect();
+    let (lo, hi, out, n) = rows
+        .iter()
+        .fold((f32::INFINITY, f32::NEG_INFINITY, 0, 0), |a, r| {
+            (a.0.min(r.0), a.1.max(r.1), a.2 + r.2, a.3 + r.3)
+        });
+    (n > 0).then(|| KExcursion {
+        min: lo,
+        max: hi,
+        clamped_fraction: out as f64 / n as f64,
+        evaluations: n,
+    })
+}
+
+/// `(WGSL file, full path of the twin)` for every pair, e.g. `("sat.wgsl",
+/// "ptm_runtime::cpu::sat::sat_rows")`: the twin of a function has its name and lives in the
+/// module named after its file. Taking the function's path makes the compiler check that the
+/// twin exists.
+pub fn twins() -> Vec<(&'static str, &'static str)> {
+    macro_rules! twins {
+        ($($file:literal => $($f:path),+;)+) => {
+            vec![$($(($file, std::any::type_name_of_val(&$f))),+),+]
+        };
+    }
+    twins! {
+        "shade.wgsl" => shade::vs_main, shade::view_dir, shade::pixel_world,
+            shade::tile_bilinear, shade::ptm_lod, shade::level_axis, shade::level_bilinear,
+            shade::Twin::ptm_level, shade::Twin::ptm_coeffs, shade::ptm_hemispherical,
+            shade::ptm_sigmoid, shade::ptm_k, shade::Twin::coverage_level,
+            shade::Twin::ptm_coverage, shade::Twin::albedo_at,
+            shade::caster_texel_coords, shade::opacity_raw, shade::Twin::blur_explicit,
+            shade::sat_load, shade::sat_spans, shade::blur_sat, shade::mip_texel,
+            shade::mip_bilinear, shade::blur_mip, shade::sep_tap, shade::blur_separable,
+            shade::Twin::light_opacity, shade::Twin::shade, shade::Twin::fs_main;
+        "sat.wgsl" => sat::sat_rows, sat::sat_columns;
+        "separable.wgsl" => separable::texel, separable::sep_h, separable::hval,
+            separable::sep_v;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Variant;
+    use crate::shader;
+    use std::collections::BTreeSet;
+
+    /// Function and entry point names of WGSL sources (every variant of a file together).
+    fn wgsl_functions(sources: &[String]) -> BTreeSet<String> {
+        let mut names = BTreeSet::new();
+        for src in sources {
+            let m = naga::front::wgsl::parse_str(src).expect("WGSL parses");
+            names.extend(m.functions.iter().filter_map(|(_, f)| f.name.clone()));
+            names.extend(m.entry_points.iter().map(|e| e.name.clone()));
+        }
+        names
+    }
+
+    #[test]
+    fn every_wgsl_function_has_its_listed_twin_in_the_module_named_after_its_file() {
+        let shade: Vec<String> = Variant::all()
+            .iter()
+            .map(|v| shader::shade_source(v).unwrap())
+            .collect();
+        let files = [
+            ("shade.wgsl", shade),
+            ("sat.wgsl", vec![shader::SAT_WGSL.to_string()]),
+            ("separable.wgsl", vec![shader::SEPARABLE_WGSL.to_string()]),
+        ];
+        let table = twins();
+        for (file, sources) in &files {
+            let module = format!("::cpu::{}::", file.trim_end_matches(".wgsl"));
+            let mut listed = BTreeSet::new();
+            for &(_, path) in table.iter().filter(|(f, _)| f == file) {
+                assert!(
+                    path.contains(&module),
+                    "{file}: twin {path} is not in {module}"
+                );
+                let name = path.rsplit("::").next().unwrap().to_string();
+                assert!(listed.insert(name), "{file}: {path} listed twice");
+            }
+            let wgsl = wgsl_functions(sources);
+            let missing: Vec<_> = wgsl.difference(&listed).collect();
+            let stale: Vec<_> = listed.difference(&wgsl).collect();
+            assert!(
+                missing.is_empty() && stale.is_empty(),
+                "{file}: WGSL functions without a twin in cpu::twins(): {missing:?}; listed \
+                 twins of no WGSL function: {stale:?}"
+            );
+        }
+        assert!(table.iter().all(|(f, _)| files.iter().any(|(g, _)| f == g)));
+    }
+}

@@ -1,0 +1,689 @@
+//! Twin of `shader/shade.wgsl`: every WGSL function under its name, same maths, same f32
+//! arithmetic, reading the same [`Prepared`] buffers (functions that read only the uniform
+//! block take it as `f`; those that read storage buffers are methods of [`Twin`]). Tests
+//! compare the GPU image with it (≤ 1e-3 linear radiance); `cpu::TWINS` lists the pairs.
+
+use ptm_fit::{Link, UvMap};
+
+use crate::layout::{Frame, LightGpu, MipLevel, PtmLevel};
+use crate::scene::{Blur, Prepared, Variant};
+
+/// What replaces the blur method's caster opacity for (cloth point, light): the Monte Carlo
+/// reference ([`crate::reference`]) plugs in here.
+pub type OpacityFn<'a> = dyn Fn([f32; 2], &LightGpu) -> [f32; 3] + Sync + 'a;
+
+/// The full-screen triangle's clip-space vertex `i`: (−1, −1), (3, −1), (−1, 3).
+pub fn vs_main(i: u32) -> [f32; 4] {
+    let x = ((i & 1) as i32 * 4 - 1) as f32;
+    let y = ((i >> 1) as i32 * 4 - 1) as f32;
+    [x, y, 0.0, 1.0]
+}
+
+/// Perspective ray direction through pixel `frag` (forward component 1).
+pub fn view_dir(f: &Frame, frag: [f32; 2]) -> [f32; 3] {
+    let t = [frag[0] / f.screen[0], frag[1] / f.screen[1]];
+    std::array::from_fn(|k| {
+        f.cam_forward[k] + (2.0 * t[0] - 1.0) * f.cam_right[k] + (1.0 - 2.0 * t[1]) * f.cam_up[k]
+    })
+}
+
+/// Cloth point seen through a pixel centre (`frag` = pixel index + 0.5), `None` when a
+/// perspective ray misses the plane z = 0 (the WGSL returns z = 0 for that).
+pub fn pixel_world(f: &Frame, frag: [f32; 2]) -> Option<[f32; 2]> {
+    let t = [frag[0] / f.screen[0], frag[1] / f.screen[1]];
+    if f.perspective == 0 {
+        return Some([
+            f.view[0] + (f.view[2] - f.view[0]) * t[0],
+            f.view[3] - (f.view[3] - f.view[1]) * t[1],
+        ]);
+    }
+    let dir = view_dir(f, frag);
+    if dir[2] >= 0.0 || f.eye[2] <= 0.0 {
+        return None;
+    }
+    let s = -f.eye[2] / dir[2];
+    Some([f.eye[0] + s * dir[0], f.eye[1] + s * dir[1]])
+}
+
+/// Texel indices (x0y0, x1y0, x0y1, x1y1) and bilinear weights of a texture of `n` texels tiled
+/// with period `f.tile`.
+pub fn tile_bilinear(f: &Frame, p: [f32; 2], n: [u32; 2]) -> ([usize; 4], [f32; 4]) {
+    let s = [p[0] / f.tile[0], p[1] / f.tile[1]];
+    let fr = [s[0] - s[0].floor(), 1.0 - (s[1] - s[1].floor())];
+    let c = [fr[0] * n[0] as f32 - 0.5, fr[1] * n[1] as f32 - 0.5];
+    let c0 = [c[0].floor(), c[1].floor()];
+    let a = [c[0] - c0[0], c[1] - c0[1]];
+    let ni = [n[0] as i32, n[1] as i32];
+    let x0 = (c0[0] as i32).rem_euclid(ni[0]);
+    let y0 = (c0[1] as i32).rem_euclid(ni[1]);
+    let x1 = (x0 + 1) % ni[0];
+    let y1 = (y0 + 1) % ni[1];
+    let idx = |x: i32, y: i32| (y * ni[0] + x) as usize;
+    (
+        [idx(x0, y0), idx(x1, y0), idx(x0, y1), idx(x1, y1)],
+        [
+            (1.0 - a[0]) * (1.0 - a[1]),
+            a[0] * (1.0 - a[1]),
+            (1.0 - a[0]) * a[1],
+            a[0] * a[1],
+        ],
+    )
+}
+
+/// log2 of the PTM texels under pixel `frag`, clamped to the chain; 0 without a chain.
+pub fn ptm_lod(f: &Frame, frag: [f32; 2]) -> f32 {
+    let levels = f.ptm_level_count as f32;
+    if levels < 2.0 {
+        return 0.0;
+    }
+    let mut texels = f.ptm_texels_per_pixel;
+    if f.perspective != 0 {
+        let dir = view_dir(f, frag);
+        let len = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        texels = texels * f.eye[2] * len / (dir[2] * dir[2]);
+    }
+    texels.max(1.0).log2().clamp(0.0, levels - 1.0)
+}
+
+/// One axis of [`level_bilinear`]: texel indices (x0, x1) and the weight of x1 (the gap between
+/// the last texel and the next tile's first spans period − n + 1).
+pub fn level_axis(c: f32, n: u32, period: f32) -> (usize, usize, f32) {
+    let c0 = c.floor();
+    let a = c - c0;
+    let x0 = c0 as i32;
+    let last = n as i32 - 1;
+    if x0 >= 0 && x0 < last {
+        return (x0 as usize, x0 as usize + 1, a);
+    }
+    let offset = (x0 - last) as f32 + if x0 < 0 { period } else { 0.0 };
+    let gap = period - n as f32 + 1.0;
+    (last as usize, 0, (a + offset) / gap)
+}
+
+/// Texel indices and bilinear weights in a MIP level (indices relative to the level's first
+/// texel).
+pub fn level_bilinear(f: &Frame, p: [f32; 2], lv: &PtmLevel) -> ([usize; 4], [f32; 4]) {
+    let s = [p[0] / f.tile[0], p[1] / f.tile[1]];
+    let fr = [s[0] - s[0].floor(), 1.0 - (s[1] - s[1].floor())];
+    let c = [fr[0] * lv.period[0] - 0.5, fr[1] * lv.period[1] - 0.5];
+    let (x0, x1, ax) = level_axis(c[0], lv.width, lv.period[0]);
+    let (y0, y1, ay) = level_axis(c[1], lv.height, lv.period[1]);
+    let w = lv.width as usize;
+    (
+        [y0 * w + x0, y0 * w + x1, y1 * w + x0, y1 * w + x1],
+        [
+            (1.0 - ax) * (1.0 - ay),
+            ax * (1.0 - ay),
+            (1.0 - ax) * ay,
+            ax * ay,
+        ],
+    )
+}
+
+/// Hemispherical (u, v) of the unit light direction l (l.z > 0): l.xy · θ/((π/2)·r),
+/// θ = atan2(r, l.z), r = |l.xy|.
+pub fn ptm_hemispherical(l: [f32; 3]) -> [f32; 2] {
+    let r = (l[0] * l[0] + l[1] * l[1]).sqrt();
+    let s = if r > 1e-6 { r.atan2(l[2]) / r } else { 1.0 };
+    let s = s / std::f32::consts::FRAC_PI_2;
+    [l[0] * s, l[1] * s]
+}
+
+/// σ(p) from e^−|p| (no overflow).
+pub fn ptm_sigmoid(p: f32) -> f32 {
+    let e = (-p.abs()).exp();
+    if p >= 0.0 {
+        1.0 / (1.0 + e)
+    } else {
+        e / (1.0 + e)
+    }
+}
+
+/// K of `link` and `uv` before the clamp for the unit light direction l: what `ptm_k` clamps.
+pub fn ptm_k_unclamped(
+    basis: ptm_fit::Basis,
+    link: Link,
+    uv: UvMap,
+    c: &[f32],
+    l: [f32; 3],
+) -> f32 {
+    let [u, v] = match uv {
+        UvMap::Projected => [l[0], l[1]],
+        UvMap::Hemispherical => ptm_hemispherical(l),
+    };
+    let p = basis.eval(&c[..basis.len()], u, v);
+    match link {
+        Link::Identity => p,
+        Link::Logistic => ptm_sigmoid(p),
+    }
+}
+
+/// K of the variant's link and (u, v) map for the unit light direction l, clamped to [0, 1].
+pub fn ptm_k(v: &Variant, c: &[f32], l: [f32; 3]) -> f32 {
+    let basis = v.basis.expect("ptm_k without a PTM");
+    ptm_k_unclamped(basis, v.link, v.uv, c, l).clamp(0.0, 1.0)
+}
+
+/// Continuous caster texel coordinates (column, row from the far edge) of a caster-plane point.
+pub fn caster_texel_coords(f: &Frame, q: [f32; 2]) -> [f32; 2] {
+    let r = f.caster_rect;
+    let size = [f.caster_size[0] as f32, f.caster_size[1] as f32];
+    [
+        (q[0] - r[0]) / (r[2] - r[0]) * size[0],
+        (r[3] - q[1]) / (r[3] - r[1]) * size[1],
+    ]
+}
+
+/// 8-bit opacity counts per channel of the caster texel containing texel coordinate t of a
+/// `size` caster; 0 outside.
+pub fn opacity_raw(opacity: &[u32], size: [u32; 2], t: [f32; 2]) -> [u32; 3] {
+    let [w, h] = size;
+    if t[0] < 0.0 || t[1] < 0.0 || t[0] >= w as f32 || t[1] >= h as f32 {
+        return [0; 3];
+    }
+    let o = opacity[t[1] as usize * w as usize + t[0] as usize];
+    [o & 255, (o >> 8) & 255, (o >> 16) & 255]
+}
+
+/// Table entry (i, j), channel `ch`, of the summed-area table of a caster `w` texels wide.
+pub fn sat_load(sat: &[u32], w: u32, channels: u32, i: u32, j: u32, ch: u32) -> u32 {
+    sat[((j * (w + 1) + i) * channels + ch) as usize]
+}
+
+/// One axis of a box [lo, hi] (texel units, within [0, n]) split into whole-texel spans:
+/// corner indices and the weights of the spans inner (c1→c2), right (c2→c3), left (c0→c1).
+pub fn sat_spans(lo: f32, hi: f32, n: u32) -> ([u32; 4], [f32; 3]) {
+    let i0 = lo.floor() as u32;
+    let i1 = hi.floor() as u32;
+    let a0 = lo - lo.floor();
+    let a1 = hi - hi.floor();
+    if i1 > i0 {
+        (
+            [i0, (i0 + 1).min(n), i1, (i1 + 1).min(n)],
+            [1.0, a1, 1.0 - a0],
+        )
+    } else {
+        ([i0, i1, i1, (i1 + 1).min(n)], [0.0, a1 - a0, 0.0])
+    }
+}
+
+/// Mean opacity (0..1 per channel) over the box t ± wt (texel units, wt > 0) of a `size`
+/// caster from its summed-area table; outside the caster counts as transparent.
+pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    let [w, h] = size;
+    let lo = [
+        (t[0] - wt[0]).clamp(0.0, w as f32),
+        (t[1] - wt[1]).clamp(0.0, h as f32),
+    ];
+    let hi = [
+        (t[0] + wt[0]).clamp(0.0, w as f32),
+        (t[1] + wt[1]).clamp(0.0, h as f32),
+    ];
+    let (cx, wx) = sat_spans(lo[0], hi[0], w);
+    let (cy, wy) = sat_spans(lo[1], hi[1], h);
+    // Span m of an axis runs from corner A[m] to B[m]: inner 1→2, right 2→3, left 0→1.
+    const A: [usize; 3] = [1, 2, 0];
+    const B: [usize; 3] = [2, 3, 1];
+    let mut out = [0f32; 3];
+    for ch in 0..channels {
+        let mut s = [[0u32; 4]; 4];
+        for b in 0..4 {
+            for a in 0..4 {
+                s[b][a] = sat_load(sat, w, channels, cx[a], cy[b], ch);
+            }
+        }
+        let mut total = 0f32;
+        for m in 0..3 {
+            for k in 0..3 {
+                let span_sum = s[B[k]][B[m]]
+                    .wrapping_sub(s[B[k]][A[m]])
+                    .wrapping_sub(s[A[k]][B[m]])
+                    .wrapping_add(s[A[k]][A[m]]);
+                total += wx[m] * wy[k] * span_sum as f32;
+            }
+        }
+        out[ch as usize] = total / (4.0 * wt[0] * wt[1] * 255.0);
+    }
+    if channels == 1 {
+        [out[0]; 3]
+    } else {
+        out
+    }
+}
+
+fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
+}
+
+/// Texel (x, y) of the opacity MIP level `l`; transparent outside.
+pub fn mip_texel(mip: &[[f32; 4]], l: &MipLevel, x: i32, y: i32) -> [f32; 3] {
+    if x < 0 || y < 0 || x >= l.width as i32 || y >= l.height as i32 {
+        return [0.0; 3];
+    }
+    let t = mip[(l.offset + y as u32 * l.width + x as u32) as usize];
+    [t[0], t[1], t[2]]
+}
+
+/// Bilinear sample of `level` at level-0 texel coordinate t.
+pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 2]) -> [f32; 3] {
+    let l = &levels[level as usize];
+    let scale = (1u32 << level) as f32;
+    let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
+    let c0 = [c[0].floor(), c[1].floor()];
+    let a = [c[0] - c0[0], c[1] - c0[1]];
+    let (x, y) = (c0[0] as i32, c0[1] as i32);
+    mix3(
+        mix3(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
+        mix3(
+            mip_texel(mip, l, x, y + 1),
+            mip_texel(mip, l, x + 1, y + 1),
+            a[0],
+        ),
+        a[1],
+    )
+}
+
+/// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
+pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    let top = levels.len() as u32 - 1;
+    let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
+    let l0 = lod as u32;
+    let l1 = (l0 + 1).min(top);
+    mix3(
+        mip_bilinear(mip, levels, l0, t),
+        mip_bilinear(mip, levels, l1, t),
+        lod - l0 as f32,
+    )
+}
+
+/// Texel (x, y), channel `ch`, of light `li`'s pre-blurred map (`f.sep_padded` texels); 0
+/// outside.
+pub fn sep_tap(f: &Frame, map: &[f32], channels: u32, li: usize, x: i32, y: i32, ch: u32) -> f32 {
+    let (pw, ph) = (f.sep_padded[0] as i32, f.sep_padded[1] as i32);
+    if x < 0 || y < 0 || x >= pw || y >= ph {
+        return 0.0;
+    }
+    map[(((li as i32 * ph + y) * pw + x) as u32 * channels + ch) as usize]
+}
+
+/// Bilinear lookup of light `li`'s pre-blurred map ([`super::separable`]) at caster texel
+/// coordinate t.
+pub fn blur_separable(f: &Frame, map: &[f32], channels: u32, li: usize, t: [f32; 2]) -> [f32; 3] {
+    let c = [
+        t[0] + f.sep_margin[0] as f32 - 0.5,
+        t[1] + f.sep_margin[1] as f32 - 0.5,
+    ];
+    let c0 = [c[0].floor(), c[1].floor()];
+    let a = [c[0] - c0[0], c[1] - c0[1]];
+    let (x, y) = (c0[0] as i32, c0[1] as i32);
+    let tap = |x: i32, y: i32, ch: u32| sep_tap(f, map, channels, li, x, y, ch);
+    let mut out = [0f32; 3];
+    for ch in 0..channels {
+        let top = tap(x, y, ch) * (1.0 - a[0]) + tap(x + 1, y, ch) * a[0];
+        let bottom = tap(x, y + 1, ch) * (1.0 - a[0]) + tap(x + 1, y + 1, ch) * a[0];
+        out[ch as usize] = top * (1.0 - a[1]) + bottom * a[1];
+    }
+    if channels == 1 {
+        [out[0]; 3]
+    } else {
+        out
+    }
+}
+
+/// Mean of `n` values per texel at the four bilinear taps.
+fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4])) -> [f32; N] {
+    let mut out = [0f32; N];
+    for (k, o) in out.iter_mut().enumerate().take(n) {
+        let (i, w) = taps;
+        *o = w[0] * data[i[0] * n + k]
+            + w[1] * data[i[1] * n + k]
+            + w[2] * data[i[2] * n + k]
+            + w[3] * data[i[3] * n + k];
+    }
+    out
+}
+
+/// The shader's storage buffers: the prepared scene and what the GPU builds from it (the
+/// summed-area table, the separable maps).
+pub struct Twin<'a> {
+    pub p: &'a Prepared,
+    pub sat: &'a [u32],
+    /// Separable blur: the per-light blurred maps.
+    pub sep: &'a [f32],
+    /// Replaces the blur method's estimate when set (the Monte Carlo reference).
+    pub opacity: Option<&'a OpacityFn<'a>>,
+}
+
+impl Twin<'_> {
+    fn f(&self) -> &Frame {
+        &self.p.frame
+    }
+
+    /// Bilinearly filtered coefficients of MIP level `level` at p.
+    pub fn ptm_level(&self, p: [f32; 2], level: usize) -> [f32; 16] {
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        let lv = &self.p.ptm_levels[level];
+        let (mut idx, w) = level_bilinear(self.f(), p, lv);
+        idx = idx.map(|i| i + lv.offset as usize);
+        bilerp::<16>(&self.p.coeffs, n, &(idx, w))
+    }
+
+    /// PTM coefficients at p: bilinear, or trilinear in the MIP chain at level of detail `lod`.
+    pub fn ptm_coeffs(&self, p: [f32; 2], lod: f32) -> [f32; 16] {
+        let f = self.f();
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        if !self.p.variant.ptm_mip {
+            let taps = tile_bilinear(f, p, f.ptm_size);
+            return bilerp::<16>(&self.p.coeffs, n, &taps);
+        }
+        let l0 = lod.floor();
+        let fr = lod - l0;
+        let mut c = self.ptm_level(p, l0 as usize);
+        if fr > 0.0 {
+            let c1 = self.ptm_level(p, l0 as usize + 1);
+            for k in 0..n {
+                c[k] += fr * (c1[k] - c[k]);
+            }
+        }
+        c
+    }
+
+    /// Bilinearly filtered coverage of MIP level `level` at p.
+    pub fn coverage_level(&self, p: [f32; 2], level: usize) -> f32 {
+        let lv = &self.p.ptm_levels[level];
+        let (idx, w) = level_bilinear(self.f(), p, lv);
+        let c = |k: usize| self.p.coverage[idx[k] + lv.offset as usize];
+        w[0] * c(0) + w[1] * c(1) + w[2] * c(2) + w[3] * c(3)
+    }
+
+    /// Coverage at p (0 in a hole), filtered as the coefficients are.
+    pub fn ptm_coverage(&self, p: [f32; 2], lod: f32) -> f32 {
+        let f = self.f();
+        if !self.p.variant.ptm_mip {
+            let (idx, w) = tile_bilinear(f, p, f.ptm_size);
+            let c = |k: usize| self.p.coverage[idx[k]];
+            return w[0] * c(0) + w[1] * c(1) + w[2] * c(2) + w[3] * c(3);
+        }
+        let l0 = lod.floor();
+        let fr = lod - l0;
+        let mut c = self.coverage_level(p, l0 as usize);
+        if fr > 0.0 {
+            c += fr * (self.coverage_level(p, l0 as usize + 1) - c);
+        }
+        c
+    }
+
+    pub fn albedo_at(&self, p: [f32; 2]) -> [f32; 3] {
+        let f = self.f();
+        if !self.p.variant.albedo_texture {
+            return f.albedo;
+        }
+        let taps = tile_bilinear(f, p, f.albedo_size);
+        let flat: &[f32] = bytemuck::cast_slice(&self.p.albedo);
+        let a = bilerp::<4>(flat, 4, &taps);
+        [a[0], a[1], a[2]]
+    }
+
+    /// Reference blur: mean opacity over an n×n grid of samples inside the ellipse of radii wt
+    /// (texels) around t, n = clamp(⌈4·max(wt)⌉, 16, cap); integer sums divided once.
+    pub fn blur_explicit(&self, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+        let f = self.f();
+        let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, f.explicit_samples);
+        let mut sum = [0u32; 3];
+        let mut count = 0u32;
+        for j in 0..n {
+            for i in 0..n {
+                let o = [
+                    (i as f32 + 0.5) / n as f32 * 2.0 - 1.0,
+                    (j as f32 + 0.5) / n as f32 * 2.0 - 1.0,
+                ];
+                if o[0] * o[0] + o[1] * o[1] <= 1.0 {
+                    let v = opacity_raw(
+                        &self.p.opacity,
+                        f.caster_size,
+                        [t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]],
+                    );
+                    for c in 0..3 {
+                        sum[c] += v[c];
+                    }
+                    count += 1;
+                }
+            }
+        }
+        sum.map(|s| s as f32 / (count as f32 * 255.0))
+    }
+
+    /// Mean caster opacity seen from p towards light l: where the segment p → light meets the
+    /// (tilted) caster plane, blurred with radius R·s there (see `light_opacity` in WGSL).
+    pub fn light_opacity(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 3] {
+        if let Some(reference) = self.opacity {
+            return reference(p, l);
+        }
+        let f = self.f();
+        let [lx, ly, lz] = l.position;
+        let r = f.caster_rect;
+        let (sin_t, cos_t) = (f.caster_sin_tilt, f.caster_cos_tilt);
+        let centre = [0.5 * (r[0] + r[2]), 0.5 * (r[1] + r[3]), f.caster_height];
+        let n = [0.0, -sin_t, cos_t];
+        let e2 = [0.0, cos_t, sin_t];
+        let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let pp = [p[0], p[1], 0.0];
+        let ray = [lx - pp[0], ly - pp[1], lz];
+        let denom = dot(n, ray);
+        if denom == 0.0 {
+            return [0.0; 3];
+        }
+        let s = dot(n, [centre[0] - pp[0], centre[1] - pp[1], centre[2]]) / denom;
+        if !(0.0..1.0).contains(&s) {
+            return [0.0; 3];
+        }
+        let off: [f32; 3] = std::array::from_fn(|k| pp[k] + s * ray[k] - centre[k]);
+        let q = [centre[0] + off[0], centre[1] + dot(off, e2)];
+        let w = l.radius * s;
+        let stretch = (cos_t + dot(ray, e2) * sin_t / denom).abs();
+        let texel = [
+            (r[2] - r[0]) / f.caster_size[0] as f32,
+            (r[3] - r[1]) / f.caster_size[1] as f32,
+        ];
+        let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
+        let t = caster_texel_coords(f, q);
+        let channels = self.p.variant.sat_channels();
+        match self.p.variant.caster {
+            Some(Blur::Sat) => blur_sat(self.sat, f.caster_size, channels, t, wt),
+            Some(Blur::Mip) => blur_mip(&self.p.mip, &self.p.mip_levels, t, wt),
+            Some(Blur::Separable) => blur_separable(f, self.sep, channels, li, t),
+            _ => self.blur_explicit(t, wt),
+        }
+    }
+
+    /// Linear radiance leaving acceptor point p:
+    /// Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K).
+    pub fn shade(&self, p: [f32; 2], lod: f32) -> [f32; 3] {
+        let albedo = self.albedo_at(p);
+        let c = self.p.variant.basis.map(|_| self.ptm_coeffs(p, lod));
+        let mut radiance = [0f32; 3];
+        for (li, light) in self.p.lights[..self.f().light_count as usize]
+            .iter()
+            .enumerate()
+        {
+            let lp = light.position;
+            let to_light = [lp[0] - p[0], lp[1] - p[1], lp[2]];
+            let d2 =
+                to_light[0] * to_light[0] + to_light[1] * to_light[1] + to_light[2] * to_light[2];
+            if d2 <= 0.0 || to_light[2] <= 0.0 {
+                continue;
+            }
+            let d = d2.sqrt();
+            let l = to_light.map(|x| x / d);
+            let mut visible = [1f32; 3];
+            if let Some(c) = &c {
+                let k = ptm_k(&self.p.variant, c, l);
+                visible = visible.map(|v| v * (1.0 - k));
+            }
+            if self.p.variant.caster.is_some() {
+                let o = self.light_opacity(p, light, li);
+                for ch in 0..3 {
+                    visible[ch] *= 1.0 - o[ch].clamp(0.0, 1.0);
+                }
+            }
+            for ch in 0..3 {
+                radiance[ch] += albedo[ch] * light.color[ch] * (l[2] / d2) * visible[ch];
+            }
+        }
+        if self.p.variant.basis.is_some() && self.p.variant.coverage {
+            // A hole shows nothing; partly covered texels blend.
+            let c = self.ptm_coverage(p, lod);
+            radiance = radiance.map(|r| r * c);
+        }
+        radiance
+    }
+
+    /// The pixel at `frag` (pixel index + 0.5): black where a perspective ray misses the cloth.
+    pub fn fs_main(&self, frag: [f32; 2]) -> [f32; 4] {
+        let f = self.f();
+        let Some(p) = pixel_world(f, frag) else {
+            return [0.0, 0.0, 0.0, 1.0];
+        };
+        let r = self.shade(p, ptm_lod(f, frag));
+        [r[0], r[1], r[2], 1.0]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::sat::build;
+    use ptm_fit::{Basis, Ptm};
+
+    #[test]
+    fn twin_k_equals_the_fit_crates_eval_dir_for_every_link_and_map() {
+        // The runtime and ptm-fit must agree on what a file means (ptm_hemispherical uses
+        // atan2 where UvMap::of_dir does too, in f64).
+        for basis in [Basis::Ptm6, Basis::Ptm11] {
+            let n = basis.len();
+            let planes: Vec<Vec<f32>> = (0..n).map(|k| vec![0.9 - 0.37 * k as f32]).collect();
+            for link in Link::ALL {
+                for uv in UvMap::ALL {
+                    let mut ptm = Ptm::new(basis, 1, 1, [1.0, 1.0], planes.clone());
+                    ptm.link = link;
+                    ptm.uv = uv;
+                    let c: Vec<f32> = planes.iter().map(|p| p[0]).collect();
+                    for i in 0..200 {
+                        // Elevations from the zenith down to 0.5° above the horizon.
+                        let el = (90.0 - 89.5 * i as f64 / 199.0).to_radians();
+                        let az = 2.399 * i as f64;
+                        let l = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+                        let want = ptm.eval_dir(0, 0, l);
+                        let lf = l.map(|x| x as f32);
+                        let got = ptm_k_unclamped(basis, link, uv, &c, lf).clamp(0.0, 1.0);
+                        assert!(
+                            (got - want).abs() < 2e-5,
+                            "{} {link:?} {uv:?} elevation {:.2}°: twin {got} vs eval_dir {want}",
+                            basis.name(),
+                            el.to_degrees()
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sigmoid_is_finite_and_saturates_for_large_arguments() {
+        assert_eq!(ptm_sigmoid(1e30), 1.0);
+        assert_eq!(ptm_sigmoid(-1e30), 0.0);
+        assert_eq!(ptm_sigmoid(0.0), 0.5);
+        for p in [-30.0f32, -3.0, -0.1, 0.1, 3.0, 30.0] {
+            assert!((ptm_sigmoid(p) - ptm_fit::basis::sigmoid(p)).abs() < 1e-7);
+        }
+    }
+
+    #[test]
+    fn a_level_that_tiles_exactly_is_looked_up_as_tile_bilinear_bit_for_bit() {
+        let f = Frame {
+            screen: [64.0, 64.0],
+            tile: [1.3, 0.7],
+            ..Frame::zeroed()
+        };
+        let lv = PtmLevel::exact(0, 5, 3);
+        for i in 0..997 {
+            let p = [-2.0 + 0.0113 * i as f32, 1.5 - 0.0071 * i as f32];
+            assert_eq!(
+                level_bilinear(&f, p, &lv),
+                tile_bilinear(&f, p, [5, 3]),
+                "at {p:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_rounded_down_level_puts_texels_on_their_footprints_and_bridges_the_gap() {
+        // 13 level-0 texels → 6 at level 1: texel i covers level-0 texels 2i, 2i + 1, centred at
+        // (2i + 1)/13 of the tile; the tile spans 6.5 level texels, the gap from texel 5 to the
+        // next tile's texel 0 is 1.5 of them.
+        let (n, period) = (6, 6.5);
+        for i in 0..6 {
+            let c = (2 * i + 1) as f32 / 13.0 * period - 0.5;
+            let (x0, _, a) = level_axis(c, n, period);
+            assert!(x0 == i && a.abs() < 1e-6, "texel {i}: {x0} {a}");
+        }
+        // The gap runs from texel 5's centre (level-0 position 11) to the next tile's texel 0
+        // (13 + 1): at 12.5 halfway, at 13.5 (0.5 into the next tile) 5/6 of the way.
+        for (x, want) in [(12.5f32, 0.5f32), (0.5, 2.5 / 3.0)] {
+            let (x0, x1, a) = level_axis(x / 13.0 * period - 0.5, n, period);
+            assert_eq!((x0, x1), (5, 0));
+            assert!((a - want).abs() < 1e-6, "at {x}: {a} vs {want}");
+        }
+        // One texel: itself everywhere.
+        for c in [-0.5, 0.0, 0.3] {
+            assert_eq!(level_axis(c, 1, 1.0).0, 0);
+            assert_eq!(level_axis(c, 1, 1.0).1, 0);
+        }
+    }
+
+    fn hash(i: u32) -> u32 {
+        let mut x = i.wrapping_mul(0x9E37_79B9) ^ 0x85EB_CA6B;
+        x ^= x >> 15;
+        x = x.wrapping_mul(0x2C1B_3C6D);
+        x ^ (x >> 12)
+    }
+
+    /// Exact mean of the piecewise-constant image over a box, by brute force over texels with
+    /// their overlap areas in f64.
+    fn brute(op: &[u32], w: usize, h: usize, ch: usize, t: [f32; 2], wt: [f32; 2]) -> f64 {
+        let (x0, x1) = ((t[0] - wt[0]) as f64, (t[0] + wt[0]) as f64);
+        let (y0, y1) = ((t[1] - wt[1]) as f64, (t[1] + wt[1]) as f64);
+        let mut sum = 0.0;
+        for j in 0..h {
+            for i in 0..w {
+                let ox = (x1.min(i as f64 + 1.0) - x0.max(i as f64)).max(0.0);
+                let oy = (y1.min(j as f64 + 1.0) - y0.max(j as f64)).max(0.0);
+                sum += ox * oy * ((op[j * w + i] >> (8 * ch)) & 255) as f64;
+            }
+        }
+        sum / ((x1 - x0) * (y1 - y0) * 255.0)
+    }
+
+    #[test]
+    fn blur_sat_equals_the_exact_area_weighted_mean() {
+        let (w, h) = (37, 23);
+        let op: Vec<u32> = (0..w * h).map(|i| hash(i as u32) & 0x00FF_FFFF).collect();
+        for channels in [1usize, 3] {
+            let sat = build(&op, w, h, channels);
+            for s in 0..400u32 {
+                let r = |k: u32| (hash(s * 7 + k) % 10_000) as f32 / 10_000.0;
+                let t = [r(1) * 45.0 - 4.0, r(2) * 31.0 - 4.0];
+                let wt = [0.05 + r(3) * 12.0, 0.05 + r(4) * 9.0];
+                let got = blur_sat(&sat, [w as u32, h as u32], channels as u32, t, wt);
+                for ch in 0..channels {
+                    let want = brute(&op, w, h, ch, t, wt);
+                    assert!(
+                        (got[ch] as f64 - want).abs() < 2e-5,
+                        "t {t:?} wt {wt:?} ch {ch}: {} vs {want}",
+                        got[ch]
+                    );
+                }
+            }
+        }
+    }
+}

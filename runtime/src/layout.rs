@@ -1,0 +1,252 @@
+//! Every struct the GPU reads, byte for byte with its WGSL declaration: `#[repr(C)]` + bytemuck,
+//! named fields in WGSL's order, explicit padding where WGSL aligns (a `vec3` is 16-byte
+//! aligned, a `vec2` 8-byte). The tests compare naga's reflected member offsets and struct sizes
+//! with `offset_of!` for every field, so a field added on one side only fails without a GPU.
+//!
+//! World-space lengths are swatch units, image sizes pixels, texture sizes texels.
+
+/// The shading pass's uniform block: `struct Frame` in `shader/shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Frame {
+    /// World rectangle x0, y0, x1, y1 seen by the orthographic camera.
+    pub view: [f32; 4],
+    /// Output width, height (pixels).
+    pub screen: [f32; 2],
+    /// Tile period W, H (swatch units) of the PTM and the albedo texture.
+    pub tile: [f32; 2],
+    /// Constant linear albedo (rgb).
+    pub albedo: [f32; 3],
+    /// Lights in the light buffer that are shaded.
+    pub light_count: u32,
+    /// World rectangle x0, y0, x1, y1 of the caster (its untilted footprint).
+    pub caster_rect: [f32; 4],
+    /// Height d_ca of the caster's centre line above the acceptor.
+    pub caster_height: f32,
+    /// sin and cos of the caster's tilt about its centre line (parallel to X).
+    pub caster_sin_tilt: f32,
+    pub caster_cos_tilt: f32,
+    /// Explicit blur: the cap on samples per axis.
+    pub explicit_samples: u32,
+    /// PTM texels (level 0) nx, ny.
+    pub ptm_size: [u32; 2],
+    /// Albedo texture texels nx, ny.
+    pub albedo_size: [u32; 2],
+    /// Caster texels w, h (after downsampling).
+    pub caster_size: [u32; 2],
+    /// Separable blur: margins mx, my (texels) around the caster in the pre-blurred map.
+    pub sep_margin: [u32; 2],
+    /// Separable blur: the padded map's w, h (texels).
+    pub sep_padded: [u32; 2],
+    /// PTM texels under one pixel (at unit depth along the view direction for a perspective
+    /// camera): the level of detail's base.
+    pub ptm_texels_per_pixel: f32,
+    /// Levels of the PTM's MIP chain (0 without a chain).
+    pub ptm_level_count: u32,
+    /// Perspective camera eye (world).
+    pub eye: [f32; 3],
+    /// 1 for the perspective camera, 0 for the orthographic top view of `view`.
+    pub perspective: u32,
+    /// Camera right × tan(fov/2)·aspect.
+    pub cam_right: [f32; 3],
+    pub pad0: f32,
+    /// Camera up × tan(fov/2).
+    pub cam_up: [f32; 3],
+    pub pad1: f32,
+    /// Camera forward (unit).
+    pub cam_forward: [f32; 3],
+    pub pad2: f32,
+}
+
+impl Frame {
+    pub fn zeroed() -> Frame {
+        bytemuck::Zeroable::zeroed()
+    }
+}
+
+/// One light as the shader reads it: `struct Light` in `shader/shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct LightGpu {
+    /// Centre (world).
+    pub position: [f32; 3],
+    /// Sphere radius R (0: a point light).
+    pub radius: f32,
+    /// Colour × intensity (linear rgb).
+    pub color: [f32; 3],
+    pub pad: f32,
+}
+
+/// One level of the PTM's MIP chain: `struct PtmLevel` in `shader/shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PtmLevel {
+    /// First texel of the level in `Prepared::coeffs` (texels, not floats).
+    pub offset: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: u32,
+    /// The tile's extent in this level's texels (x, y): (width, height) when the level tiles
+    /// exactly; w/2^k, h/2^k (up to one texel more) for a stored level of an odd side.
+    pub period: [f32; 2],
+    pub pad2: [f32; 2],
+}
+
+impl PtmLevel {
+    /// A level that tiles exactly (its period is its size).
+    pub fn exact(offset: u32, width: u32, height: u32) -> PtmLevel {
+        PtmLevel {
+            offset,
+            width,
+            height,
+            pad: 0,
+            period: [width as f32, height as f32],
+            pad2: [0.0; 2],
+        }
+    }
+}
+
+/// One level of the caster opacity's MIP chain: `struct MipLevel` in `shader/shade.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MipLevel {
+    /// First texel of the level in `Prepared::mip`.
+    pub offset: u32,
+    pub width: u32,
+    pub height: u32,
+    pub pad: u32,
+}
+
+impl MipLevel {
+    pub fn new(offset: usize, width: usize, height: usize) -> MipLevel {
+        MipLevel {
+            offset: offset as u32,
+            width: width as u32,
+            height: height as u32,
+            pad: 0,
+        }
+    }
+}
+
+/// The summed-area table passes' uniform block: `struct SatParams` in `shader/sat.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SatParams {
+    /// Caster texels w, h.
+    pub size: [u32; 2],
+    /// Opacity channels in the table (1 grey, 3 coloured).
+    pub channels: u32,
+    pub pad: u32,
+}
+
+/// The separable blur passes' uniform block: `struct SepParams` in `shader/separable.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SepParams {
+    /// Caster texels w, h.
+    pub size: [u32; 2],
+    /// Opacity channels (1 grey, 3 coloured).
+    pub channels: u32,
+    /// Lights (one pre-blurred map each).
+    pub lights: u32,
+    /// Margins mx, my (texels) around the caster.
+    pub margin: [u32; 2],
+    /// The padded map's w, h.
+    pub padded: [u32; 2],
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::Variant;
+    use crate::shader;
+    use core::mem::{offset_of, size_of};
+
+    /// Member names and offsets, and the size, of `struct name` in `module`, as naga lays them
+    /// out.
+    fn reflect(module: &naga::Module, name: &str) -> (Vec<(String, usize)>, usize) {
+        module
+            .types
+            .iter()
+            .find_map(|(_, t)| match &t.inner {
+                naga::TypeInner::Struct { members, span } if t.name.as_deref() == Some(name) => {
+                    Some((
+                        members
+                            .iter()
+                            .map(|m| (m.name.clone().unwrap_or_default(), m.offset as usize))
+                            .collect(),
+                        *span as usize,
+                    ))
+                }
+                _ => None,
+            })
+            .unwrap_or_else(|| panic!("no struct {name} in the WGSL"))
+    }
+
+    fn check(module: &naga::Module, name: &str, want: &[(&str, usize)], size: usize) {
+        let (got, span) = reflect(module, name);
+        let want: Vec<(String, usize)> = want.iter().map(|&(n, o)| (n.to_string(), o)).collect();
+        assert_eq!(
+            got, want,
+            "struct {name}: WGSL members (left) vs Rust offset_of! (right)"
+        );
+        assert_eq!(span, size, "struct {name}: WGSL size vs Rust size_of");
+    }
+
+    /// A variant with every optional part that declares a struct (PTM MIP chain, caster).
+    fn shade_module() -> naga::Module {
+        let v = Variant::all()
+            .into_iter()
+            .find(|v| v.ptm_mip && v.caster.is_some())
+            .expect("a variant with a PTM MIP chain and a caster");
+        shader::validate(&v.name(), &shader::shade_source(&v).unwrap()).unwrap()
+    }
+
+    /// A variant with the caster's MIP chain.
+    fn mip_module() -> naga::Module {
+        let v = Variant::all()
+            .into_iter()
+            .find(|v| v.caster == Some(crate::scene::Blur::Mip))
+            .expect("a variant with the MIP blur");
+        shader::validate(&v.name(), &shader::shade_source(&v).unwrap()).unwrap()
+    }
+
+    macro_rules! fields {
+        ($t:ty: $($f:ident),* $(,)?) => {
+            &[$((stringify!($f), offset_of!($t, $f))),*]
+        };
+    }
+
+    #[test]
+    fn frame_matches_the_wgsl_struct_field_for_field() {
+        let want = fields!(Frame: view, screen, tile, albedo, light_count, caster_rect,
+            caster_height, caster_sin_tilt, caster_cos_tilt, explicit_samples, ptm_size,
+            albedo_size, caster_size, sep_margin, sep_padded, ptm_texels_per_pixel,
+            ptm_level_count, eye, perspective, cam_right, pad0, cam_up, pad1, cam_forward, pad2);
+        check(&shade_module(), "Frame", want, size_of::<Frame>());
+        // A uniform block's size is a multiple of 16 bytes.
+        assert_eq!(size_of::<Frame>() % 16, 0);
+    }
+
+    #[test]
+    fn light_and_mip_levels_match_the_wgsl_structs() {
+        let m = shade_module();
+        let want = fields!(LightGpu: position, radius, color, pad);
+        check(&m, "Light", want, size_of::<LightGpu>());
+        let want = fields!(PtmLevel: offset, width, height, pad, period, pad2);
+        check(&m, "PtmLevel", want, size_of::<PtmLevel>());
+        let m = mip_module();
+        let want = fields!(MipLevel: offset, width, height, pad);
+        check(&m, "MipLevel", want, size_of::<MipLevel>());
+    }
+
+    #[test]
+    fn compute_pass_params_match_the_wgsl_structs() {
+        let m = shader::validate("sat.wgsl", shader::SAT_WGSL).unwrap();
+        let want = fields!(SatParams: size, channels, pad);
+        check(&m, "SatParams", want, size_of::<SatParams>());
+        let m = shader::validate("separable.wgsl", shader::SEPARABLE_WGSL).unwrap();
+        let want = fields!(SepParams: size, channels, lights, margin, padded);
+        check(&m, "SepParams", want, size_of::<SepParams>());
+    }
+}
