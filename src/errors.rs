@@ -87,10 +87,36 @@ fn fit_error(e: &ptm_fit::Error) -> Option<String> {
 
 fn bake_error(e: &ptm_bake::Error) -> Option<String> {
     use ptm_bake::Error as E;
-    match e {
-        E::Fit(e) => fit_error(e),
-        _ => None,
-    }
+    Some(match e {
+        E::Fit(e) => return fit_error(e),
+        E::Tile {
+            path,
+            reason,
+            stray,
+        } => format!(
+            "{path}: {reason}: give the tile (--tile W,H or the `# tile` header) in the mesh's \
+             units{}",
+            if *stray {
+                ", or remove stray vertices"
+            } else {
+                ""
+            }
+        ),
+        E::NoLights => "--dirs must be at least 1".into(),
+        E::MinElevation { deg } => format!("--min-elevation {deg}: {e}"),
+        E::BadDome { spec, reason } => format!("--dome {spec}: {reason}"),
+        E::LightsInside { distance, .. } => format!("--light-distance {distance:e}: {e}"),
+        E::LightsTooFar { distance, .. } => {
+            format!("--light-distance {distance:e}: {e} (leave --light-distance out)")
+        }
+        E::TooManyThreads { threads, max } => format!(
+            "--threads {threads}: at most {max} (0 uses one per core; the output is the same for \
+             any count)"
+        ),
+        E::Io { .. } | E::InvalidMesh { .. } | E::Dome(_) | E::Config(_) | E::Embree(_) => {
+            return None
+        }
+    })
 }
 
 #[cfg(test)]
@@ -130,6 +156,29 @@ mod tests {
         // Others print as the library says.
         let e = anyhow::Error::from(ptm_fit::Error::Invalid("no lights to fit".into()));
         assert_eq!(explain(&e), format!("{e:#}"));
+    }
+
+    #[test]
+    fn bake_errors_name_their_flags() {
+        let e = anyhow::Error::from(ptm_bake::Error::TooManyThreads {
+            threads: 100_000,
+            max: 1024,
+        });
+        assert!(explain(&e).starts_with("--threads 100000: at most 1024"));
+        let e = anyhow::Error::from(ptm_bake::Error::BadDome {
+            spec: "rings:10x".into(),
+            reason: "count \"\" must be a positive integer".into(),
+        });
+        assert_eq!(
+            explain(&e),
+            "--dome rings:10x: count \"\" must be a positive integer"
+        );
+        let e = anyhow::Error::from(ptm_bake::Error::Tile {
+            path: "flat.obj".into(),
+            reason: "tile size 0×1 must be positive and finite".into(),
+            stray: false,
+        });
+        assert!(explain(&e).contains("--tile W,H"), "{}", explain(&e));
     }
 
     #[test]

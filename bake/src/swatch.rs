@@ -74,6 +74,11 @@ impl Swatch {
             path: origin.to_string(),
             reason,
         };
+        let bad_tile = |reason: String, stray: bool| Error::Tile {
+            path: origin.to_string(),
+            reason,
+            stray,
+        };
         if mesh.triangles.is_empty() {
             return Err(bad("no triangles (is the file empty or not an OBJ?)".into()));
         }
@@ -107,49 +112,58 @@ impl Swatch {
         };
         let extent = [0, 1, 2].map(|a| all.max[a] - all.min[a]);
         if !(tile[0] > 0.0 && tile[1] > 0.0 && tile[0].is_finite() && tile[1].is_finite()) {
-            return Err(bad(format!(
-                "tile size {}×{} must be positive and finite; the mesh's x/y extent is {}×{}: \
-                 pass --tile W,H",
-                tile[0], tile[1], extent[0], extent[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "tile size {}×{} must be positive and finite; the mesh's x/y extent is {}×{}",
+                    tile[0], tile[1], extent[0], extent[1]
+                ),
+                false,
+            ));
         }
         // Tolerances are fractions of the longer side: a tile 1e13 times longer than wide
         // widened every copy's box by 1e7 tiles of the short side.
         let aspect = tile[0].max(tile[1]) / tile[0].min(tile[1]);
         if aspect > MAX_TILE_ASPECT {
-            return Err(bad(format!(
-                "tile {:e}×{:e} is {aspect:.3e} times longer than wide; at most \
-                 {MAX_TILE_ASPECT:e}: pass --tile W,H (the mesh's x/y extent is {:.4e}×{:.4e})",
-                tile[0], tile[1], extent[0], extent[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "tile {:e}×{:e} is {aspect:.3e} times longer than wide; at most \
+                     {MAX_TILE_ASPECT:e} (the mesh's x/y extent is {:.4e}×{:.4e})",
+                    tile[0], tile[1], extent[0], extent[1]
+                ),
+                false,
+            ));
         }
         // Every tile the mesh spans is a copy in every scene: a mesh thousands of tiles wide (a
         // tile given in other units, a stray vertex) would build millions of copies.
         if (0..2).any(|a| extent[a] > MAX_TILES_SPANNED * tile[a]) {
-            return Err(bad(format!(
-                "the mesh is {:.4e}×{:.4e} wide ({:.3e}×{:.3e} tiles of {:e}×{:e}); a mesh may \
-                 span at most {MAX_TILES_SPANNED} tiles per axis: give the tile (--tile W,H or \
-                 the `# tile` header) in the mesh's units, or remove stray vertices",
-                extent[0],
-                extent[1],
-                extent[0] / tile[0],
-                extent[1] / tile[1],
-                tile[0],
-                tile[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "the mesh is {:.4e}×{:.4e} wide ({:.3e}×{:.3e} tiles of {:e}×{:e}); a mesh \
+                     may span at most {MAX_TILES_SPANNED} tiles per axis",
+                    extent[0],
+                    extent[1],
+                    extent[0] / tile[0],
+                    extent[1] / tile[1],
+                    tile[0],
+                    tile[1]
+                ),
+                true,
+            ));
         }
         // Heights are bounded too: tolerances are fractions of the largest of width, height
         // and depth, and a mesh 1e12 tall over a unit tile widened every copy's box by 1e6 tiles.
         if extent[2] > MAX_TILES_TALL * tile[0].min(tile[1]) {
-            return Err(bad(format!(
-                "the mesh is {:.4e} tall, {:.3e} times the smaller side of the {:e}×{:e} tile; \
-                 a mesh may be at most {MAX_TILES_TALL} tiles tall: give the tile (--tile W,H or \
-                 the `# tile` header) in the mesh's units, or remove stray vertices",
-                extent[2],
-                extent[2] / tile[0].min(tile[1]),
-                tile[0],
-                tile[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "the mesh is {:.4e} tall, {:.3e} times the smaller side of the {:e}×{:e} \
+                     tile; a mesh may be at most {MAX_TILES_TALL} tiles tall",
+                    extent[2],
+                    extent[2] / tile[0].min(tile[1]),
+                    tile[0],
+                    tile[1]
+                ),
+                true,
+            ));
         }
         let mut positions = mesh.positions;
         if shift != [0.0, 0.0] {
@@ -174,11 +188,14 @@ impl Swatch {
         if triangles.is_empty() {
             let size = extent[0].max(extent[1]).max(extent[2]);
             if size < 1e-6 * scale {
-                return Err(bad(format!(
-                    "the mesh ({:e}×{:e}×{:e}) is too small for f32 against the {:e}×{:e} tile: \
-                     give the tile (--tile W,H or the `# tile` header) in the mesh's units",
-                    extent[0], extent[1], extent[2], tile[0], tile[1]
-                )));
+                return Err(bad_tile(
+                    format!(
+                        "the mesh ({:e}×{:e}×{:e}) is too small for f32 against the {:e}×{:e} \
+                         tile",
+                        extent[0], extent[1], extent[2], tile[0], tile[1]
+                    ),
+                    false,
+                ));
             }
             return Err(bad(format!("all {total} triangles have zero area")));
         }
@@ -663,7 +680,7 @@ mod tests {
             (
                 "flat.obj",
                 Some("v 0 0 0\nv 0 0 1\nv 0 1 2\nf 1 2 3\n"),
-                "--tile",
+                "`# tile` header",
             ),
         ];
         for (name, text, want) in cases {
@@ -691,7 +708,10 @@ mod tests {
             let e = Swatch::load(p.to_str().unwrap(), Some(t))
                 .unwrap_err()
                 .to_string();
-            assert!(e.contains("--tile") && e.contains(want), "{t:?}: {e}");
+            assert!(
+                e.contains("`# tile` header") && !e.contains("--") && e.contains(want),
+                "{t:?}: {e}"
+            );
         }
         // A Latin-1 byte in a comment is no reason to refuse the mesh.
         let latin1 = dir.join("latin1.obj");
