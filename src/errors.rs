@@ -44,11 +44,15 @@ fn hinted(e: &(dyn StdError + 'static)) -> Option<String> {
     if let Some(e) = e.downcast_ref::<ptm_bake::Error>() {
         return bake_error(e);
     }
+    if let Some(e) = e.downcast_ref::<ptm_runtime::Error>() {
+        return runtime_error(e);
+    }
     if let Some(e) = e.downcast_ref::<ptm_report::Error>() {
         return match e {
             ptm_report::Error::Bake(e) => bake_error(e),
             ptm_report::Error::Fit(e) => fit_error(e),
             ptm_report::Error::Format(e) => format_error(e),
+            ptm_report::Error::Runtime(e) => runtime_error(e),
             _ => None,
         };
     }
@@ -79,6 +83,7 @@ fn fit_error(e: &ptm_fit::Error) -> Option<String> {
             format!("{e}, as a bake with --light-distance makes: fit it with --link identity")
         }
         E::TooManyShards { shard, .. } => format!("--shard {shard}: {e}"),
+        E::Images { pattern, reason } => format!("--images {pattern:?}: {reason}"),
         E::NotAPart { .. } => format!("{e}; parts are written by `ptm bake --shard I/N`"),
         E::File(e) => return format_error(e),
         E::Io { .. } | E::LightFile { .. } | E::Format { .. } | E::Invalid(_) => return None,
@@ -117,6 +122,19 @@ fn bake_error(e: &ptm_bake::Error) -> Option<String> {
             return None
         }
     })
+}
+
+fn runtime_error(e: &ptm_runtime::Error) -> Option<String> {
+    use ptm_runtime::Error as E;
+    match e {
+        E::SeparableNeedsParallelCaster { tilt_deg } => Some(format!(
+            "invalid scene: --blur separable needs a caster parallel to the cloth (its per-light \
+             box passes assume one blur radius per light), but the caster is tilted {tilt_deg}°: \
+             use --blur sat, mip or explicit"
+        )),
+        E::Fit(e) => fit_error(e),
+        _ => None,
+    }
 }
 
 #[cfg(test)]
@@ -179,6 +197,16 @@ mod tests {
             stray: false,
         });
         assert!(explain(&e).contains("--tile W,H"), "{}", explain(&e));
+        let e = anyhow::Error::from(ptm_runtime::Error::SeparableNeedsParallelCaster {
+            tilt_deg: 20.0,
+        });
+        assert!(explain(&e).contains("--blur separable"), "{}", explain(&e));
+        assert!(!e.to_string().contains("--"), "{e}");
+        let e = anyhow::Error::from(ptm_fit::Error::Images {
+            pattern: "x/*.png".into(),
+            reason: "matches no file".into(),
+        });
+        assert_eq!(explain(&e), "--images \"x/*.png\": matches no file");
     }
 
     #[test]

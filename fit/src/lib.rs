@@ -96,6 +96,10 @@ pub enum Error {
         rows: usize,
         blocks: usize,
     },
+    /// An RTI image stack (a glob `pattern` of images named by a `.lp` file) that makes no
+    /// sample stack.
+    #[error("images {pattern:?}: {reason}")]
+    Images { pattern: String, reason: String },
     /// An EXR file without `part:version`: not a farm part.
     #[error("{path}: not a ptm part file (no `part:version`)")]
     NotAPart { path: String },

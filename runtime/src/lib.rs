@@ -55,6 +55,10 @@ pub enum Error {
     Image { path: String, reason: String },
     #[error("invalid scene: {0}")]
     Scene(String),
+    /// The separable blur with a tilted caster (its per-light box passes assume one blur radius
+    /// per light).
+    #[error("invalid scene: the separable blur needs a caster parallel to the cloth (its per-light box passes assume one blur radius per light), but the caster is tilted {tilt_deg}°: use the sat, mip or explicit blur")]
+    SeparableNeedsParallelCaster { tilt_deg: f32 },
     #[error(transparent)]
     Fit(#[from] ptm_fit::Error),
 }
