@@ -512,7 +512,7 @@ fn bake_json(
         "degenerate_triangles": swatch.degenerate,
         "tile": swatch.tile,
         "seam_mismatch": swatch.seams.map(|s| s.mismatch.map(finite)),
-        "warnings": swatch.warnings(),
+        "warnings": swatch.warnings().iter().map(ToString::to_string).collect::<Vec<_>>(),
         "width": res[0],
         "height": res[1],
         "spp": args.spp,

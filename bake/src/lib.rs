@@ -14,7 +14,7 @@ pub mod swatch;
 pub mod tiling;
 pub mod visibility;
 
-pub use swatch::Swatch;
+pub use swatch::{Diagnostic, Swatch};
 pub use visibility::{
     bake_planes, baker_bytes, sample_xy, BakeConfig, BakeReport, Baker, Planes, Sink,
 };

@@ -247,30 +247,72 @@ impl Swatch {
         }
     }
 
-    /// Human-readable warnings about the input (non-periodic seams, skipped triangles).
-    pub fn warnings(&self) -> Vec<String> {
+    /// Diagnostics of the input (skipped triangles, non-periodic seams); the bake still runs.
+    pub fn warnings(&self) -> Vec<Diagnostic> {
         let mut w = Vec::new();
         if self.degenerate > 0 {
-            w.push(format!(
-                "{}: skipped {} degenerate (zero-area) triangles",
-                self.origin, self.degenerate
-            ));
+            w.push(Diagnostic::DegenerateTriangles {
+                origin: self.origin.clone(),
+                triangles: self.degenerate,
+            });
         }
-        let tol = 1e-4 * self.scale();
+        let tolerance = 1e-4 * self.scale();
         for s in &self.seams {
-            if s.mismatch.is_some_and(|m| m > tol) {
-                let (a, b) = if s.axis == 0 { ("x", "W") } else { ("y", "H") };
-                w.push(format!(
-                    "{}: not periodic over the {}×{} tile: its cross-sections at {a} = 0 and \
-                     {a} = {b} differ by up to {:.3e} (tolerance {tol:.1e}); seams will show",
-                    self.origin,
-                    self.tile[0],
-                    self.tile[1],
-                    s.mismatch.unwrap_or(0.0)
-                ));
+            if let Some(mismatch) = s.mismatch.filter(|&m| m > tolerance) {
+                w.push(Diagnostic::NotPeriodic {
+                    origin: self.origin.clone(),
+                    axis: s.axis,
+                    tile: self.tile,
+                    mismatch,
+                    tolerance,
+                });
             }
         }
         w
+    }
+}
+
+/// Something about a swatch worth telling the user; the bake still runs. `Display` is the one
+/// place the words live.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Diagnostic {
+    /// `triangles` zero-area triangles of the mesh `origin` were skipped.
+    DegenerateTriangles { origin: String, triangles: usize },
+    /// The mesh's cross-sections at the tile's opposite borders along `axis` (0 = x, 1 = y)
+    /// differ by up to `mismatch` (mesh units), over the `tolerance`: seams will show.
+    NotPeriodic {
+        origin: String,
+        axis: usize,
+        tile: [f64; 2],
+        mismatch: f64,
+        tolerance: f64,
+    },
+}
+
+impl std::fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            Diagnostic::DegenerateTriangles { origin, triangles } => write!(
+                f,
+                "{origin}: skipped {triangles} degenerate (zero-area) triangles"
+            ),
+            Diagnostic::NotPeriodic {
+                origin,
+                axis,
+                tile,
+                mismatch,
+                tolerance,
+            } => {
+                let (a, b) = if *axis == 0 { ("x", "W") } else { ("y", "H") };
+                write!(
+                    f,
+                    "{origin}: not periodic over the {}×{} tile: its cross-sections at {a} = 0 \
+                     and {a} = {b} differ by up to {mismatch:.3e} (tolerance {tolerance:.1e}); \
+                     seams will show",
+                    tile[0], tile[1]
+                )
+            }
+        }
     }
 }
 
@@ -611,7 +653,13 @@ mod tests {
         assert_eq!(s.bounds.min, [0.0, 0.0, 0.0]);
         // A flat quad is periodic: its sections at opposite borders coincide.
         assert_eq!(s.seams.map(|s| s.mismatch), [Some(0.0), Some(0.0)]);
-        assert_eq!(s.warnings().len(), 1, "{:?}", s.warnings());
+        assert_eq!(
+            s.warnings(),
+            [Diagnostic::DegenerateTriangles {
+                origin: p.to_str().unwrap().into(),
+                triangles: 1
+            }]
+        );
 
         let cases = [
             ("missing.obj", None, "cannot read"),
@@ -770,8 +818,10 @@ mod tests {
         assert_eq!(s.seams[1].mismatch, Some(0.0));
         let w = s.warnings();
         assert!(
-            w.len() == 1 && w[0].contains("x = 0") && w[0].contains("3.000e-1"),
+            matches!(&w[..], [Diagnostic::NotPeriodic { axis: 0, mismatch, .. }]
+                if (mismatch - 0.3).abs() < 1e-6),
             "{w:?}"
         );
+        assert!(w[0].to_string().contains("x = 0") && w[0].to_string().contains("3.000e-1"));
     }
 }

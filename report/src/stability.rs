@@ -140,12 +140,12 @@ pub enum GeometryCase {
     /// `appended` zero-area triangles added; the swatch's warnings.
     Degenerate {
         appended: usize,
-        warnings: Vec<String>,
+        warnings: Vec<ptm_bake::Diagnostic>,
         max_dk: f64,
         differ: usize,
     },
     /// Vertices near the x = W border lifted by 5% of H; the swatch's warnings.
-    NonPeriodic { warnings: Vec<String> },
+    NonPeriodic { warnings: Vec<ptm_bake::Diagnostic> },
     /// The coarsest tessellation `spec` (`triangles`) baked at `fine_res`² and at `res`²:
     /// uncovered texels of the fine bake, and the coverage-weighted mean K of both.
     FinerThanTriangles {

@@ -365,13 +365,13 @@ fn geometry(g: &Geometry) -> Table {
                 differ,
             } => vec![
                 format!("{appended} zero-area triangles appended"),
-                warnings.join(" "),
+                words(warnings),
                 g3(*max_dk),
                 format!("{differ}"),
             ],
             GeometryCase::NonPeriodic { warnings } => vec![
                 "vertices near x = W lifted by 5% of H".into(),
-                warnings.join(" "),
+                words(warnings),
                 "-".into(),
                 "-".into(),
             ],
@@ -468,4 +468,13 @@ fn extremes(rows: &[ExtremeRow]) -> Table {
         ]);
     }
     t
+}
+
+/// A swatch's diagnostics in words, one cell.
+fn words(warnings: &[ptm_bake::Diagnostic]) -> String {
+    warnings
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(" ")
 }
