@@ -186,6 +186,13 @@ pub fn srgb_to_linear(v: f32) -> f32 {
     }
 }
 
+fn images(pattern: &str, reason: String) -> Error {
+    Error::Images {
+        pattern: pattern.to_string(),
+        reason,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -252,12 +259,5 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
         assert_eq!(lp_file_name("C:\\x\\y/IMG.png"), "IMG.png");
         assert_eq!(lp_file_name("plain.png"), "plain.png");
-    }
-}
-
-fn images(pattern: &str, reason: String) -> Error {
-    Error::Images {
-        pattern: pattern.to_string(),
-        reason,
     }
 }
