@@ -306,7 +306,7 @@ fn fit_accumulator(
     let mut acc = Accumulator::new(lights, width, height, &opts)?;
     acc.set_spp(args.spp)?;
     for w in acc.warnings() {
-        eprintln!("ptm bake: fit warning: {w}");
+        eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
     }
     Ok((Some(acc), shard_mips))
 }
@@ -480,7 +480,7 @@ fn write_outputs(
             t_fit = t1.elapsed().as_secs_f64();
             t1 = Instant::now();
             for w in &fit.warnings {
-                eprintln!("ptm bake: fit warning: {w}");
+                eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
             }
             crate::fit::print_logistic("ptm bake", &fit);
             let mut summary = json!({
@@ -494,7 +494,7 @@ fn write_outputs(
                 "condition_number": finite(fit.cond),
                 "rms_error_mean": fit.rms.mean,
                 "rms_error_p99": fit.rms.p99,
-                "warnings": fit.warnings,
+                "warnings": crate::errors::fit_warnings(&fit.warnings),
             });
             crate::fit::stage_seconds(&mut summary, &fit.seconds);
             match part {
@@ -619,7 +619,7 @@ fn bake_json(
         "degenerate_triangles": swatch.degenerate,
         "tile": swatch.tile,
         "seam_mismatch": swatch.seams.map(|s| s.mismatch.map(finite)),
-        "warnings": swatch.warnings(),
+        "warnings": swatch.warnings().iter().map(ToString::to_string).collect::<Vec<_>>(),
         "width": res[0],
         "height": res[1],
         "spp": args.spp,

@@ -305,7 +305,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let (ptm, report) = fit_stack(&stack, &opts)?;
     drop(stack);
     for w in &report.warnings {
-        eprintln!("ptm fit: warning: {w}");
+        eprintln!("ptm fit: warning: {}", crate::errors::fit_warning(w));
     }
     let t1 = Instant::now();
     let save = SaveOptions {
@@ -372,7 +372,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         "singular_values": report.singular_values,
         "solver": report.solver,
         "weight": opts.weight.name(),
-        "warnings": report.warnings,
+        "warnings": crate::errors::fit_warnings(&report.warnings),
         "rms_error": stats(&report.rms),
         "max_error": report.max.as_ref().map(stats),
         "holdout_rms_error": report.holdout.as_ref().map(stats),

@@ -7,6 +7,7 @@
 mod bake;
 mod batch;
 mod convert;
+mod errors;
 mod fit;
 mod merge;
 mod outputs;
@@ -90,7 +91,7 @@ fn main() -> ExitCode {
             ExitCode::SUCCESS
         }
         Err(e) => {
-            let message = chain(&e);
+            let message = errors::explain(&e);
             eprintln!("ptm: error: {message}");
             if cli.json {
                 let input = error_input(&e).or_else(|| cli.command.input());
@@ -145,24 +146,6 @@ fn usage_error(e: clap::Error, json: bool) -> ExitCode {
     ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
 }
 
-/// The error and its causes joined by ": ", each cause once: library errors that show their
-/// source in their own message (`path: No such file or directory`) and also return it as
-/// `source()` would otherwise print the OS error twice.
-fn chain(e: &anyhow::Error) -> String {
-    let mut out = String::new();
-    for cause in e.chain() {
-        let s = cause.to_string();
-        if s.is_empty() || out.ends_with(&s) {
-            continue;
-        }
-        if !out.is_empty() {
-            out += ": ";
-        }
-        out += &s;
-    }
-    out
-}
-
 /// What failed, in one word for `--json`: `io` (an OS error reading or writing a file), `gpu`
 /// (no adapter, device or shader trouble), `embree` (the ray tracer), or `invalid` (an input
 /// file or argument that ptm refuses; the message says which and why).
@@ -195,7 +178,10 @@ fn error_input(e: &anyhow::Error) -> Option<String> {
             if let Some(x) = cause.downcast_ref::<ptm_fit::FormatError>() {
                 use ptm_fit::FormatError as F;
                 return match x {
-                    F::Io { path, .. } | F::Format { path, .. } => Some(path.clone()),
+                    F::Io { path, .. }
+                    | F::Format { path, .. }
+                    | F::HpNeedsPtm6 { path, .. }
+                    | F::HalfOverflow { path, .. } => Some(path.clone()),
                     F::Invalid(_) => None,
                 };
             }

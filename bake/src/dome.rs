@@ -16,7 +16,7 @@ pub const MAX_LIGHTS: usize = 1 << 20;
 /// 2015). The ½ keeps every light strictly above the minimum elevation and off the pole.
 pub fn fibonacci(n: usize, min_elevation_deg: f64) -> Result<LightSet> {
     if n == 0 {
-        return Err(Error::Dome("--dirs must be at least 1".into()));
+        return Err(Error::NoLights);
     }
     if n > MAX_LIGHTS {
         return Err(Error::Dome(format!(
@@ -24,9 +24,9 @@ pub fn fibonacci(n: usize, min_elevation_deg: f64) -> Result<LightSet> {
         )));
     }
     if !(0.0..90.0).contains(&min_elevation_deg) {
-        return Err(Error::Dome(format!(
-            "--min-elevation {min_elevation_deg} must lie in [0, 90) degrees"
-        )));
+        return Err(Error::MinElevation {
+            deg: min_elevation_deg,
+        });
     }
     let z_min = min_elevation_deg.to_radians().sin();
     let golden = PI * (3.0 - 5f64.sqrt()); // 2π(1 − 1/Φ) ≈ 2.39996 rad
@@ -41,7 +41,10 @@ pub fn fibonacci(n: usize, min_elevation_deg: f64) -> Result<LightSet> {
 /// Rings `E1xC1,E2xC2,…`: Cᵢ lights evenly spaced in azimuth at elevation Eᵢ degrees, the
 /// first light of each ring at azimuth 0 (+X). `spec` is the part after `rings:`.
 pub fn rings(spec: &str) -> Result<LightSet> {
-    let bad = |why: String| Error::Dome(format!("--dome rings:{spec}: {why}"));
+    let bad = |reason: String| Error::BadDome {
+        spec: format!("rings:{spec}"),
+        reason,
+    };
     let mut dirs = Vec::new();
     for part in spec.split(',').map(str::trim) {
         let (e, c) = part
@@ -79,15 +82,16 @@ pub fn parse(spec: &str, min_elevation_deg: f64) -> Result<LightSet> {
     if let Some(r) = spec.strip_prefix("rings:") {
         rings(r)
     } else if let Some(n) = spec.strip_prefix("fibonacci:") {
-        let n = n
-            .trim()
-            .parse()
-            .map_err(|_| Error::Dome(format!("--dome {spec}: {n:?} is not a light count")))?;
+        let n = n.trim().parse().map_err(|_| Error::BadDome {
+            spec: spec.into(),
+            reason: format!("{n:?} is not a light count"),
+        })?;
         fibonacci(n, min_elevation_deg)
     } else {
-        Err(Error::Dome(format!(
-            "--dome {spec:?}: expected rings:E1xC1,E2xC2,... or fibonacci:N"
-        )))
+        Err(Error::BadDome {
+            spec: format!("{spec:?}"),
+            reason: "expected rings:E1xC1,E2xC2,... or fibonacci:N".into(),
+        })
     }
 }
 
@@ -135,8 +139,9 @@ mod tests {
             "rings:95x2",
             "grid:3",
         ] {
-            let e = parse(bad, 5.0).unwrap_err().to_string();
-            assert!(e.contains("--dome"), "{bad}: {e}");
+            let e = parse(bad, 5.0).unwrap_err();
+            assert!(matches!(&e, Error::BadDome { .. }), "{bad}: {e}");
+            assert!(!e.to_string().contains("--"), "{bad}: {e}");
         }
         for huge in [
             "rings:30x100000000000",

@@ -82,6 +82,11 @@ impl PreparedMesh {
             path: origin.to_string(),
             reason,
         };
+        let bad_tile = |reason: String, stray: bool| Error::Tile {
+            path: origin.to_string(),
+            reason,
+            stray,
+        };
         if mesh.triangles.is_empty() {
             return Err(bad("no triangles (is the file empty or not an OBJ?)".into()));
         }
@@ -115,49 +120,58 @@ impl PreparedMesh {
         };
         let extent = [0, 1, 2].map(|a| all.max[a] - all.min[a]);
         if !(tile[0] > 0.0 && tile[1] > 0.0 && tile[0].is_finite() && tile[1].is_finite()) {
-            return Err(bad(format!(
-                "tile size {}×{} must be positive and finite; the mesh's x/y extent is {}×{}: \
-                 pass --tile W,H",
-                tile[0], tile[1], extent[0], extent[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "tile size {}×{} must be positive and finite; the mesh's x/y extent is {}×{}",
+                    tile[0], tile[1], extent[0], extent[1]
+                ),
+                false,
+            ));
         }
         // Tolerances are fractions of the longer side: a tile 1e13 times longer than wide
         // widened every copy's box by 1e7 tiles of the short side.
         let aspect = tile[0].max(tile[1]) / tile[0].min(tile[1]);
         if aspect > MAX_TILE_ASPECT {
-            return Err(bad(format!(
-                "tile {:e}×{:e} is {aspect:.3e} times longer than wide; at most \
-                 {MAX_TILE_ASPECT:e}: pass --tile W,H (the mesh's x/y extent is {:.4e}×{:.4e})",
-                tile[0], tile[1], extent[0], extent[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "tile {:e}×{:e} is {aspect:.3e} times longer than wide; at most \
+                     {MAX_TILE_ASPECT:e} (the mesh's x/y extent is {:.4e}×{:.4e})",
+                    tile[0], tile[1], extent[0], extent[1]
+                ),
+                false,
+            ));
         }
         // Every tile the mesh spans is a copy in every scene: a mesh thousands of tiles wide (a
         // tile given in other units, a stray vertex) would build millions of copies.
         if (0..2).any(|a| extent[a] > MAX_TILES_SPANNED * tile[a]) {
-            return Err(bad(format!(
-                "the mesh is {:.4e}×{:.4e} wide ({:.3e}×{:.3e} tiles of {:e}×{:e}); a mesh may \
-                 span at most {MAX_TILES_SPANNED} tiles per axis: give the tile (--tile W,H or \
-                 the `# tile` header) in the mesh's units, or remove stray vertices",
-                extent[0],
-                extent[1],
-                extent[0] / tile[0],
-                extent[1] / tile[1],
-                tile[0],
-                tile[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "the mesh is {:.4e}×{:.4e} wide ({:.3e}×{:.3e} tiles of {:e}×{:e}); a mesh \
+                     may span at most {MAX_TILES_SPANNED} tiles per axis",
+                    extent[0],
+                    extent[1],
+                    extent[0] / tile[0],
+                    extent[1] / tile[1],
+                    tile[0],
+                    tile[1]
+                ),
+                true,
+            ));
         }
         // Heights are bounded too: tolerances are fractions of the largest of width, height
         // and depth, and a mesh 1e12 tall over a unit tile widened every copy's box by 1e6 tiles.
         if extent[2] > MAX_TILES_TALL * tile[0].min(tile[1]) {
-            return Err(bad(format!(
-                "the mesh is {:.4e} tall, {:.3e} times the smaller side of the {:e}×{:e} tile; \
-                 a mesh may be at most {MAX_TILES_TALL} tiles tall: give the tile (--tile W,H or \
-                 the `# tile` header) in the mesh's units, or remove stray vertices",
-                extent[2],
-                extent[2] / tile[0].min(tile[1]),
-                tile[0],
-                tile[1]
-            )));
+            return Err(bad_tile(
+                format!(
+                    "the mesh is {:.4e} tall, {:.3e} times the smaller side of the {:e}×{:e} \
+                     tile; a mesh may be at most {MAX_TILES_TALL} tiles tall",
+                    extent[2],
+                    extent[2] / tile[0].min(tile[1]),
+                    tile[0],
+                    tile[1]
+                ),
+                true,
+            ));
         }
         let mut positions = mesh.positions;
         if shift != [0.0, 0.0] {
@@ -182,11 +196,14 @@ impl PreparedMesh {
         if triangles.is_empty() {
             let size = extent[0].max(extent[1]).max(extent[2]);
             if size < 1e-6 * scale {
-                return Err(bad(format!(
-                    "the mesh ({:e}×{:e}×{:e}) is too small for f32 against the {:e}×{:e} tile: \
-                     give the tile (--tile W,H or the `# tile` header) in the mesh's units",
-                    extent[0], extent[1], extent[2], tile[0], tile[1]
-                )));
+                return Err(bad_tile(
+                    format!(
+                        "the mesh ({:e}×{:e}×{:e}) is too small for f32 against the {:e}×{:e} \
+                         tile",
+                        extent[0], extent[1], extent[2], tile[0], tile[1]
+                    ),
+                    false,
+                ));
             }
             return Err(bad(format!("all {total} triangles have zero area")));
         }
@@ -238,30 +255,74 @@ impl PreparedMesh {
         }
     }
 
-    /// Human-readable warnings about the input (non-periodic seams, skipped triangles).
-    pub fn warnings(&self) -> Vec<String> {
+    /// Diagnostics of the input (skipped triangles, non-periodic seams); the bake still runs.
+    pub fn warnings(&self) -> Vec<Diagnostic> {
         let mut w = Vec::new();
         if self.degenerate > 0 {
-            w.push(format!(
-                "{}: skipped {} degenerate (zero-area) triangles",
-                self.origin, self.degenerate
-            ));
+            w.push(Diagnostic::DegenerateTriangles {
+                origin: self.origin.clone(),
+                triangles: self.degenerate,
+            });
         }
-        let tol = 1e-4 * self.scale();
+        let tolerance = 1e-4 * self.scale();
         for s in &self.seams {
-            if s.mismatch.is_some_and(|m| m > tol) {
-                let (a, b) = if s.axis == 0 { ("x", "W") } else { ("y", "H") };
-                w.push(format!(
-                    "{}: not periodic over the {}×{} tile: its cross-sections at {a} = 0 and \
-                     {a} = {b} differ by up to {:.3e} (tolerance {tol:.1e}); seams will show",
-                    self.origin,
-                    self.tile[0],
-                    self.tile[1],
-                    s.mismatch.unwrap_or(0.0)
-                ));
+            if let Some(mismatch) = s.mismatch.filter(|&m| m > tolerance) {
+                w.push(Diagnostic::NotPeriodic {
+                    origin: self.origin.clone(),
+                    axis: s.axis,
+                    tile: self.tile,
+                    mismatch,
+                    tolerance,
+                });
             }
         }
         w
+    }
+}
+
+/// Something about a swatch worth telling the user; the bake still runs. `Display` is the one
+/// place the words live. Each variant's doc names its fields, so the fields carry none of
+/// their own.
+#[allow(missing_docs)]
+#[derive(Clone, Debug, PartialEq)]
+pub enum Diagnostic {
+    /// `triangles` zero-area triangles of the mesh `origin` were skipped.
+    DegenerateTriangles { origin: String, triangles: usize },
+    /// The mesh's cross-sections at the tile's opposite borders along `axis` (0 = x, 1 = y)
+    /// differ by up to `mismatch` (mesh units), over the `tolerance`: seams will show.
+    NotPeriodic {
+        origin: String,
+        axis: usize,
+        tile: [f64; 2],
+        mismatch: f64,
+        tolerance: f64,
+    },
+}
+
+impl std::fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        match self {
+            Diagnostic::DegenerateTriangles { origin, triangles } => write!(
+                f,
+                "{origin}: skipped {triangles} degenerate (zero-area) triangles"
+            ),
+            Diagnostic::NotPeriodic {
+                origin,
+                axis,
+                tile,
+                mismatch,
+                tolerance,
+            } => {
+                let (a, b) = if *axis == 0 { ("x", "W") } else { ("y", "H") };
+                write!(
+                    f,
+                    "{origin}: not periodic over the {}×{} tile: its cross-sections at {a} = 0 \
+                     and {a} = {b} differ by up to {mismatch:.3e} (tolerance {tolerance:.1e}); \
+                     seams will show",
+                    tile[0], tile[1]
+                )
+            }
+        }
     }
 }
 
@@ -407,7 +468,13 @@ mod tests {
         assert_eq!(s.bounds.min, [0.0, 0.0, 0.0]);
         // A flat quad is periodic: its sections at opposite borders coincide.
         assert_eq!(s.seams.map(|s| s.mismatch), [Some(0.0), Some(0.0)]);
-        assert_eq!(s.warnings().len(), 1, "{:?}", s.warnings());
+        assert_eq!(
+            s.warnings(),
+            [Diagnostic::DegenerateTriangles {
+                origin: p.to_str().unwrap().into(),
+                triangles: 1
+            }]
+        );
 
         let cases = [
             ("missing.obj", None, "cannot read"),
@@ -476,7 +543,7 @@ mod tests {
             (
                 "flat.obj",
                 Some("v 0 0 0\nv 0 0 1\nv 0 1 2\nf 1 2 3\n"),
-                "--tile",
+                "`# tile` header",
             ),
         ];
         for (name, text, want) in cases {
@@ -504,7 +571,10 @@ mod tests {
             let e = PreparedMesh::load(p.to_str().unwrap(), Some(t))
                 .unwrap_err()
                 .to_string();
-            assert!(e.contains("--tile") && e.contains(want), "{t:?}: {e}");
+            assert!(
+                e.contains("`# tile` header") && !e.contains("--") && e.contains(want),
+                "{t:?}: {e}"
+            );
         }
         // A Latin-1 byte in a comment is no reason to refuse the mesh.
         let latin1 = dir.join("latin1.obj");
@@ -563,8 +633,10 @@ mod tests {
         assert_eq!(s.seams[1].mismatch, Some(0.0));
         let w = s.warnings();
         assert!(
-            w.len() == 1 && w[0].contains("x = 0") && w[0].contains("3.000e-1"),
+            matches!(&w[..], [Diagnostic::NotPeriodic { axis: 0, mismatch, .. }]
+                if (mismatch - 0.3).abs() < 1e-6),
             "{w:?}"
         );
+        assert!(w[0].to_string().contains("x = 0") && w[0].to_string().contains("3.000e-1"));
     }
 }

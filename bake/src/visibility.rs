@@ -65,17 +65,14 @@ pub fn check_light_distance(r: f64, swatch: &PreparedMesh) -> Result<()> {
         .sqrt();
     let far = MAX_LIGHT_DISTANCE * swatch.scale();
     if !(r.is_finite() && r > reach) {
-        return Err(Error::Config(format!(
-            "--light-distance {r:e} puts lights inside the swatch, whose bounds reach {reach:.4e} \
-             (mesh units) from the tile centre: give a distance above that"
-        )));
+        return Err(Error::LightsInside { distance: r, reach });
     }
     if r > far {
-        return Err(Error::Config(format!(
-            "--light-distance {r:e} is over {MAX_LIGHT_DISTANCE:e} times the swatch size ({:.4e}): \
-             such lights are distant to f32 precision; leave --light-distance out",
-            swatch.scale()
-        )));
+        return Err(Error::LightsTooFar {
+            distance: r,
+            times: MAX_LIGHT_DISTANCE,
+            scale: swatch.scale(),
+        });
     }
     Ok(())
 }
@@ -186,11 +183,10 @@ impl Baker {
             )));
         }
         if cfg.threads > MAX_THREADS {
-            return Err(Error::Config(format!(
-                "--threads {}: at most {MAX_THREADS} (0 uses one per core; the output is the \
-                 same for any count)",
-                cfg.threads
-            )));
+            return Err(Error::TooManyThreads {
+                threads: cfg.threads,
+                max: MAX_THREADS,
+            });
         }
         if let Some(r) = cfg.light_distance {
             check_light_distance(r, swatch)?;
@@ -735,7 +731,7 @@ mod tests {
         for r in [1e38, 1e300, f64::INFINITY] {
             let e = check_light_distance(r, &swatch).unwrap_err().to_string();
             assert!(
-                e.contains("leave --light-distance out") || e.contains("inside"),
+                e.contains("distant to f32 precision") || e.contains("inside"),
                 "{r}: {e}"
             );
         }
@@ -747,11 +743,17 @@ mod tests {
             packets: true,
             threads,
         };
-        let e = Baker::new(&swatch, &cfg(100_000, None))
-            .err()
-            .unwrap()
-            .to_string();
-        assert!(e.contains("--threads 100000: at most 1024"), "{e}");
+        let e = Baker::new(&swatch, &cfg(100_000, None)).err().unwrap();
+        assert!(
+            matches!(
+                e,
+                Error::TooManyThreads {
+                    threads: 100_000,
+                    max: 1024
+                }
+            ),
+            "{e}"
+        );
         let e = Baker::new(&swatch, &cfg(1, Some(1e38)))
             .err()
             .unwrap()

@@ -58,28 +58,28 @@ pub fn read_image_stack(
     decoding: Decoding,
 ) -> Result<(SampleStack, ImageStackInfo)> {
     let lights = LightSet::read_lp(lp)?;
-    let paths = glob::glob(pattern)
-        .map_err(|e| Error::Invalid(format!("--images {pattern:?}: bad pattern: {e}")))?;
+    let paths = glob::glob(pattern).map_err(|e| images(pattern, format!("bad pattern: {e}")))?;
     let mut by_name: HashMap<String, PathBuf> = HashMap::new();
     for p in paths {
-        let p = p.map_err(|e| Error::Invalid(format!("--images {pattern:?}: {e}")))?;
+        let p = p.map_err(|e| images(pattern, e.to_string()))?;
         if let Some(name) = p.file_name() {
             let name = name.to_string_lossy().into_owned();
             if let Some(first) = by_name.get(&name) {
-                return Err(Error::Invalid(format!(
-                    "--images {pattern:?} matches {} and {}, both named {name:?}: the .lp names \
-                     images by file name only; give a pattern that matches one folder",
-                    first.display(),
-                    p.display()
-                )));
+                return Err(images(
+                    pattern,
+                    format!(
+                        "matches {} and {}, both named {name:?}: the .lp names images by file \
+                         name only; give a pattern that matches one folder",
+                        first.display(),
+                        p.display()
+                    ),
+                ));
             }
             by_name.insert(name, p);
         }
     }
     if by_name.is_empty() {
-        return Err(Error::Invalid(format!(
-            "--images {pattern:?} matches no file"
-        )));
+        return Err(images(pattern, "matches no file".into()));
     }
     let mut k = Vec::with_capacity(lights.len());
     let (mut width, mut height) = (0, 0);
@@ -99,18 +99,23 @@ pub fn read_image_stack(
                 match (hits.next(), hits.next()) {
                     (Some(n), None) => n.clone(),
                     (Some(a), Some(b)) => {
-                        return Err(Error::Invalid(format!(
-                            "light {i} of {} names {name:?}; --images {pattern:?} has no file of \
-                             that name but both {a:?} and {b:?} match it ignoring case: rename one",
-                            lp.display()
-                        )))
+                        return Err(images(
+                            pattern,
+                            format!(
+                                "light {i} of {} names {name:?}: no file has that name, but both \
+                                 {a:?} and {b:?} match it ignoring case: rename one",
+                                lp.display()
+                            ),
+                        ))
                     }
                     _ => {
-                        return Err(Error::Invalid(format!(
-                            "light {i} of {} names {name:?}, which matches no file of --images \
-                             {pattern:?}",
-                            lp.display()
-                        )))
+                        return Err(images(
+                            pattern,
+                            format!(
+                                "light {i} of {} names {name:?}, which matches no file",
+                                lp.display()
+                            ),
+                        ))
                     }
                 }
             }
@@ -178,6 +183,13 @@ pub fn srgb_to_linear(v: f32) -> f32 {
         v / 12.92
     } else {
         ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn images(pattern: &str, reason: String) -> Error {
+    Error::Images {
+        pattern: pattern.to_string(),
+        reason,
     }
 }
 

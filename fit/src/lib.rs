@@ -27,6 +27,7 @@
 // Index loops over terms and lights mirror the maths (cᵢ, Aᵢⱼ) and keep several arrays in step.
 #![allow(clippy::needless_range_loop)]
 
+pub mod diagnostic;
 pub mod images;
 pub mod layout;
 pub mod lights;
@@ -42,13 +43,15 @@ pub use ptm_format::{atomic, basis, exrio, hash, hp, ptm, vec3};
 pub use ptm_format::{Error as FormatError, FileFacts, ToFileFacts};
 
 pub use basis::{Basis, Link, Monomial, UvMap};
+pub use diagnostic::Diagnostic;
 pub use layout::{Layout, PtmFile};
 pub use lights::LightSet;
 pub use ptm::{Level, Ptm, PtmInfo, SaveOptions};
 pub use solve::{fit_stack, Accumulator, ErrorStats, FitOptions, FitReport, Weight};
 pub use stack::SampleStack;
 
-/// Errors of the fit crate. Messages name the input and, where there is something to do, what.
+/// Errors of the fit crate. Messages name the input and the fact; they name no command-line
+/// flag (the `ptm` binary maps the variants it knows to its flags).
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// Reading or writing a file failed.
@@ -80,8 +83,8 @@ pub enum Error {
     /// Arguments or data that make no fit (sizes that disagree, an empty light set).
     #[error("{0}")]
     Invalid(String),
-    /// A NaN or infinite K sample, refused unless bad samples are skipped.
-    #[error("non-finite sample {value} at texel (column {col}, row {row}) for light {light}: fix the input, or pass --skip-bad to drop such samples")]
+    /// A non-finite sample, and the fit was not asked to drop such samples.
+    #[error("non-finite sample {value} at texel (column {col}, row {row}) for light {light}")]
     BadSample {
         /// Texel column (0-based).
         col: usize,
@@ -92,9 +95,54 @@ pub enum Error {
         /// The sample as read.
         value: f32,
     },
-    /// A warning about the light set, an error because strict fitting was asked for.
-    #[error("--strict: {0}")]
-    Strict(String),
+    /// A strict fit refuses to return a result with diagnostics; these are they.
+    #[error("the fit has warnings and was asked to be strict: {}", diagnostic::words(.0).join("; "))]
+    Strict(Vec<Diagnostic>),
+    /// Holding out `holdout` of `lights` lights leaves none to fit.
+    #[error("holding out {holdout} lights leaves no light to fit ({lights} lights)")]
+    HoldoutTooLarge {
+        /// Lights asked to be held out.
+        holdout: usize,
+        /// Lights in the set.
+        lights: usize,
+    },
+    /// The logistic link shares one design per fit; these samples have per-texel light
+    /// directions (lights at a finite distance).
+    #[error("the logistic link fits distant lights only; these samples have per-texel light directions (lights at a finite distance)")]
+    LogisticNeedsDistantLights,
+    /// A farm bake of `rows` image rows (`blocks` blocks of [`shard::ROW_BLOCK`]) cannot be
+    /// split into `shard.count` non-empty shards.
+    #[error(
+        "{rows} rows make only {blocks} blocks of {} rows, so at most {blocks} shards",
+        shard::ROW_BLOCK
+    )]
+    TooManyShards {
+        /// The shard asked for (its index and count).
+        shard: shard::Shard,
+        /// Image rows of the whole bake.
+        rows: usize,
+        /// Blocks of rows they make.
+        blocks: usize,
+    },
+    /// An RTI image stack (a glob `pattern` of images named by a `.lp` file) that makes no
+    /// sample stack.
+    #[error("images {pattern:?}: {reason}")]
+    Images {
+        /// The glob pattern as given.
+        pattern: String,
+        /// What is wrong with the images.
+        reason: String,
+    },
+    /// An EXR file without `part:version`: not a farm part.
+    #[error("{path}: not a ptm part file (no `part:version`)")]
+    NotAPart {
+        /// The file, as given.
+        path: String,
+    },
+    /// The file layer's typed refusals (an HP export of another basis than ptm6, a coefficient
+    /// too large for half floats).
+    #[error(transparent)]
+    File(ptm_format::Error),
 }
 
 /// The fit crate's result type.
@@ -108,6 +156,10 @@ impl From<ptm_format::Error> for Error {
             ptm_format::Error::Io { path, source } => Error::Io { path, source },
             ptm_format::Error::Format { path, reason } => Error::Format { path, reason },
             ptm_format::Error::Invalid(s) => Error::Invalid(s),
+            e
+            @ (ptm_format::Error::HpNeedsPtm6 { .. } | ptm_format::Error::HalfOverflow { .. }) => {
+                Error::File(e)
+            }
         }
     }
 }
@@ -125,7 +177,7 @@ impl ToFileFacts for FitReport {
             rms_p99: self.rms.p99,
             max_p99: self.max.map(|m| m.p99),
             holdout: self.holdout.map(|h| (h.mean, h.p99)),
-            warnings: &self.warnings,
+            warnings: diagnostic::words(&self.warnings),
             rms_map: &self.rms_map,
             max_map: &self.max_map,
         }

@@ -50,8 +50,7 @@ impl std::str::FromStr for Shard {
 
     /// Parses `I/N` with 0 ≤ I < N.
     fn from_str(s: &str) -> std::result::Result<Self, String> {
-        let bad =
-            |why: &str| format!("--shard {s:?}: {why} (expected I/N with 0 <= I < N, e.g. 0/4)");
+        let bad = |why: &str| format!("{s:?}: {why} (expected I/N with 0 <= I < N, e.g. 0/4)");
         let (i, n) = s.split_once('/').ok_or_else(|| bad("no `/`"))?;
         let index: usize = i
             .trim()
@@ -87,10 +86,11 @@ impl Shard {
     pub fn rows(&self, height: usize) -> Result<Range<usize>> {
         let blocks = height.div_ceil(ROW_BLOCK);
         if self.count > blocks {
-            return Err(Error::Invalid(format!(
-                "--shard {self}: {height} rows make only {blocks} blocks of {ROW_BLOCK} rows, so \
-                 at most {blocks} shards"
-            )));
+            return Err(Error::TooManyShards {
+                shard: *self,
+                rows: height,
+                blocks,
+            });
         }
         let at = |i: usize| (i * blocks / self.count * ROW_BLOCK).min(height);
         Ok(at(self.index)..at(self.index + 1))
@@ -449,7 +449,8 @@ pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()
         logistic_channels(meta, part, stats, &mut channels, &mut attrs)?;
     }
     if !warnings.is_empty() {
-        attrs.push(("part:warnings", Attr::Texts(warnings.to_vec())));
+        let words = crate::diagnostic::words(warnings);
+        attrs.push(("part:warnings", Attr::Texts(words)));
     }
     write_sealed(path, ptm.width, ptm.height, channels, attrs)
 }
@@ -600,10 +601,11 @@ fn meta_from(path: &Path, attrs: &BTreeMap<String, Attr>) -> Result<(PartMeta, S
                 format!("part version {v:?} is not supported (expected {PART_VERSION:?})"),
             ))
         }
-        _ => return Err(err(
-            path,
-            "not a ptm part file (no `part:version`; parts are written by `ptm bake --shard I/N`)",
-        )),
+        _ => {
+            return Err(Error::NotAPart {
+                path: path.display().to_string(),
+            })
+        }
     }
     let meta = PartMeta {
         shard: Shard {
@@ -686,7 +688,10 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 solver: c.text("part:solver", WHAT)?,
                 rank: c.f64("part:rank", WHAT)? as usize,
                 cond: c.f64("part:cond", WHAT).unwrap_or(f64::INFINITY),
-                warnings: c.texts("part:warnings", WHAT).unwrap_or_default(),
+                warnings: (c.texts("part:warnings", WHAT).unwrap_or_default())
+                    .into_iter()
+                    .map(crate::Diagnostic::Recorded)
+                    .collect(),
                 rms_map: c.take_f32("err.rms", WHAT)?,
                 ..FitReport::default()
             };
@@ -1257,7 +1262,7 @@ mod tests {
         assert_eq!("2/4".parse::<Shard>(), Ok(Shard { index: 2, count: 4 }));
         for bad in ["0/0", "5/4", "4/4", "-1/3", "x/3", "1", "1/y", ""] {
             let e = bad.parse::<Shard>().unwrap_err();
-            assert!(e.contains("--shard"), "{bad}: {e}");
+            assert!(e.contains("expected I/N"), "{bad}: {e}");
         }
     }
 

@@ -53,9 +53,13 @@ fn png_stack_with_lp_fits_the_visibility_polynomial() {
     assert!((ptm.eval(5, 3, u as f32, v as f32) - want).abs() < 1e-4);
     // An .lp entry without an image is named.
     std::fs::remove_file(dir.join("img 03.png")).unwrap();
-    let e = read_image_stack(&pattern, &dir.join("dome.lp"), [1.0, 1.0], Decoding::Srgb)
-        .unwrap_err()
-        .to_string();
+    let e =
+        read_image_stack(&pattern, &dir.join("dome.lp"), [1.0, 1.0], Decoding::Srgb).unwrap_err();
+    assert!(
+        matches!(&e, ptm_fit::Error::Images { pattern: p, .. } if *p == pattern),
+        "{e}"
+    );
+    let e = e.to_string();
     assert!(e.contains("img 03.png") && e.contains("light 3"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

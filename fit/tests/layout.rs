@@ -68,7 +68,9 @@ fn sample(basis: Basis, link: Link, uv: UvMap, mips: bool) -> (Ptm, FitReport) {
         solver: "test solver".into(),
         rank: basis.len(),
         cond: 12.5,
-        warnings: vec!["no light below 45° – grazing K is extrapolated".into()],
+        warnings: vec![ptm_fit::Diagnostic::Recorded(
+            "no light below 45° – grazing K is extrapolated".into(),
+        )],
         coverage,
         rms_map: (0..n).map(|t| t as f32 / 1000.0).collect(),
         max_map: (0..n).map(|t| t as f32 / 500.0).collect(),

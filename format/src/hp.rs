@@ -46,10 +46,10 @@ pub fn encode_hp_lrgb(
 ) -> Result<(Vec<u8>, HpExport)> {
     ptm.validate()?;
     if ptm.basis != Basis::Ptm6 {
-        return Err(Error::Invalid(format!(
-            "{}: HP's .ptm format holds only the 6-term biquadratic; fit with --basis ptm6 to export it",
-            path.display()
-        )));
+        return Err(Error::HpNeedsPtm6 {
+            path: path.display().to_string(),
+            basis: ptm.basis,
+        });
     }
     let (w, h) = (ptm.width, ptm.height);
     let n = w * h;

@@ -59,9 +59,25 @@ pub enum Error {
         /// What is wrong with it.
         reason: String,
     },
-    /// Arguments that make no file (plane sizes, a basis the format cannot hold).
+    /// Arguments that make no file (plane sizes, mismatched maps).
     #[error("{0}")]
     Invalid(String),
+    /// HP's PTM 1.2 holds only the 6-term biquadratic; this PTM has another basis.
+    #[error("{path}: HP's .ptm format holds only the 6-term biquadratic, not {}", basis.name())]
+    HpNeedsPtm6 {
+        /// The HP file asked for.
+        path: String,
+        /// The PTM's basis.
+        basis: Basis,
+    },
+    /// A coefficient (largest magnitude `magnitude`, or NaN) that a half float cannot hold.
+    #[error("{path}: a coefficient of magnitude {magnitude:e} does not fit in a half float; save as float32")]
+    HalfOverflow {
+        /// The file being written.
+        path: String,
+        /// The largest coefficient magnitude (NaN if a coefficient is NaN).
+        magnitude: f32,
+    },
 }
 
 /// The format crate's result type.

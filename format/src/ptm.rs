@@ -98,7 +98,7 @@ impl std::fmt::Debug for SaveOptions<'_> {
 
 /// The file-level facts of a fit that a PTM header records beside the coefficients, borrowed
 /// from whatever produced them (the fitter's report). Every figure is the whole file's.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct FileFacts<'a> {
     /// Lights in the light set (`ptm:nLights`).
     pub lights: usize,
@@ -120,8 +120,8 @@ pub struct FileFacts<'a> {
     /// Mean and 99th percentile of the RMS error of K on hold-out lights, when some were held
     /// out (`ptm:holdoutRmsMean`, `ptm:holdoutRmsP99`).
     pub holdout: Option<(f64, f64)>,
-    /// Warnings in words (`ptm:warnings`).
-    pub warnings: &'a [String],
+    /// Warnings in words (`ptm:warnings`), as the producer renders its diagnostics.
+    pub warnings: Vec<String>,
     /// Per-texel RMS and maximum error of K, row-major (empty when not computed); written as
     /// `err.rms` / `err.max` when [`SaveOptions::error_map`] is set.
     pub rms_map: &'a [f32],
@@ -137,7 +137,7 @@ pub trait ToFileFacts {
 
 impl ToFileFacts for FileFacts<'_> {
     fn file_facts(&self) -> FileFacts<'_> {
-        *self
+        self.clone()
     }
 }
 
@@ -358,10 +358,10 @@ impl Ptm {
                 .flatten()
                 .fold(0f32, |a, &x| a.max(x.abs()));
             if big.is_nan() || big >= 65504.0 {
-                return Err(Error::Invalid(format!(
-                    "{}: a coefficient of magnitude {big:e} does not fit in a half float; save as float32 (drop --half)",
-                    path.display()
-                )));
+                return Err(Error::HalfOverflow {
+                    path: path.display().to_string(),
+                    magnitude: big,
+                });
             }
         }
         let store = |v: &[f32]| {

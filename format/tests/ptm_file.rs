@@ -140,7 +140,7 @@ fn header_text_is_utf8_and_old_latin1_reads() {
         solver: "svd-pinv f64 – rcond 1e-6",
         rank: 6,
         cond: 3.5,
-        warnings: &warnings,
+        warnings: warnings.clone(),
         ..FileFacts::default()
     };
     let opts = SaveOptions {
@@ -194,4 +194,41 @@ fn mip_sizes_are_openexr_round_down_levels() {
                 .collect();
         assert_eq!(mip_sizes(w, h), want, "{w}×{h}");
     }
+}
+
+/// The file layer's refusals are typed and name no command-line flag: an HP export of another
+/// basis than ptm6, a coefficient a half float cannot hold (nothing is written).
+#[test]
+fn hp_of_another_basis_and_half_overflow_are_typed() {
+    let d = tempfile::tempdir().unwrap();
+    let mut p = ptm(4, 3, false);
+    p.basis = Basis::Ptm11;
+    p.planes.resize(Basis::Ptm11.len(), vec![0.0; 12]);
+    let path = d.path().join("w.ptm");
+    match ptm_format::hp::encode_hp_lrgb(&p, &path, None) {
+        Err(e @ ptm_format::Error::HpNeedsPtm6 { .. }) => {
+            assert!(
+                matches!(&e, ptm_format::Error::HpNeedsPtm6 { basis: Basis::Ptm11, path }
+                if path.ends_with("w.ptm"))
+            );
+            assert!(!e.to_string().contains("--"), "{e}");
+        }
+        r => panic!("{:?}", r.map(|_| ())),
+    }
+    let mut p = ptm(4, 3, false);
+    p.planes[2][5] = 7.0e4;
+    let out = d.path().join("big.ptm.exr");
+    let half = SaveOptions {
+        half: true,
+        ..SaveOptions::default()
+    };
+    match p.save(&out, &half) {
+        Err(e @ ptm_format::Error::HalfOverflow { magnitude, .. }) => {
+            assert_eq!(magnitude, 7.0e4);
+            assert!(!e.to_string().contains("--"), "{e}");
+        }
+        r => panic!("{r:?}"),
+    }
+    assert!(!out.exists());
+    p.save(&out, &SaveOptions::default()).unwrap();
 }

@@ -82,8 +82,8 @@ pub struct LayoutFit {
     pub rank: usize,
     /// Condition number σ_max / σ_min of the same.
     pub cond: f64,
-    /// The fit's warnings, as `ptm fit` prints them (empty: ok).
-    pub warnings: Vec<String>,
+    /// The fit's diagnostics (empty: ok); their words are `Diagnostic`'s `Display`.
+    pub warnings: Vec<ptm_fit::Diagnostic>,
     /// Largest |coefficient| over covered texels.
     pub max_abs_coef: f64,
     /// Against the truth on the held-out lights.
@@ -173,7 +173,7 @@ pub enum GeometryCase {
         /// Zero-area triangles added.
         appended: usize,
         /// The swatch's warnings.
-        warnings: Vec<String>,
+        warnings: Vec<ptm_bake::Diagnostic>,
         /// Largest |ΔK| against the bake without them.
         max_dk: f64,
         /// (texel, light) pairs whose K differs.
@@ -182,7 +182,7 @@ pub enum GeometryCase {
     /// Vertices near the x = W border lifted by 5% of H; the swatch's warnings.
     NonPeriodic {
         /// The swatch's warnings.
-        warnings: Vec<String>,
+        warnings: Vec<ptm_bake::Diagnostic>,
     },
     /// The coarsest tessellation `spec` (`triangles`) baked at `fine_res`² and at `res`²:
     /// uncovered texels of the fine bake, and the coverage-weighted mean K of both.

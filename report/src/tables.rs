@@ -240,7 +240,7 @@ fn layouts(rows: &[LayoutRow]) -> Table {
                     if f.warnings.is_empty() {
                         "ok".into()
                     } else {
-                        f.warnings.join(" ")
+                        ptm_fit::diagnostic::words(&f.warnings).join(" ")
                     },
                     g3(f.max_abs_coef),
                     g3(f.errors.rms),
@@ -373,13 +373,13 @@ fn geometry(g: &Geometry) -> Table {
                 differ,
             } => vec![
                 format!("{appended} zero-area triangles appended"),
-                warnings.join(" "),
+                words(warnings),
                 g3(*max_dk),
                 format!("{differ}"),
             ],
             GeometryCase::NonPeriodic { warnings } => vec![
                 "vertices near x = W lifted by 5% of H".into(),
-                warnings.join(" "),
+                words(warnings),
                 "-".into(),
                 "-".into(),
             ],
@@ -476,4 +476,13 @@ fn extremes(rows: &[ExtremeRow]) -> Table {
         ]);
     }
     t
+}
+
+/// A swatch's diagnostics in words, one cell.
+fn words(warnings: &[ptm_bake::Diagnostic]) -> String {
+    warnings
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(" ")
 }

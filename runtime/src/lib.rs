@@ -81,6 +81,13 @@ pub enum Error {
     /// A scene that cannot be rendered (sizes, lights, camera), in words.
     #[error("invalid scene: {0}")]
     Scene(String),
+    /// The separable blur with a tilted caster (its per-light box passes assume one blur radius
+    /// per light).
+    #[error("invalid scene: the separable blur needs a caster parallel to the cloth (its per-light box passes assume one blur radius per light), but the caster is tilted {tilt_deg}°: use the sat, mip or explicit blur")]
+    SeparableNeedsParallelCaster {
+        /// The caster's tilt about its centre line, in degrees.
+        tilt_deg: f32,
+    },
     /// An error of the fit crate or the file layer under it (loading a PTM).
     #[error(transparent)]
     Fit(#[from] ptm_fit::Error),

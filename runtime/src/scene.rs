@@ -343,12 +343,9 @@ impl Scene {
                 )));
             }
             if c.tilt_deg != 0.0 && self.blur == Blur::Separable {
-                return Err(Error::Scene(format!(
-                    "--blur separable needs a caster parallel to the cloth (its per-light box \
-                     passes assume one blur radius per light), but the caster is tilted {}°: use \
-                     sat, mip or explicit",
-                    c.tilt_deg
-                )));
+                return Err(Error::SeparableNeedsParallelCaster {
+                    tilt_deg: c.tilt_deg,
+                });
             }
             let (cw, ch, texels, factor) = crate::caster::fit_caster(c);
             caster_downsample = factor;

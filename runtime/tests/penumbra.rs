@@ -409,7 +409,11 @@ fn bad_tilts_are_refused_with_the_reason() {
     for (tilt, blur, says) in [
         (90.0, Blur::Sat, "below 90°"),
         (80.0, Blur::Sat, "above the cloth"),
-        (20.0, Blur::Separable, "separable needs a caster parallel"),
+        (
+            20.0,
+            Blur::Separable,
+            "separable blur needs a caster parallel",
+        ),
     ] {
         s.caster = Some(tilted_band(tilt));
         s.blur = blur;

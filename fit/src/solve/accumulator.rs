@@ -16,7 +16,7 @@ use super::options::{
 use super::refit::{bad_sample, refuse_per_texel_logistic};
 use super::{fit_logistic, identity_mips};
 use crate::logistic::Source;
-use crate::{Error, LightSet, Link, Ptm, Result};
+use crate::{Diagnostic, Error, LightSet, Link, Ptm, Result};
 
 /// Streaming accumulator used by `ptm bake --fit`: samples are added light by light, memory is
 /// O(texels × terms) (plus the held-out lights' samples, if asked), never O(texels × lights).
@@ -119,7 +119,7 @@ impl Accumulator {
     }
 
     /// The light-set warnings found when factoring (before any sample is added).
-    pub fn warnings(&self) -> &[String] {
+    pub fn warnings(&self) -> &[Diagnostic] {
         &self.prep.warnings
     }
 
@@ -535,12 +535,15 @@ impl Accumulator {
             self.warn_per_texel(&worst, &mut report)?;
         }
         if self.skipped > 0 {
-            report.warnings.push(format!(
-                "{} non-finite samples in {} texels were dropped (--skip-bad); {} of those texels lost rank",
-                self.skipped,
-                self.bad.len(),
-                if per_texel { 0 } else { report.rank_deficient_texels }
-            ));
+            report.warnings.push(Diagnostic::SkippedSamples {
+                samples: self.skipped,
+                texels: self.bad.len(),
+                lost_rank: Some(if per_texel {
+                    0
+                } else {
+                    report.rank_deficient_texels
+                }),
+            });
         }
         report.skipped_samples = self.skipped;
         let ptm = Ptm {
@@ -710,18 +713,22 @@ impl Accumulator {
         let (col, row) = (worst.texel % self.width, worst.texel / self.width);
         let basis = self.opts.basis;
         if worst.rank < m {
-            report.warnings.push(format!(
-                "{} texels have rank below {m} with their per-texel light directions (lowest rank {}); they get the minimum-norm solution; undetermined at texel (column {col}, row {row}): {}",
-                report.rank_deficient_texels,
-                worst.rank,
-                fw.weak_directions(basis, fw.cutoff).join("; ")
-            ));
+            report.warnings.push(Diagnostic::TexelsRankDeficient {
+                texels: report.rank_deficient_texels,
+                coefficients: m,
+                lowest_rank: worst.rank,
+                col,
+                row,
+                directions: fw.weak_directions(basis, fw.cutoff),
+            });
         } else if worst.cond > COND_WARN {
-            report.warnings.push(format!(
-                "ill-conditioned texels: worst condition number {:.1} > {COND_WARN} at texel (column {col}, row {row}); poorly determined: {}",
-                worst.cond,
-                fw.weak_directions(basis, fw.sigma[0] / COND_WARN).join("; ")
-            ));
+            report.warnings.push(Diagnostic::TexelsIllConditioned {
+                cond: worst.cond,
+                limit: COND_WARN,
+                col,
+                row,
+                directions: fw.weak_directions(basis, fw.sigma[0] / COND_WARN),
+            });
         }
         check_strict(&self.opts, &report.warnings)
     }

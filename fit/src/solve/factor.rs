@@ -1,8 +1,9 @@
 //! The f64 factorisation of a shared (weighted) design matrix or a per-texel normal matrix,
-//! and the plain-word diagnostics of a light set.
+//! and the diagnostics of a light set.
 use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::options::{check_strict, holdout_indices, FitOptions, Weight, COND_WARN};
+use crate::diagnostic::{Diagnostic, Solution};
 use crate::{logistic, Basis, Error, LightSet, Link, Result, UvMap};
 
 pub(super) fn light_weights(
@@ -10,11 +11,10 @@ pub(super) fn light_weights(
     opts: &FitOptions,
 ) -> Result<(Vec<f64>, Vec<usize>)> {
     if opts.holdout >= lights.len() {
-        return Err(Error::Invalid(format!(
-            "--holdout {} leaves no light to fit ({} lights)",
-            opts.holdout,
-            lights.len()
-        )));
+        return Err(Error::HoldoutTooLarge {
+            holdout: opts.holdout,
+            lights: lights.len(),
+        });
     }
     let held = holdout_indices(lights.len(), opts.holdout);
     let mut w: Vec<f64> = lights
@@ -165,25 +165,23 @@ impl Factor {
     }
 }
 
-/// Plain-word warnings about a light set and its factorisation.
+/// Diagnostics of a light set and its factorisation.
 pub(super) fn diagnose(
     basis: Basis,
     lights: &LightSet,
     w: &[f64],
     f: &Factor,
     opts: &FitOptions,
-) -> Vec<String> {
+) -> Vec<Diagnostic> {
     let m = basis.len();
     let fit: Vec<usize> = (0..lights.len()).filter(|&i| w[i] > 0.0).collect();
     let mut out = Vec::new();
     if fit.len() < m {
-        out.push(format!(
-            "only {} lights enter the fit for {} coefficients of {}: at least {} directions of the basis are undetermined",
-            fit.len(),
-            m,
-            basis.name(),
-            m - fit.len()
-        ));
+        out.push(Diagnostic::TooFewLights {
+            lights: fit.len(),
+            coefficients: m,
+            basis,
+        });
     }
     if !fit.is_empty() {
         let r2: Vec<f64> = fit
@@ -195,53 +193,48 @@ pub(super) fn diagnose(
             .fold((f64::MAX, f64::MIN), |(a, b), &x| (a.min(x), b.max(x)));
         let el = |r2: f64| (1.0 - r2).max(0.0).sqrt().asin().to_degrees();
         if fit.len() >= 2 && hi - lo < 1e-9 {
-            out.push(format!(
-                "all lights lie on one elevation ring ({:.2}°, u²+v² = {:.4}): u2+v2 cannot be told from the constant, and K inside the ring is not determined by the data",
-                el(lo),
-                lo
-            ));
+            out.push(Diagnostic::Ring {
+                elevation_deg: el(lo),
+                r2: lo,
+            });
         } else if fit.len() >= 2 && hi - lo < 0.02 {
-            out.push(format!(
-                "lights lie near one elevation ring (elevations {:.2}°–{:.2}°): terms that differ only by u²+v² are nearly indistinguishable",
-                el(hi),
-                el(lo)
-            ));
+            out.push(Diagnostic::NearRing {
+                highest_deg: el(hi),
+                lowest_deg: el(lo),
+            });
         }
         let min_el = fit
             .iter()
             .map(|&i| lights.elevation_deg(i))
             .fold(f64::MAX, f64::min);
         if min_el >= 45.0 {
-            out.push(format!(
-                "no light below {min_el:.1}° elevation: K at grazing lights, where most occlusion lives, is extrapolated"
-            ));
+            out.push(Diagnostic::NoLightBelow { deg: min_el });
         }
     }
     if f.rank < m {
-        let what = match (opts.link, opts.regularize) {
-            (Link::Logistic, l) => format!(
-                "logistic fit whose ridge (lambda = {:e} x mean eigenvalue) holds them near 0",
-                l.unwrap_or(logistic::DEFAULT_RIDGE)
-            ),
-            (Link::Identity, Some(l)) => format!("ridge solution (lambda = {l:e} x mean eigenvalue)"),
-            (Link::Identity, None) => format!(
-                "minimum-norm solution (truncated SVD: singular values <= {:.3e} = {:e} x sigma_max dropped)",
-                f.cutoff, opts.rcond
-            ),
+        let solution = match (opts.link, opts.regularize) {
+            (Link::Logistic, l) => Solution::LogisticRidge {
+                lambda: l.unwrap_or(logistic::DEFAULT_RIDGE),
+            },
+            (Link::Identity, Some(l)) => Solution::Ridge { lambda: l },
+            (Link::Identity, None) => Solution::MinimumNorm {
+                cutoff: f.cutoff,
+                rcond: opts.rcond,
+            },
         };
-        out.push(format!(
-            "rank {} of {}: the light set cannot determine these basis directions: {}; returning the {what}",
-            f.rank,
-            m,
-            f.weak_directions(basis, f.cutoff).join("; ")
-        ));
+        out.push(Diagnostic::RankDeficient {
+            rank: f.rank,
+            coefficients: m,
+            directions: f.weak_directions(basis, f.cutoff),
+            solution,
+        });
     } else if f.cond > COND_WARN {
         let smax = f.sigma[0];
-        out.push(format!(
-            "ill-conditioned (condition number {:.1} > {COND_WARN}): poorly determined directions: {}",
-            f.cond,
-            f.weak_directions(basis, smax / COND_WARN).join("; ")
-        ));
+        out.push(Diagnostic::IllConditioned {
+            cond: f.cond,
+            limit: COND_WARN,
+            directions: f.weak_directions(basis, smax / COND_WARN),
+        });
     }
     out
 }
@@ -287,7 +280,7 @@ pub(super) struct Prepared {
     pub w: Vec<f64>,
     pub held: Vec<usize>,
     pub factor: Factor,
-    pub warnings: Vec<String>,
+    pub warnings: Vec<Diagnostic>,
 }
 
 pub(super) fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {

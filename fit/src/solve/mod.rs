@@ -24,7 +24,7 @@ use std::ops::Range;
 use std::time::Instant;
 
 use crate::logistic::{self, Footprint, Kernel, Source, Tables};
-use crate::{Error, LightSet, Link, Ptm, Result};
+use crate::{Diagnostic, Error, LightSet, Link, Ptm, Result};
 
 mod accumulator;
 mod factor;
@@ -95,19 +95,19 @@ fn logistic_tables(
 }
 
 /// The warnings a logistic fit's level-0 statistics raise (beside the light set's).
-pub(crate) fn logistic_warnings(stats: &LogisticStats) -> Vec<String> {
+pub(crate) fn logistic_warnings(stats: &LogisticStats) -> Vec<Diagnostic> {
     let mut warnings = Vec::new();
     if stats.not_converged > 0 {
-        warnings.push(format!(
-            "{} texels stopped at the logistic iteration cap ({}) before the tolerance {:e}: raise --max-iterations, or the ridge (--regularize)",
-            stats.not_converged, stats.max_iterations, stats.tolerance
-        ));
+        warnings.push(Diagnostic::NotConverged {
+            texels: stats.not_converged,
+            max_iterations: stats.max_iterations,
+            tolerance: stats.tolerance,
+        });
     }
     if stats.lambda == 0.0 && stats.separable + stats.constant > 0 {
-        warnings.push(format!(
-            "{} texels are separable (K is 0 or 1 and a polynomial boundary splits them exactly) and the ridge is 0: their maximum-likelihood coefficients are infinite, so they stopped where the iteration cap left them; give --regularize > 0",
-            stats.separable + stats.constant
-        ));
+        warnings.push(Diagnostic::Separable {
+            texels: stats.separable + stats.constant,
+        });
     }
     warnings
 }

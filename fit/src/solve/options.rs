@@ -1,7 +1,7 @@
 //! What a fit is asked for ([`FitOptions`], [`Weight`]) and what it reports beside the PTM
 //! ([`FitReport`], [`ErrorStats`], [`LogisticStats`]).
 use crate::logistic::{self, Kernel};
-use crate::{Basis, Error, Link, Result, UvMap};
+use crate::{Basis, Diagnostic, Error, Link, Result, UvMap};
 
 /// How each light's squared error counts in the fit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -162,8 +162,8 @@ pub struct FitReport {
     pub singular_values: Vec<f64>,
     /// Solver in words, e.g. `svd-pinv f64 (truncated at 1e-4·σmax), applied in f32`.
     pub solver: String,
-    /// Plain-word warnings about the light set and the data.
-    pub warnings: Vec<String>,
+    /// Diagnostics of the light set and the data (their words: [`Diagnostic`]'s `Display`).
+    pub warnings: Vec<Diagnostic>,
     /// Per-texel weighted RMS residual over the fitting lights.
     pub rms: ErrorStats,
     /// Per-texel max |residual| over the fitting lights (None when streaming: needs the samples).
@@ -235,9 +235,9 @@ pub fn holdout_indices(n: usize, h: usize) -> Vec<usize> {
         .collect()
 }
 
-pub(super) fn check_strict(opts: &FitOptions, warnings: &[String]) -> Result<()> {
+pub(super) fn check_strict(opts: &FitOptions, warnings: &[Diagnostic]) -> Result<()> {
     if opts.strict && !warnings.is_empty() {
-        return Err(Error::Strict(warnings.join("; ")));
+        return Err(Error::Strict(warnings.to_vec()));
     }
     Ok(())
 }

@@ -11,7 +11,7 @@ use super::kernel::{kernel, Block, KernelIn, BLOCK};
 use super::options::{partial_coverage, ptm_coverage, ErrorStats, FitOptions, FitReport};
 use super::{fit_logistic, identity_mips, Accumulator};
 use crate::logistic::{Kernel, Source};
-use crate::{Error, Link, Ptm, Result, SampleStack};
+use crate::{Diagnostic, Error, Link, Ptm, Result, SampleStack};
 
 pub(super) fn bad_sample(texel: usize, width: usize, light: usize, value: f32) -> Error {
     Error::BadSample {
@@ -45,9 +45,7 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
 /// The logistic link refuses per-texel light directions (finite-distance lights): its Newton
 /// solve shares one design per fit.
 pub(super) fn refuse_per_texel_logistic() -> Error {
-    Error::Invalid(
-        "the logistic link fits distant lights only; this stack has per-texel light directions (a bake with --light-distance): fit it with the identity link".into(),
-    )
+    Error::LogisticNeedsDistantLights
 }
 
 fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitReport)> {
@@ -96,10 +94,11 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
     ptm.coverage = ptm_coverage(&stack.coverage);
     report.skipped_samples = skipped;
     if skipped > 0 {
-        report.warnings.push(format!(
-            "{skipped} non-finite samples in {} texels were dropped (--skip-bad)",
-            bad_texels.len()
-        ));
+        report.warnings.push(Diagnostic::SkippedSamples {
+            samples: skipped,
+            texels: bad_texels.len(),
+            lost_rank: None,
+        });
     }
     report.seconds.insert(0, ("scan", t_scan));
     Ok((ptm, report))
@@ -248,12 +247,11 @@ fn fit_stack_identity(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         }
     }
     if !bad_texels.is_empty() {
-        report.warnings.push(format!(
-            "{} non-finite samples in {} texels were dropped (--skip-bad); {} of those texels lost rank",
-            report.skipped_samples,
-            bad_texels.len(),
-            report.rank_deficient_texels
-        ));
+        report.warnings.push(Diagnostic::SkippedSamples {
+            samples: report.skipped_samples,
+            texels: bad_texels.len(),
+            lost_rank: Some(report.rank_deficient_texels),
+        });
     }
     let ((rms, max), hold) = rayon::join(
         || {

@@ -1,0 +1,118 @@
+//! The command words the libraries' typed errors and diagnostics for the command line: the
+//! library states the fact (and names no flag), `ptm` adds the flag and the fix.
+use std::path::Path;
+use std::process::Command;
+
+use ptm_fit::exrio::Attr;
+use ptm_fit::{LightSet, SampleStack};
+
+fn ptm() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ptm"))
+}
+
+fn p(path: &Path) -> &str {
+    path.to_str().unwrap()
+}
+
+/// Fibonacci hemisphere above 5° elevation.
+fn dome(n: usize) -> LightSet {
+    let zmin = 5f64.to_radians().sin();
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    LightSet::from_dirs((0..n).map(|i| {
+        let z = zmin + (1.0 - zmin) * (i as f64 + 0.5) / n as f64;
+        let r = (1.0 - z * z).sqrt();
+        let a = golden * i as f64;
+        [r * a.cos(), r * a.sin(), z]
+    }))
+}
+
+fn stack(lights: &LightSet, w: usize, h: usize) -> SampleStack {
+    SampleStack {
+        width: w,
+        height: h,
+        tile: [1.0, 1.0],
+        lights: lights.clone(),
+        k: (0..lights.len())
+            .map(|l| (0..w * h).map(|t| ((l + t) % 5) as f32 / 5.0).collect())
+            .collect(),
+        coverage: vec![1.0; w * h],
+        uv: None,
+    }
+}
+
+/// Runs `ptm fit` with `args` after the input and output; its exit status and stderr.
+fn fit(samples: &Path, out: &Path, args: &[&str]) -> (bool, String) {
+    let o = ptm()
+        .args(["fit", p(samples), "-o", p(out), "--link", "identity"])
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn fit_errors_name_the_flag_that_fixes_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let samples = dir.path().join("s.exr");
+    let out = dir.path().join("s.ptm.exr");
+    let mut s = stack(&dome(20), 4, 3);
+    s.write(&samples).unwrap();
+
+    // More hold-out lights than lights.
+    let (ok, err) = fit(&samples, &out, &["--holdout", "20"]);
+    assert!(!ok);
+    assert!(
+        err.contains("--holdout 20: holding out 20 lights leaves no light to fit (20 lights)"),
+        "{err}"
+    );
+
+    // A non-finite sample: the texel and light, then the flag that drops such samples.
+    s.k[7][2 * 4 + 1] = f32::NAN;
+    s.write(&samples).unwrap();
+    let (ok, err) = fit(&samples, &out, &[]);
+    assert!(!ok);
+    assert!(
+        err.contains("non-finite sample NaN at texel (column 1, row 2) for light 7: fix the input, or pass --skip-bad"),
+        "{err}"
+    );
+    // Dropped, the diagnostic says by which flag, in the JSON too.
+    let o = ptm()
+        .args(["--json", "fit", p(&samples), "-o", p(&out)])
+        .args(["--link", "identity", "--skip-bad"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let w = j["warnings"].as_array().unwrap();
+    assert_eq!(
+        w[0],
+        "1 non-finite samples in 1 texels were dropped; 0 of those texels lost rank (--skip-bad)"
+    );
+    // The file records the fact, without the command's flag.
+    let c = ptm_fit::exrio::read(&out).unwrap();
+    assert_eq!(
+        c.attrs.get("ptm:warnings"),
+        Some(&Attr::Texts(vec![
+            "1 non-finite samples in 1 texels were dropped; 0 of those texels lost rank".into()
+        ]))
+    );
+
+    // HP export of a ptm11 fit.
+    s.k[7][2 * 4 + 1] = 0.5;
+    s.write(&samples).unwrap();
+    let (ok, err) = fit(
+        &samples,
+        &out,
+        &[
+            "--basis",
+            "ptm11",
+            "--export-hp",
+            p(&dir.path().join("s.ptm")),
+        ],
+    );
+    assert!(!ok);
+    assert!(err.contains("--basis ptm6"), "{err}");
+}
