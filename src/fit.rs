@@ -234,6 +234,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let mut tx = Transaction::new(&outputs)?;
     let t0 = Instant::now();
     let mut images = Value::Null;
+    let mut samples = None;
     let (stack, source) = match (&args.input, &args.images) {
         (Some(_), Some(_)) => bail!("give either a sample stack or --images, not both"),
         (None, None) => bail!("nothing to fit: give a sample stack (samples.exr) or --images 'dir/*.png' --lights file.lp"),
@@ -265,6 +266,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             }
             images = json!({ "decoding": decoding.name(), "srgb_decoded": info.srgb_decoded,
                              "linear": info.linear });
+            samples = Some(image_samples(decoding, &info));
             (stack, pattern.clone())
         }
     };
@@ -302,7 +304,8 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         ..FitOptions::new(basis)
     };
     args.model.apply(&mut opts);
-    let (ptm, report) = fit_stack(&stack, &opts)?;
+    let (ptm, mut report) = fit_stack(&stack, &opts)?;
+    report.samples = samples;
     drop(stack);
     for w in &report.warnings {
         eprintln!("ptm fit: warning: {}", crate::errors::fit_warning(w));
@@ -438,5 +441,19 @@ pub fn print_logistic(who: &str, r: &FitReport) {
             "{who}: logistic Newton: {:.1} iterations per texel on average (max {}), {} texels at the cap; {} separable and {} constant texels held finite by the ridge (lambda {:e})",
             s.iterations_mean, s.iterations_max, s.not_converged, s.separable, s.constant, s.lambda
         );
+    }
+}
+
+/// How an RTI image stack's values became K, in words for the PTM header (`ptm:samples`).
+fn image_samples(decoding: Decoding, info: &ptm_fit::images::ImageStackInfo) -> String {
+    match decoding {
+        Decoding::Srgb => format!(
+            "RTI images, K = 1 − value: {} 8-bit images decoded from sRGB to linear, {} taken as linear",
+            info.srgb_decoded, info.linear
+        ),
+        Decoding::Raw => format!(
+            "RTI images, K = 1 − value: {} images taken as stored (raw values, no sRGB decoding)",
+            info.linear + info.srgb_decoded
+        ),
     }
 }

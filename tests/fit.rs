@@ -543,6 +543,16 @@ fn fit_command_reads_an_rti_image_stack() {
     );
     let fitted = Ptm::load(&out).unwrap();
     assert_eq!(fitted.tile, [2.0, 1.0]);
+    // The header says how the images became K.
+    let samples = |path: &Path| match ptm_fit::exrio::read(path).unwrap().attrs.get("ptm:samples") {
+        Some(ptm_fit::exrio::Attr::Text(t)) => t.clone(),
+        other => panic!("{}: ptm:samples is {other:?}", path.display()),
+    };
+    assert!(
+        samples(&out).contains("20 images taken as stored (raw values"),
+        "{}",
+        samples(&out)
+    );
     let k = fitted.eval(8, 2, 0.9, 0.1) as f64;
     assert!((k - (0.3 + 0.2 * 0.9 * 8.0 / 9.0)).abs() < 5e-3, "{k}");
     // By default 8-bit values are sRGB: decoded to linear light, a lit fraction 1 − K = 0.7
@@ -559,6 +569,11 @@ fn fit_command_reads_an_rti_image_stack() {
     ]);
     assert_eq!(j["images"]["decoding"], "srgb");
     assert_eq!(j["images"]["srgb_decoded"], 20);
+    assert!(
+        samples(&srgb).contains("20 8-bit images decoded from sRGB to linear"),
+        "{}",
+        samples(&srgb)
+    );
     let k = Ptm::load(&srgb).unwrap().eval(0, 2, 0.0, 0.0) as f64;
     let lin = |v: f64| ((v + 0.055) / 1.055).powf(2.4);
     assert!(

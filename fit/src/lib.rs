@@ -178,6 +178,7 @@ impl ToFileFacts for FitReport {
             max_p99: self.max.map(|m| m.p99),
             holdout: self.holdout.map(|h| (h.mean, h.p99)),
             warnings: diagnostic::words(&self.warnings),
+            samples: self.samples.as_deref(),
             rms_map: &self.rms_map,
             max_map: &self.max_map,
         }

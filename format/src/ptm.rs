@@ -122,6 +122,9 @@ pub struct FileFacts<'a> {
     pub holdout: Option<(f64, f64)>,
     /// Warnings in words (`ptm:warnings`), as the producer renders its diagnostics.
     pub warnings: Vec<String>,
+    /// Where the samples came from when not from a ptm bake (`ptm:samples`), e.g. an RTI image
+    /// stack and how its values were decoded.
+    pub samples: Option<&'a str>,
     /// Per-texel RMS and maximum error of K, row-major (empty when not computed); written as
     /// `err.rms` / `err.max` when [`SaveOptions::error_map`] is set.
     pub rms_map: &'a [f32],
@@ -461,6 +464,9 @@ impl Ptm {
             }
             if !r.warnings.is_empty() {
                 attrs.push(("ptm:warnings", Attr::Texts(r.warnings.to_vec())));
+            }
+            if let Some(s) = r.samples {
+                attrs.push(("ptm:samples", Attr::Text(s.to_string())));
             }
             if opts.error_map {
                 let n = self.width * self.height;

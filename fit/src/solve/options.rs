@@ -126,6 +126,9 @@ impl ErrorStats {
 /// Diagnostics of a fit, returned beside the PTM.
 #[derive(Clone, Debug, Default)]
 pub struct FitReport {
+    /// Where the samples came from when not from a ptm bake (an RTI image stack and its
+    /// decoding), recorded as `ptm:samples`; set by the caller that read them.
+    pub samples: Option<String>,
     /// The basis fitted.
     pub basis: Option<Basis>,
     /// The link fitted.
