@@ -286,16 +286,16 @@ fn attr_text(attrs: &BTreeMap<String, AttributeValue>, name: &str) -> Option<Str
     }
 }
 
-/// Writes one single-part EXR (maps with one level: scanline ZIP; with a MIP chain: tiled 64×64
-/// ZIP `MIPMAP_LEVELS` `ROUND_DOWN`) to `tmp`, attributes sorted so the bytes are deterministic.
-fn write_single(
-    tmp: &Path,
+/// Encodes one single-part EXR (maps with one level: scanline ZIP; with a MIP chain: tiled
+/// 64×64 ZIP `MIPMAP_LEVELS` `ROUND_DOWN`) in memory, attributes sorted so the bytes are
+/// deterministic.
+fn encode_single(
     shown: &Path,
     width: usize,
     height: usize,
     channels: Vec<(String, &Map)>,
     attrs: &BTreeMap<String, AttributeValue>,
-) -> Result<()> {
+) -> Result<Vec<u8>> {
     let mipped = channels.first().is_some_and(|(_, m)| m.levels.len() > 1);
     if channels.iter().any(|(_, m)| (m.levels.len() > 1) != mipped) {
         return Err(format_err(
@@ -344,84 +344,24 @@ fn write_single(
         Encoding::SMALL_LOSSLESS
     };
     let layer = Layer::new((width, height), la, encoding, AnyChannels::sort(list));
+    let mut out = std::io::Cursor::new(Vec::new());
     Image::from_layer(layer)
         .write()
-        .to_file(tmp)
+        .to_buffered(&mut out)
         .map_err(|e| format_err(shown, format!("writing EXR: {e}")))?;
-    sort_header_attributes(tmp).map_err(|e| format_err(shown, format!("writing EXR: {e}")))
+    let mut bytes = out.into_inner();
+    crate::exrio::sort_header_attributes(&mut bytes, shown)?;
+    Ok(bytes)
 }
 
-/// Rewrites the header of the single-part EXR at `path` with its attributes sorted by name (the
-/// `exr` crate writes them in a per-process random order); the header keeps its length, so the
-/// offset table after it stays valid.
-fn sort_header_attributes(path: &Path) -> std::io::Result<()> {
-    let mut bytes = std::fs::read(path)?;
-    let bad = || std::io::Error::other("unexpected header layout");
-    let nul = |b: &[u8], from: usize| -> std::io::Result<usize> {
-        b.get(from..)
-            .and_then(|s| s.iter().position(|&c| c == 0))
-            .map(|p| from + p)
-            .ok_or_else(bad)
-    };
-    let mut pos = 8;
-    let mut records: Vec<(usize, usize)> = Vec::new();
-    loop {
-        let name_end = nul(&bytes, pos)?;
-        if name_end == pos {
-            break;
-        }
-        let size_at = nul(&bytes, name_end + 1)? + 1;
-        let size = i32::from_le_bytes(
-            bytes
-                .get(size_at..size_at + 4)
-                .ok_or_else(bad)?
-                .try_into()
-                .unwrap(),
-        );
-        let end = size_at + 4 + usize::try_from(size).map_err(|_| bad())?;
-        if end > bytes.len() {
-            return Err(bad());
-        }
-        records.push((pos, end));
-        pos = end;
-    }
-    let name = |r: &(usize, usize)| {
-        let b = &bytes[r.0..r.1];
-        b[..b.iter().position(|&c| c == 0).unwrap()].to_vec()
-    };
-    let mut sorted = records.clone();
-    sorted.sort_by_key(|r| name(r));
-    if sorted == records {
-        return Ok(());
-    }
-    let header: Vec<u8> = sorted
-        .iter()
-        .flat_map(|&(a, b)| bytes[a..b].to_vec())
-        .collect();
-    bytes[8..8 + header.len()].copy_from_slice(&header);
-    std::fs::write(path, &bytes)
-}
+/// One file of a set: its path and the encoder of its bytes.
+type WriteJob<'a> = (PathBuf, Box<dyn FnOnce() -> Result<Vec<u8>> + 'a>);
 
-/// One file of a set: its path and the writer that fills a scratch file for it (the exr crate
-/// and the header sort below write to a path).
-type WriteJob<'a> = (PathBuf, Box<dyn FnOnce(&Path) -> Result<()> + 'a>);
-
-/// Encodes every `(path, write)` into bytes through a unique scratch file beside `path`, which
-/// is removed whatever happens; nothing is published.
+/// Encodes every job; nothing is written.
 fn encode_set(jobs: Vec<WriteJob<'_>>) -> Result<Vec<(PathBuf, Vec<u8>)>> {
-    let mut files = Vec::with_capacity(jobs.len());
-    for (path, write) in jobs {
-        let scratch = crate::atomic::tmp_path(&path);
-        let bytes = write(&scratch).and_then(|()| {
-            std::fs::read(&scratch).map_err(|source| Error::Io {
-                path: scratch.display().to_string(),
-                source,
-            })
-        });
-        let _ = std::fs::remove_file(&scratch);
-        files.push((path, bytes?));
-    }
-    Ok(files)
+    jobs.into_iter()
+        .map(|(path, encode)| Ok((path, encode()?)))
+        .collect()
 }
 
 /// Publishes encoded files all together (one [`crate::atomic::Transaction`]: every destination
@@ -557,8 +497,8 @@ impl PtmFile {
                     self.maps.iter().map(|(k, m)| (k.clone(), m)).collect();
                 encode_set(vec![(
                     out,
-                    Box::new(|tmp: &Path| {
-                        write_single(tmp, path, self.width, self.height, channels, &self.attrs)
+                    Box::new(|| {
+                        encode_single(path, self.width, self.height, channels, &self.attrs)
                     }),
                 )])
             }
@@ -596,9 +536,7 @@ impl PtmFile {
                     let (w, h) = (self.width, self.height);
                     jobs.push((
                         p.clone(),
-                        Box::new(move |tmp: &Path| {
-                            write_single(tmp, &shown, w, h, channels, &attrs)
-                        }),
+                        Box::new(move || encode_single(&shown, w, h, channels, &attrs)),
                     ));
                 }
                 let errs: Vec<(String, &Map)> = self
@@ -616,7 +554,7 @@ impl PtmFile {
                     let (w, h) = (self.width, self.height);
                     jobs.push((
                         ep.clone(),
-                        Box::new(move |tmp: &Path| write_single(tmp, &shown, w, h, errs, &attrs)),
+                        Box::new(move || encode_single(&shown, w, h, errs, &attrs)),
                     ));
                 }
                 let unknown: Vec<&String> = self

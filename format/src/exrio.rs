@@ -159,7 +159,7 @@ pub fn encode_levels(
 /// per-process) iteration order, so the same image would give different bytes on every run.
 /// Sorting the attribute records in place keeps the header's length, so the offset table after
 /// it stays valid, and makes files byte-identical for identical content.
-fn sort_header_attributes(bytes: &mut [u8], path: &Path) -> Result<()> {
+pub fn sort_header_attributes(bytes: &mut [u8], path: &Path) -> Result<()> {
     let bad = || Error::Format {
         path: path.display().to_string(),
         reason: "writing EXR: unexpected header layout".into(),
