@@ -479,3 +479,78 @@ fn counts_that_would_allocate_without_bound_are_refused_with_the_limit() {
     refused(&o, "lower --size or --turntable");
     assert!(!d.join("x.png").exists() && !d.join("x.exr").exists());
 }
+
+/// `kill -9` while an output is being written leaves a temporary file beside it (never a
+/// half-written output); the next `ptm` that writes into that directory removes it.
+#[test]
+fn a_killed_writers_temporary_is_swept_by_the_next_write() {
+    use ptm_fit::{LightSet, SampleStack};
+    let d = tempfile::tempdir().unwrap();
+    let (w, h, n) = (512, 512, 48);
+    let lights = LightSet::from_dirs((0..n).map(|i| {
+        let z = 0.2 + 0.8 * (i as f64 + 0.5) / n as f64;
+        let (r, a) = ((1.0 - z * z).sqrt(), 2.4 * i as f64);
+        [r * a.cos(), r * a.sin(), z]
+    }));
+    SampleStack {
+        width: w,
+        height: h,
+        tile: [1.0, 1.0],
+        k: (0..n)
+            .map(|l| {
+                (0..w * h)
+                    .map(|t| ((l * 7 + t) % 11) as f32 / 11.0)
+                    .collect()
+            })
+            .collect(),
+        lights,
+        coverage: vec![1.0; w * h],
+        uv: None,
+    }
+    .write(&d.path().join("s.exr"))
+    .unwrap();
+    let out = d.path().join("out");
+    std::fs::create_dir(&out).unwrap();
+    let temps = |dir: &Path| -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .filter_map(|e| e.ok()?.file_name().into_string().ok())
+            .filter(|n| n.starts_with(".ptm-"))
+            .collect()
+    };
+    // Kill the fit the moment its temporary output appears; a machine fast enough to finish
+    // first gets another try.
+    let mut left = Vec::new();
+    for _ in 0..5 {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_ptm"))
+            .args(["fit", "s.exr", "-o", "out/s.ptm.exr", "--link", "identity"])
+            .current_dir(d.path())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        loop {
+            left = temps(&out);
+            if !left.is_empty() || child.try_wait().unwrap().is_some() {
+                break;
+            }
+        }
+        let _ = child.kill(); // SIGKILL
+        child.wait().unwrap();
+        left = temps(&out);
+        if !left.is_empty() {
+            break;
+        }
+        let _ = std::fs::remove_file(out.join("s.ptm.exr"));
+    }
+    assert!(!left.is_empty(), "never caught the fit writing");
+    assert!(
+        !out.join("s.ptm.exr").exists(),
+        "nothing half-written is published"
+    );
+
+    // Any command that writes into the directory sweeps the dead writer's temporary.
+    let o = ptm(&["swatch", "plain-weave", "-o", "out/w.obj"], d.path());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(temps(&out), Vec::<String>::new(), "left {left:?}");
+}

@@ -4,9 +4,13 @@
 //! half-written file where a good one was.
 //!
 //! Rules (tested in `tests/atomic.rs`):
-//! - The temporary file has a short name of its own (`.ptm-<pid>-<counter>-<hash>.tmp`), never
-//!   the destination's name with a suffix, so a legal 255-byte destination name still works
-//!   and two writers (threads or processes) never share a temporary file.
+//! - The temporary file has a short name of its own (`.ptm-<pid>-<counter>-<host><random>.tmp`),
+//!   never the destination's name with a suffix, so a legal 255-byte destination name still
+//!   works and two writers (threads or processes) never share a temporary file.
+//! - Temporary files a killed writer left behind (`kill -9`, a power cut) are swept: the first
+//!   time a process writes into a directory, it removes the temporaries there whose writer is
+//!   gone — same host (by the name's host tag) and no such process — and any older than a day
+//!   (a writer on another host of a shared filesystem, or a system where liveness is unknown).
 //! - A failed write never publishes: the temporary file is removed on every error path (a
 //!   failed writer, a failed fsync, a failed rename) and when a panic unwinds through it.
 //! - A destination that exists and is not a regular file (a character device such as
@@ -14,11 +18,13 @@
 //! - A destination that is a directory, or names one (`.`, `x/`), is an error before any work.
 //! - [`Transaction`] stages several outputs and publishes them only when all were written, after
 //!   checking every destination before the work starts.
+use std::collections::HashSet;
 use std::fs::{File, OpenOptions};
 use std::hash::{BuildHasher, Hasher};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, OnceLock};
 
 use crate::{Error, Result};
 
@@ -96,8 +102,10 @@ fn dir_of(path: &Path) -> PathBuf {
 }
 
 /// A short temporary name unique in this process (pid + counter) and unlikely to collide with
-/// another process's (a few hashed characters of a per-process random seed, the time and the
-/// counter); files are created with `create_new`, so a collision is retried, never shared.
+/// another process's (16 hashed bits of a per-process random seed, the time and the counter);
+/// files are created with `create_new`, so a collision is retried, never shared. The name also
+/// carries a 16-bit tag of the host name, so a sweep on one host of a shared filesystem never
+/// takes another host's live process for a dead one.
 fn temp_name() -> String {
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
@@ -108,10 +116,122 @@ fn temp_name() -> String {
         h.write_u128(t.as_nanos());
     }
     format!(
-        ".ptm-{}-{n}-{:06x}.tmp",
+        "{TEMP_PREFIX}{}-{n}-{:04x}{:04x}{TEMP_SUFFIX}",
         std::process::id(),
-        h.finish() & 0xff_ffff
+        host_tag(),
+        h.finish() & 0xffff
     )
+}
+
+const TEMP_PREFIX: &str = ".ptm-";
+const TEMP_SUFFIX: &str = ".tmp";
+
+/// A temporary file older than this is stale whoever wrote it: a live writer keeps writing its
+/// temporary or publishes it within seconds of the last byte.
+const STALE_AGE: std::time::Duration = std::time::Duration::from_secs(24 * 3600);
+
+/// 16 bits of a hash of this machine's host name (0 when it has none to read).
+fn host_tag() -> u16 {
+    static TAG: OnceLock<u16> = OnceLock::new();
+    *TAG.get_or_init(|| {
+        let name = std::fs::read_to_string("/proc/sys/kernel/hostname")
+            .or_else(|_| std::fs::read_to_string("/etc/hostname"))
+            .or_else(|_| std::env::var("HOSTNAME"))
+            .unwrap_or_default();
+        let h = name
+            .trim()
+            .bytes()
+            .fold(0u64, |h, b| crate::hash::splitmix64(h ^ u64::from(b)));
+        (h >> 48) as u16
+    })
+}
+
+/// What a temporary file's name says of its writer.
+#[derive(Debug, PartialEq, Eq)]
+struct TempOwner {
+    pid: u32,
+    /// The host tag, `None` in names written before it existed (6 random hex digits).
+    host: Option<u16>,
+}
+
+/// Parses `.ptm-<pid>-<counter>-<hex>.tmp`; `None` for any other name.
+fn temp_owner(name: &str) -> Option<TempOwner> {
+    let mid = name.strip_prefix(TEMP_PREFIX)?.strip_suffix(TEMP_SUFFIX)?;
+    let mut parts = mid.split('-');
+    let (pid, counter, hex) = (parts.next()?, parts.next()?, parts.next()?);
+    let digits = |s: &str| !s.is_empty() && s.bytes().all(|b| b.is_ascii_digit());
+    let is_hex = hex
+        .bytes()
+        .all(|b| b.is_ascii_hexdigit() && !b.is_ascii_uppercase());
+    if parts.next().is_some() || !digits(pid) || !digits(counter) || !is_hex {
+        return None;
+    }
+    let host = match hex.len() {
+        8 => Some(u16::from_str_radix(&hex[..4], 16).ok()?),
+        6 => None,
+        _ => return None,
+    };
+    Some(TempOwner {
+        pid: pid.parse().ok()?,
+        host,
+    })
+}
+
+/// Whether process `pid` of this host is alive; `None` when this system cannot tell.
+fn process_alive(pid: u32) -> Option<bool> {
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return None;
+    }
+    Some(proc.join(pid.to_string()).exists())
+}
+
+/// Removes the stale temporary files in `dir` (see the module rules) and returns their paths.
+/// Best effort: an unreadable directory or a file that cannot be removed is left as it is.
+/// [`write_with`] and the other writers call it once per directory and process; a tool that
+/// cleans up a directory without writing to it can call it directly.
+pub fn sweep_stale_temps(dir: &Path) -> Vec<PathBuf> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Vec::new();
+    };
+    let (me, host) = (std::process::id(), host_tag());
+    let mut removed = Vec::new();
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(owner) = name.to_str().and_then(temp_owner) else {
+            continue;
+        };
+        // symlink_metadata: a link with a temporary's name is not ours to follow.
+        let Ok(meta) = std::fs::symlink_metadata(entry.path()) else {
+            continue;
+        };
+        if !meta.is_file() || owner.pid == me {
+            continue;
+        }
+        let dead_here = owner.host == Some(host) && process_alive(owner.pid) == Some(false);
+        let old = meta
+            .modified()
+            .ok()
+            .and_then(|t| t.elapsed().ok())
+            .is_some_and(|age| age > STALE_AGE);
+        if (dead_here || old) && std::fs::remove_file(entry.path()).is_ok() {
+            removed.push(entry.path());
+        }
+    }
+    removed
+}
+
+/// Sweeps `dir` the first time this process writes into it.
+fn sweep_once(dir: &Path) {
+    static SWEPT: OnceLock<Mutex<HashSet<PathBuf>>> = OnceLock::new();
+    let swept = SWEPT.get_or_init(Default::default);
+    let first = swept
+        .lock()
+        .map(|mut s| s.insert(dir.to_path_buf()))
+        .unwrap_or(false);
+    if first {
+        sweep_stale_temps(dir);
+    }
 }
 
 /// A temporary file that is removed when dropped unless it was published.
@@ -130,6 +250,7 @@ impl Drop for Temp {
 
 /// Creates a new temporary file in `dir`.
 fn create_temp(dir: &Path, dest: &Path) -> Result<(Temp, File)> {
+    sweep_once(dir);
     let mut last = None;
     for _ in 0..16 {
         let path = dir.join(temp_name());
@@ -261,7 +382,9 @@ pub fn write_path<T, E: From<Error>>(
 /// A fresh, unique temporary path in `path`'s directory for writers that manage the file
 /// themselves; pair with [`commit_tmp`] (or use [`write_path`], which does both).
 pub fn tmp_path(path: &Path) -> PathBuf {
-    dir_of(path).join(temp_name())
+    let dir = dir_of(path);
+    sweep_once(&dir);
+    dir.join(temp_name())
 }
 
 /// Publishes a temporary file written by the caller: when `ok` is `Ok`, fsyncs `tmp` and renames
@@ -422,5 +545,39 @@ impl Transaction {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn temporary_names_parse_back_to_their_writer() {
+        let name = temp_name();
+        let owner = temp_owner(&name).unwrap_or_else(|| panic!("{name} does not parse"));
+        assert_eq!(owner.pid, std::process::id());
+        assert_eq!(owner.host, Some(host_tag()));
+        // Names of the earlier 6-digit form carry no host.
+        assert_eq!(
+            temp_owner(".ptm-12-0-0a1b2c.tmp"),
+            Some(TempOwner {
+                pid: 12,
+                host: None
+            })
+        );
+        for other in [
+            ".ptm-12-0-0a1b2c3.tmp",
+            ".ptm-12-0-0A1B2C3D.tmp",
+            ".ptm--0-0a1b2c3d.tmp",
+            ".ptm-12-x-0a1b2c3d.tmp",
+            ".ptm-12-0-0a1b2c3d-1.tmp",
+            ".ptm-99999999999-0-0a1b2c3d.tmp",
+            "ptm-12-0-0a1b2c3d.tmp",
+            ".ptm-12-0-0a1b2c3d.tmp~",
+            "weave.ptm.exr",
+        ] {
+            assert_eq!(temp_owner(other), None, "{other}");
+        }
     }
 }

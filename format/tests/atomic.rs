@@ -1,6 +1,6 @@
 //! The atomic-write rules of `ptm_format::atomic`: nothing is published by a failed write, no
 //! temporary file outlives an error, devices and FIFOs are written through, long names work,
-//! and a transaction publishes all of its outputs or none.
+//! a transaction publishes all of its outputs or none, and killed writers' temporaries are swept.
 use std::io::Write;
 use std::os::unix::fs::FileTypeExt;
 use std::path::Path;
@@ -252,4 +252,87 @@ fn same_file_resolves_links() {
         &d.path().join("missing"),
         &d.path().join("missing")
     ));
+}
+
+/// A pid that no process of this host has: a child that has exited and been reaped.
+fn dead_pid() -> u32 {
+    let mut child = std::process::Command::new("true").spawn().unwrap();
+    let pid = child.id();
+    child.wait().unwrap();
+    assert!(!Path::new(&format!("/proc/{pid}")).exists());
+    pid
+}
+
+#[test]
+fn temporaries_of_killed_writers_are_swept_and_live_ones_kept() {
+    let d = tempfile::tempdir().unwrap();
+    // This host's tag, as the writer puts it in its names: the first 4 of the 8 hex digits.
+    let mine = tmp_path(&d.path().join("probe"));
+    let name = mine.file_name().unwrap().to_str().unwrap();
+    let hex = name.rsplit('-').next().unwrap().trim_end_matches(".tmp");
+    let (tag, other_tag) = (&hex[..4], if &hex[..4] == "0000" { "ffff" } else { "0000" });
+    let (dead, live) = (dead_pid(), std::os::unix::process::parent_id());
+    let old = std::time::SystemTime::now() - std::time::Duration::from_secs(25 * 3600);
+    let make = |name: &str, mtime: Option<std::time::SystemTime>| {
+        let f = std::fs::File::create(d.path().join(name)).unwrap();
+        f.set_len(1 << 20).unwrap(); // a killed bake leaves tens of MB
+        if let Some(t) = mtime {
+            f.set_modified(t).unwrap();
+        }
+    };
+    make(&format!(".ptm-{dead}-3-{tag}beef.tmp"), None); // killed here: swept
+    make(&format!(".ptm-{live}-3-{tag}beef.tmp"), None); // live writer here: kept
+    make(&format!(".ptm-{dead}-3-{other_tag}beef.tmp"), None); // another host's: kept
+    make(&format!(".ptm-{dead}-4-{other_tag}beef.tmp"), Some(old)); // a day old: swept
+    make(&format!(".ptm-{dead}-5-c0ffee.tmp"), None); // old name form, recent: kept
+    make(&format!(".ptm-{dead}-6-c0ffee.tmp"), Some(old)); // old name form, a day old: swept
+    make(&format!("{dead}.tmp"), Some(old)); // not ours: kept
+    std::os::unix::fs::symlink(
+        "/nonexistent",
+        d.path().join(format!(".ptm-{dead}-7-{tag}beef.tmp")),
+    )
+    .unwrap(); // a link with our name: kept
+
+    // tmp_path above was this process's first write here and swept the empty directory; the
+    // next test shows that sweep happening on a write. Here, the sweep itself:
+    let mut removed: Vec<String> = ptm_format::atomic::sweep_stale_temps(d.path())
+        .iter()
+        .map(|p| p.file_name().unwrap().to_string_lossy().into_owned())
+        .collect();
+    removed.sort();
+    let mut expect = vec![
+        format!(".ptm-{dead}-3-{tag}beef.tmp"),
+        format!(".ptm-{dead}-4-{other_tag}beef.tmp"),
+        format!(".ptm-{dead}-6-c0ffee.tmp"),
+    ];
+    expect.sort();
+    assert_eq!(removed, expect);
+    let mut left = vec![
+        format!(".ptm-{live}-3-{tag}beef.tmp"),
+        format!(".ptm-{dead}-3-{other_tag}beef.tmp"),
+        format!(".ptm-{dead}-5-c0ffee.tmp"),
+        format!(".ptm-{dead}-7-{tag}beef.tmp"),
+        format!("{dead}.tmp"),
+    ];
+    left.sort();
+    assert_eq!(names(d.path()), left);
+}
+
+#[test]
+fn the_first_write_into_a_directory_sweeps_it() {
+    let d = tempfile::tempdir().unwrap();
+    let probe = tmp_path(&d.path().join("probe")); // sweeps d (empty) and names this host
+    let hex = probe
+        .to_str()
+        .unwrap()
+        .rsplit('-')
+        .next()
+        .unwrap()
+        .to_string();
+    let sub = d.path().join("out");
+    std::fs::create_dir(&sub).unwrap();
+    let stale = sub.join(format!(".ptm-{}-0-{}beef.tmp", dead_pid(), &hex[..4]));
+    std::fs::write(&stale, vec![0u8; 1 << 16]).unwrap();
+    write_bytes(&sub.join("a.exr"), b"a").unwrap();
+    assert_eq!(names(&sub), ["a.exr"]);
 }
