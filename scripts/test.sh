@@ -48,6 +48,9 @@ rd_work=$(mktemp -d)
 .deps/py/bin/python tests/clients/test_readers.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$rd_work"
 rm -rf "$rd_work"
 
+echo "== the README's OSL shader group against the OSL shaders it names (integrations/osl)" >&2
+.deps/py/bin/python integrations/osl/test_readme_example.py
+
 echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL (integrations/materialx)" >&2
 mx_work=$(mktemp -d)
 .deps/py/bin/python integrations/materialx/test_materialx.py "$mx_work"

@@ -1,0 +1,78 @@
+"""The README's OSL example (the shader group after `<!-- readme-osl -->`, in OSL's serialized
+group syntax) against the shaders it names: every `shader NAME LAYER` is
+integrations/osl/NAME.osl, every `param TYPE NAME VALUE... ;` before it is an input of that
+shader with that type and as many values as the type has, every `connect a.X b.Y` joins an
+output of an earlier layer to an input of a later one of the same type. No OSL compiler is needed (the
+opt-in Blender test compiles and renders these shaders with Cycles' OSL).
+
+    python test_readme_example.py
+"""
+import os
+import re
+import sys
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+README = os.path.join(HERE, "..", "..", "README.md")
+WIDTH = {"int": 1, "float": 1, "string": 1, "vector": 3, "point": 3, "normal": 3, "color": 3}
+
+
+def signature(path):
+    """{param: (type, is_output)} of the shader in an .osl file."""
+    src = re.sub(r"//[^\n]*|/\*.*?\*/", "", open(path).read(), flags=re.S)
+    m = re.search(r"\bshader\s+(\w+)\s*\((.*?)\)\s*\{", src, flags=re.S)
+    assert m, f"{path}: no shader declaration"
+    assert m.group(1) == os.path.basename(path)[:-4], f"{path}: shader is named {m.group(1)}"
+    params, depth, cur = {}, 0, ""
+    for ch in m.group(2) + ",":  # split on top-level commas (defaults may call vector(...))
+        if ch == "," and depth == 0:
+            p = re.match(r"\s*(output\s+)?(closure\s+color|\w+)\s+(\w+)", cur)
+            assert p, f"{path}: cannot read parameter {cur.strip()!r}"
+            params[p.group(3)] = (p.group(2).replace("closure ", "closure_").replace(" ", ""),
+                                  bool(p.group(1)))
+            cur = ""
+            continue
+        depth += ch == "("
+        depth -= ch == ")"
+        cur += ch
+    return params
+
+
+text = open(README).read()
+assert "<!-- readme-osl -->\n```\n" in text, "README has no <!-- readme-osl --> block"
+block = text.split("<!-- readme-osl -->\n```\n", 1)[1].split("```", 1)[0]
+layers, pending, checked = {}, [], 0
+for stmt in (x.split() for x in block.split(";")):
+    if not stmt:
+        continue
+    if stmt[0] == "param":  # param TYPE NAME VALUE... ; applies to the next shader
+        ty, pname, values = stmt[1], stmt[2], stmt[3:]
+        assert ty in WIDTH, f"README OSL example: unknown type {ty}"
+        assert len(values) == WIDTH[ty], f"README: {pname} ({ty}) needs {WIDTH[ty]} values: {values}"
+        if ty != "string":
+            [float(v) for v in values]
+        else:
+            assert values[0].startswith('"') and values[0].endswith('"'), f"README: {pname} unquoted"
+        pending.append((ty, pname))
+    elif stmt[0] == "shader":
+        name, layer = stmt[1], stmt[2]
+        path = os.path.join(HERE, name + ".osl")
+        assert os.path.exists(path), f"README OSL example: {name}.osl does not exist"
+        sig = signature(path)
+        for ty, pname in pending:
+            assert pname in sig, f"README OSL example: {name} has no parameter {pname}"
+            assert sig[pname] == (ty, False), f"README: {name}.{pname} is {sig[pname]}, not input {ty}"
+            checked += 1
+        layers[layer], pending = sig, []
+    elif stmt[0] == "connect":
+        (sl, sp), (dl, dp) = (w.split(".") for w in stmt[1:3])
+        assert sl in layers and dl in layers, f"README: connect names an unknown layer: {stmt}"
+        assert list(layers).index(sl) < list(layers).index(dl), f"README: {stmt} runs backwards"
+        src, dst = layers[sl].get(sp), layers[dl].get(dp)
+        assert src and src[1], f"README: {sl}.{sp} is not an output"
+        assert dst and not dst[1], f"README: {dl}.{dp} is not an input"
+        assert src[0] == dst[0], f"README: {stmt} joins {src[0]} to {dst[0]}"
+        checked += 1
+    else:
+        sys.exit(f"README OSL example: cannot read {' '.join(stmt)!r}")
+assert not pending, f"README OSL example: params {pending} apply to no shader"
+print(f"osl: README example's {len(layers)} layers, {checked} parameters and connections match the shaders")
