@@ -312,6 +312,11 @@ fn merge_refuses_incomplete_mixed_and_damaged_sets() {
     std::fs::remove_file(d.join("forged.exr")).unwrap();
     std::fs::remove_file(d.join("cut.exr")).unwrap();
     ok(&["merge", ".", "-o", "m.exr"], d);
+    // The output and its .lp are published together or not at all.
+    std::fs::create_dir(d.join("n.lp")).unwrap();
+    let e = refused(&["merge", ".", "-o", "n.exr"], d);
+    assert!(e.contains("n.lp"), "{e}");
+    assert!(!d.join("n.exr").exists(), "no output without its .lp");
 }
 
 #[test]

@@ -240,7 +240,7 @@ pub struct Part {
     pub data: PartData,
 }
 
-/// What [`merge_into`] wrote.
+/// What [`merge_into`] wrote (or [`merge_encode`] encoded).
 #[derive(Clone, Debug)]
 pub struct Merged {
     /// `"stack"` or `"ptm"`.
@@ -952,15 +952,24 @@ pub fn check_set(paths: &[PathBuf]) -> Result<Vec<(PathBuf, PartMeta)>> {
 }
 
 /// Merges a complete set of parts (see [`check_set`]) into the whole stack or PTM at `out`,
-/// written atomically, byte for byte what one machine writes. A stack merges by copying the
-/// parts' compressed chunks under the whole image's header; a PTM is decoded, concatenated,
-/// its file-level facts recomputed ([`finish_fit`]) and saved.
+/// written atomically, byte for byte what one machine writes. See [`merge_encode`].
 pub fn merge_into(paths: &[PathBuf], out: &Path) -> Result<Merged> {
+    let (merged, bytes) = merge_encode(paths, out)?;
+    crate::atomic::write_bytes(out, &bytes)?;
+    Ok(merged)
+}
+
+/// Merges a complete set of parts (see [`check_set`]) into the bytes of the whole stack or PTM
+/// that one machine writes, for a caller that publishes it with other outputs (`out` names the
+/// file in errors; nothing is written). A stack merges by copying the parts' compressed chunks
+/// under the whole image's header; a PTM is decoded, concatenated, its file-level facts
+/// recomputed ([`finish_fit`]) and encoded.
+pub fn merge_encode(paths: &[PathBuf], out: &Path) -> Result<(Merged, Vec<u8>)> {
     let set = check_set(paths)?;
     let (_, kind) = read_meta(&set[0].0)?;
     let (width, height) = (set[0].1.width, set[0].1.height);
-    let lights = match kind.as_str() {
-        "stack" => merge_stack(&set, out)?,
+    let (lights, bytes) = match kind.as_str() {
+        "stack" => merge_stack(&set)?,
         "ptm" => {
             let (ptm, fit, lights) = merge_ptm(&set)?;
             let save = crate::SaveOptions {
@@ -968,17 +977,18 @@ pub fn merge_into(paths: &[PathBuf], out: &Path) -> Result<Merged> {
                 report: Some(&fit),
                 error_map: false,
             };
-            ptm.save(out, &save)?;
-            lights
+            let bytes = ptm.encode(out, &save)?;
+            (lights, bytes)
         }
         other => return Err(err(&set[0].0, format!("unknown part kind {other:?}"))),
     };
-    Ok(Merged {
+    let merged = Merged {
         kind,
         width,
         height,
         lights,
-    })
+    };
+    Ok((merged, bytes))
 }
 
 /// The light set recorded in a part's header.
@@ -1016,7 +1026,7 @@ fn per_part(name: &str) -> bool {
 /// The stack merge: every part checked (layout, checksum, chunks of its rows, the same
 /// channels and stack attributes), then the first part's header records without `part:*`,
 /// sized for the whole image, and every part's chunks at their rows' y.
-fn merge_stack(set: &[(PathBuf, PartMeta)], out: &Path) -> Result<LightSet> {
+fn merge_stack(set: &[(PathBuf, PartMeta)]) -> Result<(LightSet, Vec<u8>)> {
     let (width, height) = (set[0].1.width, set[0].1.height);
     let mut parts = Vec::with_capacity(set.len());
     for (path, meta) in set {
@@ -1078,8 +1088,7 @@ fn merge_stack(set: &[(PathBuf, PartMeta)], out: &Path) -> Result<LightSet> {
         }
     }
     let file = chunks::assemble(&bytes0[..8], &records, &list);
-    crate::atomic::write_atomic(out, |w| std::io::Write::write_all(w, &file))?;
-    lights_of(&set[0].0, &read_header(&set[0].0)?)
+    Ok((lights_of(&set[0].0, &read_header(&set[0].0)?)?, file))
 }
 
 /// The PTM merge: decodes every part, concatenates the rows, recomputes the file-level facts.
