@@ -433,6 +433,8 @@ struct Written {
     fit: Value,
     /// The file written (the part, for a farm shard).
     output: PathBuf,
+    /// Every file of the sample stack or PTM written: `output`, or the renderer layout's parts.
+    files: Vec<PathBuf>,
     /// The `.lp` written beside a whole bake.
     lp: Option<PathBuf>,
     /// The `.lp` holding the output's lights: `lp`, or the user's `--lights` file.
@@ -467,6 +469,7 @@ fn write_outputs(
     let mut t_fit = 0.0;
     let mut t1 = Instant::now();
     let writing = || crate::outputs::Named::new("writing", &output);
+    let mut files = vec![output.clone()];
     let fit_json = match samples {
         Samples::Fit(acc) => {
             let (ptm, fit, levels) = match part {
@@ -516,12 +519,13 @@ fn write_outputs(
                         report: Some(&fit),
                         error_map: false,
                     };
-                    let files = ptm_fit::layout::encode(&ptm, &output, &save, layout)
+                    let encoded = ptm_fit::layout::encode(&ptm, &output, &save, layout)
                         .with_context(writing)?;
-                    for (p, bytes) in &files {
+                    for (p, bytes) in &encoded {
                         tx.add(p).with_context(writing)?;
                         tx.stage_bytes(p, bytes).with_context(writing)?;
                     }
+                    files = encoded.into_iter().map(|(p, _)| p).collect();
                 }
             }
             summary
@@ -558,6 +562,7 @@ fn write_outputs(
     Ok(Written {
         fit: fit_json,
         output,
+        files,
         lp,
         lights_file: if part.is_none() { lights_file } else { None },
         t_fit,
@@ -579,18 +584,17 @@ fn print_summary(report: &BakeReport, written: &Written) {
         2 * max_rings + 1,
         2 * max_rings + 1
     );
+    let files = crate::outputs::list(&written.files);
     match (&written.lp, &written.lights_file) {
         (Some(lp), _) => eprintln!(
-            "ptm bake: wrote {} and {}",
-            written.output.display(),
-            lp.display()
+            "ptm bake: wrote {}",
+            crate::outputs::list(&[&written.files[..], std::slice::from_ref(lp)].concat())
         ),
         (None, Some(user)) => eprintln!(
-            "ptm bake: wrote {}; its lights are in {} (the --lights file, left as it is)",
-            written.output.display(),
+            "ptm bake: wrote {files}; its lights are in {} (the --lights file, left as it is)",
             user.display()
         ),
-        (None, None) => eprintln!("ptm bake: wrote {}", written.output.display()),
+        (None, None) => eprintln!("ptm bake: wrote {files}"),
     }
 }
 
@@ -612,6 +616,7 @@ fn bake_json(
     json!({
         "swatch": swatch.origin,
         "output": json_path(&written.output),
+        "files": written.files.iter().map(|p| json_path(p)).collect::<Vec<_>>(),
         "shard": args.shard.map(|s| s.to_string()),
         "rows": [rows.start, rows.end],
         "lights_file": written.lights_file.as_deref().map(json_path),

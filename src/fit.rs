@@ -336,7 +336,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     ptm_fit::layout::remove_stale_errors(&args.output, args.layout, &files);
     let t_write = t1.elapsed().as_secs_f64();
     let half_bound = args.half.then(|| ptm.half_error_bound());
-    print_summary(&report, args, half_bound);
+    print_summary(&report, &files, half_bound);
     let hp = match hp {
         Some((p, e)) => {
             eprintln!(
@@ -401,7 +401,7 @@ pub fn stage_seconds(out: &mut Value, stages: &[(&str, f64)]) {
     }
 }
 
-fn print_summary(r: &FitReport, args: &Args, half_bound: Option<f64>) {
+fn print_summary(r: &FitReport, files: &[PathBuf], half_bound: Option<f64>) {
     print_logistic("ptm fit", r);
     eprintln!(
         "ptm fit: {} rank {}/{}, condition number {:.3}, {}",
@@ -431,7 +431,7 @@ fn print_summary(r: &FitReport, args: &Args, half_bound: Option<f64>) {
     if let Some(b) = half_bound {
         eprintln!("ptm fit: half floats change K by at most {b:.2e} anywhere on the unit disk");
     }
-    eprintln!("ptm fit: wrote {}", args.output.display());
+    eprintln!("ptm fit: wrote {}", crate::outputs::list(files));
 }
 
 /// One line on what the logistic fit did (nothing for the identity link).

@@ -64,3 +64,16 @@ impl std::fmt::Display for Named {
         write!(f, "{} {}", self.action, self.path)
     }
 }
+
+/// Paths for a message: `a`, `a and b`, `a, b and c`.
+pub fn list<P: AsRef<Path>>(paths: &[P]) -> String {
+    let names: Vec<String> = paths
+        .iter()
+        .map(|p| p.as_ref().display().to_string())
+        .collect();
+    match names.split_last() {
+        None => String::new(),
+        Some((last, [])) => last.clone(),
+        Some((last, rest)) => format!("{} and {last}", rest.join(", ")),
+    }
+}
