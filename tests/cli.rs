@@ -554,3 +554,37 @@ fn a_killed_writers_temporary_is_swept_by_the_next_write() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_eq!(temps(&out), Vec::<String>::new(), "left {left:?}");
 }
+
+/// The closing line names the files that exist afterwards: the renderer layout's parts, not
+/// the stem given to `-o`.
+#[test]
+fn the_renderer_layout_reports_its_parts() {
+    let d = tempfile::tempdir().unwrap();
+    let bake = [
+        "bake", "--res", "16", "--dirs", "8", "--spp", "1", "--fit", "ptm6", "--layout", "rgba",
+    ];
+    let o = ptm(&[&bake[..], &["-o", "w.ptm.exr"]].concat(), d.path());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("wrote w.ptm.c0.exr, w.ptm.c1.exr and w.lp"),
+        "{err}"
+    );
+    let o = ptm(
+        &[&bake[..], &["--json", "-o", "j.ptm.exr"]].concat(),
+        d.path(),
+    );
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(
+        v["files"],
+        serde_json::json!(["j.ptm.c0.exr", "j.ptm.c1.exr"])
+    );
+    for f in [
+        "w.ptm.c0.exr",
+        "w.ptm.c1.exr",
+        "j.ptm.c0.exr",
+        "j.ptm.c1.exr",
+    ] {
+        assert!(d.path().join(f).exists(), "{f}");
+    }
+}
