@@ -458,6 +458,45 @@ fn map_read(gpu: &Gpu, staging: &wgpu::Buffer) -> Result<Vec<u8>> {
     Ok(out)
 }
 
+/// Records one compute pass of `entry` in `module` over `threads` invocations (64 per
+/// workgroup, at least one workgroup) with storage/uniform `bindings` of group 0, whose
+/// layout wgpu derives from what the entry point uses.
+fn dispatch(
+    gpu: &Gpu,
+    enc: &mut wgpu::CommandEncoder,
+    module: &wgpu::ShaderModule,
+    entry: &str,
+    bindings: &[(u32, &wgpu::Buffer)],
+    threads: u32,
+) {
+    let pipeline = gpu
+        .device
+        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+            label: Some(entry),
+            layout: None,
+            module,
+            entry_point: Some(entry),
+            compilation_options: Default::default(),
+            cache: None,
+        });
+    let entries: Vec<wgpu::BindGroupEntry> = bindings
+        .iter()
+        .map(|&(binding, buffer)| wgpu::BindGroupEntry {
+            binding,
+            resource: buffer.as_entire_binding(),
+        })
+        .collect();
+    let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(entry),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &entries,
+    });
+    let mut pass = enc.begin_compute_pass(&Default::default());
+    pass.set_pipeline(&pipeline);
+    pass.set_bind_group(0, &bind_group, &[]);
+    pass.dispatch_workgroups(threads.div_ceil(64).max(1), 1, 1);
+}
+
 /// Builds the u32 summed-area table of a packed-opacity buffer on the GPU (`sat.wgsl`).
 pub fn build_sat(
     gpu: &Gpu,
@@ -492,37 +531,12 @@ pub fn build_sat(
     });
     let mut enc = gpu.device.create_command_encoder(&Default::default());
     for (entry, threads) in [("sat_rows", h * channels), ("sat_columns", w * channels)] {
-        let pipeline = gpu
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            });
         // Auto layouts hold only what the entry point uses: the column pass reads no opacity.
-        let mut entries = vec![(0, &params), (2, &table)];
+        let mut bindings = vec![(0, &params), (2, &table)];
         if entry == "sat_rows" {
-            entries.push((1, opacity));
+            bindings.push((1, opacity));
         }
-        let entries: Vec<wgpu::BindGroupEntry> = entries
-            .into_iter()
-            .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                binding,
-                resource: buffer.as_entire_binding(),
-            })
-            .collect();
-        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(entry),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.dispatch_workgroups(threads.div_ceil(64), 1, 1);
+        dispatch(gpu, &mut enc, &module, entry, &bindings, threads);
     }
     gpu.queue.submit([enc.finish()]);
     gpu.wait("sat_build")?;
@@ -570,39 +584,14 @@ pub fn separable_passes(gpu: &Gpu, p: &Prepared, opacity: &wgpu::Buffer) -> Resu
         ("sep_h", lights * h * channels),
         ("sep_v", lights * pw * channels),
     ] {
-        let pipeline = gpu
-            .device
-            .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            });
         // Auto layouts hold only what the entry point uses.
-        let mut entries = vec![(0, &params), (2, &radii), (3, &hmap)];
+        let mut bindings = vec![(0, &params), (2, &radii), (3, &hmap)];
         if entry == "sep_h" {
-            entries.push((1, opacity));
+            bindings.push((1, opacity));
         } else {
-            entries.push((4, &vmap));
+            bindings.push((4, &vmap));
         }
-        let entries: Vec<wgpu::BindGroupEntry> = entries
-            .into_iter()
-            .map(|(binding, buffer)| wgpu::BindGroupEntry {
-                binding,
-                resource: buffer.as_entire_binding(),
-            })
-            .collect();
-        let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some(entry),
-            layout: &pipeline.get_bind_group_layout(0),
-            entries: &entries,
-        });
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind_group, &[]);
-        pass.dispatch_workgroups(threads.div_ceil(64).max(1), 1, 1);
+        dispatch(gpu, &mut enc, &module, entry, &bindings, threads);
     }
     gpu.queue.submit([enc.finish()]);
     gpu.wait("separable")?;
