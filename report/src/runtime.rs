@@ -112,17 +112,7 @@ fn cloth(n: usize) -> Ptm {
                 .collect()
         })
         .collect();
-    Ptm {
-        basis: Basis::Ptm11,
-        width: n,
-        height: n,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
-        mips: Vec::new(),
-        coverage: None,
-        tile: [0.5, 0.5],
-        planes,
-    }
+    Ptm::new(Basis::Ptm11, n, n, [0.5, 0.5], planes)
 }
 
 /// Every blur method against the Monte Carlo soft shadow, for a small and a large light.

@@ -23,17 +23,7 @@ fn ptm11(n: usize) -> Ptm {
                 .collect()
         })
         .collect();
-    Ptm {
-        basis: Basis::Ptm11,
-        width: n,
-        height: n,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
-        mips: Vec::new(),
-        coverage: None,
-        tile: [1.0, 1.0],
-        planes,
-    }
+    Ptm::new(Basis::Ptm11, n, n, [1.0, 1.0], planes)
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
