@@ -147,7 +147,8 @@ impl ToFileFacts for FileFacts<'_> {
 /// Header facts of a PTM file beside the coefficients.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PtmInfo {
-    /// `"float32"` or `"half"`.
+    /// How the coefficient channels are stored on disk: `"float32"`, `"half"` or `"mixed"`
+    /// (read from the channels' types, whatever `ptm:storage` says).
     pub storage: String,
     /// Lights in the light set (`ptm:nLights`), when recorded.
     pub lights: Option<usize>,
@@ -545,10 +546,20 @@ impl Ptm {
             Some(_) => return Err(c.error("`ptm:uv` is not a string attribute")),
         };
         let tile = [c.f64("ptm:tileW", WHAT)?, c.f64("ptm:tileH", WHAT)?];
-        let storage = match c.text("ptm:storage", WHAT) {
-            Ok(s) => s,
-            Err(_) => "float32".into(),
-        };
+        // The channels' type on disk, not `ptm:storage`: a tool that rewrote the file
+        // (`oiiotool -d half`, maketx) keeps our attributes but not necessarily their truth.
+        let disk: Vec<bool> = basis
+            .monomials()
+            .iter()
+            .filter_map(|m| c.channels.get(&channel_name(m.name)))
+            .map(|s| matches!(s, Samples::F16(_)))
+            .collect();
+        let storage = match (disk.iter().all(|&h| h), disk.iter().any(|&h| h)) {
+            (true, _) => "half",
+            (false, true) => "mixed",
+            (false, false) => "float32",
+        }
+        .to_string();
         let mut planes = Vec::with_capacity(basis.len());
         let mut level_planes: Vec<Vec<Vec<f32>>> = Vec::with_capacity(basis.len());
         for m in basis.monomials() {

@@ -1,6 +1,6 @@
 //! The PTM file layer on its own: coverage travels with the `Ptm` through save and load (float
 //! and half, with and without MIP levels), bad coverage is refused, header text is UTF-8 and
-//! old Latin-1 headers still read, MIP sizes are OpenEXR's.
+//! old Latin-1 headers still read, MIP sizes are OpenEXR's, the storage reported is the channel type on disk.
 use ptm_format::exrio::{self, Attr};
 use ptm_format::ptm::mip_sizes;
 use ptm_format::{Basis, FileFacts, Level, Link, Ptm, SaveOptions, UvMap};
@@ -231,4 +231,52 @@ fn hp_of_another_basis_and_half_overflow_are_typed() {
     }
     assert!(!out.exists());
     p.save(&out, &SaveOptions::default()).unwrap();
+}
+
+/// A file another tool rewrote (`oiiotool -d half`) keeps our `ptm:storage` attribute but not
+/// its truth: the channels' type on disk is what the reader reports.
+#[test]
+fn storage_is_the_channel_type_on_disk() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("w.ptm.exr");
+    let orig = ptm(9, 6, false);
+    orig.save(&p, &SaveOptions::default()).unwrap();
+    let c = exrio::read(&p).unwrap();
+    assert_eq!(
+        c.attrs.get("ptm:storage"),
+        Some(&Attr::Text("float32".into()))
+    );
+    assert_eq!(Ptm::load_with_info(&p).unwrap().1.storage, "float32");
+    // Rewrite: every channel (or only the first) as half, the attributes as they were.
+    for (all, want) in [(true, "half"), (false, "mixed")] {
+        let mut channels: Vec<(String, exrio::Samples)> = c
+            .channels
+            .iter()
+            .map(|(name, s)| {
+                let v = match s {
+                    exrio::Samples::F32(v) => v.clone(),
+                    exrio::Samples::F16(v) => v.iter().map(|x| x.to_f32()).collect(),
+                };
+                let to_half = all || name == "ptm.u2";
+                let s = if to_half {
+                    exrio::Samples::F16(v.iter().map(|&x| half::f16::from_f32(x)).collect())
+                } else {
+                    exrio::Samples::F32(v)
+                };
+                (name.clone(), s)
+            })
+            .collect();
+        channels.sort_by(|a, b| a.0.cmp(&b.0));
+        let attrs = c
+            .attrs
+            .iter()
+            .map(|(k, v)| (k.as_str(), v.clone()))
+            .collect();
+        let q = d.path().join(format!("{want}.ptm.exr"));
+        exrio::write(&q, c.width, c.height, channels, attrs).unwrap();
+        let (back, info) = Ptm::load_with_info(&q).unwrap();
+        assert_eq!(info.storage, want);
+        // Our test planes are multiples of 1/8 in [-0.5, 0.75]: exact in half.
+        assert_eq!(back.planes, orig.planes);
+    }
 }
