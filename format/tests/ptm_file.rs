@@ -1,6 +1,7 @@
 //! The PTM file layer on its own: coverage travels with the `Ptm` through save and load (float
 //! and half, with and without MIP levels), bad coverage is refused, header text is UTF-8 and
-//! old Latin-1 headers still read, MIP sizes are OpenEXR's, the storage reported is the channel type on disk.
+//! old Latin-1 headers still read, MIP sizes are OpenEXR's, the storage reported is the
+//! channel type on disk.
 use ptm_format::exrio::{self, Attr};
 use ptm_format::ptm::mip_sizes;
 use ptm_format::{Basis, FileFacts, Level, Link, Ptm, SaveOptions, UvMap};
