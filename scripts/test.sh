@@ -48,6 +48,12 @@ rd_work=$(mktemp -d)
 .deps/py/bin/python tests/clients/test_readers.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$rd_work"
 rm -rf "$rd_work"
 
+echo "== PTMs rewritten by oiiotool, maketx and Python OpenEXR keep loading, with their K (tests/clients)" >&2
+rw_work=$(mktemp -d)
+.deps/py/bin/python tests/clients/test_rewritten.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$rw_work" \
+    | grep -v '^rewritten: ok'
+rm -rf "$rw_work"
+
 echo "== the README's OSL shader group against the OSL shaders it names (integrations/osl)" >&2
 .deps/py/bin/python integrations/osl/test_readme_example.py
 

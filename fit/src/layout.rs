@@ -462,10 +462,15 @@ impl PtmFile {
             mips,
             // As a fit leaves it: none when every texel is fully covered (the renderer layout
             // stores ones then).
+            // A resampled file's ringing past [0, 1] is clamped, as `Ptm::load` does.
             coverage: self
                 .coverage()
-                .filter(|c| c.iter().any(|&x| x < 1.0))
-                .map(<[f32]>::to_vec),
+                .map(|c| {
+                    let mut c = c.to_vec();
+                    crate::ptm::clamp_ringing(&mut c);
+                    c
+                })
+                .filter(|c| c.iter().any(|&x| x < 1.0)),
         };
         ptm.validate()
             .map_err(|e| format_err(path, e.to_string()))?;

@@ -598,7 +598,10 @@ impl Ptm {
             coverage: None,
             err_max: c.take_f32("err.max", WHAT).ok(),
         };
-        let coverage = c.take_f32("coverage", WHAT).ok();
+        let mut coverage = c.take_f32("coverage", WHAT).ok();
+        if let Some(cov) = &mut coverage {
+            clamp_ringing(cov);
+        }
         let ptm = Ptm {
             basis,
             link,
@@ -617,6 +620,20 @@ impl Ptm {
             ..info
         };
         Ok((ptm, info))
+    }
+}
+
+/// How far outside [0, 1] a stored coverage may lie and still be read as a fraction: the
+/// ringing of a resampling filter (`oiiotool --resize`, a MIP filter) at a hole's edge.
+pub const COVERAGE_RINGING: f32 = 0.25;
+
+/// Clamps coverage values within [`COVERAGE_RINGING`] of [0, 1] into it, as a texture system
+/// would; values further out (and NaN) are left for [`Ptm::validate`] to refuse.
+pub fn clamp_ringing(coverage: &mut [f32]) {
+    for c in coverage {
+        if (-COVERAGE_RINGING..=1.0 + COVERAGE_RINGING).contains(c) {
+            *c = c.clamp(0.0, 1.0);
+        }
     }
 }
 

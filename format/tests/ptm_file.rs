@@ -125,6 +125,23 @@ fn bad_coverage_is_refused() {
     exrio::write(&p, 9, 6, channels, attrs).unwrap();
     let e = Ptm::load(&p).unwrap_err();
     assert!(e.to_string().contains("coverage"), "{e}");
+
+    // A resampled file (`oiiotool --resize`) rings a little past [0, 1] at a hole's edge: it
+    // reads, clamped. The writer stays strict (above).
+    let mut c = exrio::read(&p).unwrap();
+    let mut channels: Vec<(String, exrio::Samples)> = c.channels.drain().collect();
+    let ringing: Vec<f32> = (0..54).map(|i| [1.0014, -0.03, 0.5, 1.2][i % 4]).collect();
+    for (name, s) in &mut channels {
+        if name == "coverage" {
+            *s = exrio::Samples::F32(ringing.clone());
+        }
+    }
+    let attrs: Vec<(String, Attr)> = c.attrs.drain().collect();
+    let attrs = attrs.iter().map(|(n, a)| (n.as_str(), a.clone())).collect();
+    exrio::write(&p, 9, 6, channels, attrs).unwrap();
+    let back = Ptm::load(&p).unwrap();
+    let want: Vec<f32> = ringing.iter().map(|c| c.clamp(0.0, 1.0)).collect();
+    assert_eq!(back.coverage, Some(want));
 }
 
 #[test]
