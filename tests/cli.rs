@@ -492,23 +492,16 @@ fn a_killed_writers_temporary_is_swept_by_the_next_write() {
         let (r, a) = ((1.0 - z * z).sqrt(), 2.4 * i as f64);
         [r * a.cos(), r * a.sin(), z]
     }));
-    SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        k: (0..n)
-            .map(|l| {
-                (0..w * h)
-                    .map(|t| ((l * 7 + t) % 11) as f32 / 11.0)
-                    .collect()
-            })
-            .collect(),
-        lights,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    }
-    .write(&d.path().join("s.exr"))
-    .unwrap();
+    let k = (0..n)
+        .map(|l| {
+            (0..w * h)
+                .map(|t| ((l * 7 + t) % 11) as f32 / 11.0)
+                .collect()
+        })
+        .collect();
+    SampleStack::new(lights, w, h, [1.0, 1.0], k)
+        .write(&d.path().join("s.exr"))
+        .unwrap();
     let out = d.path().join("out");
     std::fs::create_dir(&out).unwrap();
     let temps = |dir: &Path| -> Vec<String> {

@@ -14,30 +14,20 @@ fn p(path: &Path) -> &str {
     path.to_str().unwrap()
 }
 
+// The fit crate's test helpers (Fibonacci dome, seeded generator), shared by path.
+#[path = "../fit/tests/common/mod.rs"]
+mod common;
+
 /// Fibonacci hemisphere above 5° elevation.
 fn dome(n: usize) -> LightSet {
-    let zmin = 5f64.to_radians().sin();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    LightSet::from_dirs((0..n).map(|i| {
-        let z = zmin + (1.0 - zmin) * (i as f64 + 0.5) / n as f64;
-        let r = (1.0 - z * z).sqrt();
-        let a = golden * i as f64;
-        [r * a.cos(), r * a.sin(), z]
-    }))
+    common::fibonacci(n, 5.0)
 }
 
 fn stack(lights: &LightSet, w: usize, h: usize) -> SampleStack {
-    SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights: lights.clone(),
-        k: (0..lights.len())
-            .map(|l| (0..w * h).map(|t| ((l + t) % 5) as f32 / 5.0).collect())
-            .collect(),
-        coverage: vec![1.0; w * h],
-        uv: None,
-    }
+    let k = (0..lights.len())
+        .map(|l| (0..w * h).map(|t| ((l + t) % 5) as f32 / 5.0).collect())
+        .collect();
+    SampleStack::new(lights.clone(), w, h, [1.0, 1.0], k)
 }
 
 /// Runs `ptm fit` with `args` after the input and output; its exit status and stderr.

@@ -13,16 +13,13 @@ fn tmpdir() -> tempfile::TempDir {
     tempfile::tempdir().unwrap()
 }
 
+// The fit crate's test helpers (Fibonacci dome, seeded generator), shared by path.
+#[path = "../fit/tests/common/mod.rs"]
+mod common;
+
 /// Fibonacci hemisphere above 5° elevation.
 fn dome(n: usize) -> LightSet {
-    let zmin = 5f64.to_radians().sin();
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    LightSet::from_dirs((0..n).map(|i| {
-        let z = zmin + (1.0 - zmin) * (i as f64 + 0.5) / n as f64;
-        let r = (1.0 - z * z).sqrt();
-        let a = golden * i as f64;
-        [r * a.cos(), r * a.sin(), z]
-    }))
+    common::fibonacci(n, 5.0)
 }
 
 /// Smooth occlusion-like K: an exact ptm6 polynomial whose coefficients vary across the tile,
@@ -58,15 +55,7 @@ fn stack(lights: &LightSet, w: usize, h: usize, noise: bool) -> (SampleStack, Ve
                 .collect()
         })
         .collect();
-    let s = SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights: lights.clone(),
-        k,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    };
+    let s = SampleStack::new(lights.clone(), w, h, [1.0, 1.0], k);
     (s, coeffs)
 }
 

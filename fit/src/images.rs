@@ -164,15 +164,7 @@ pub fn read_image_stack(
     }
     info.unused = by_name.into_values().collect();
     info.unused.sort();
-    let stack = SampleStack {
-        width,
-        height,
-        tile,
-        lights,
-        k,
-        coverage: vec![1.0; width * height],
-        uv: None,
-    };
+    let stack = SampleStack::new(lights, width, height, tile, k);
     stack.validate()?;
     Ok((stack, info))
 }

@@ -43,6 +43,27 @@ pub fn k_channel(i: usize) -> String {
 type Channels = Vec<(String, Samples)>;
 
 impl SampleStack {
+    /// A stack of distant `lights` over a `width × height` image of a `tile`, every texel fully
+    /// covered: what a pipeline that renders its own K (another renderer, a capture) fits.
+    /// `k[light][texel]` as the field; set `coverage` for holes.
+    pub fn new(
+        lights: LightSet,
+        width: usize,
+        height: usize,
+        tile: [f64; 2],
+        k: Vec<Vec<f32>>,
+    ) -> SampleStack {
+        SampleStack {
+            width,
+            height,
+            tile,
+            lights,
+            k,
+            coverage: vec![1.0; width * height],
+            uv: None,
+        }
+    }
+
     /// Texel count.
     pub fn texels(&self) -> usize {
         self.width * self.height

@@ -110,15 +110,7 @@ fn every_kernel_build_agrees_with_the_portable_one() {
             })
             .collect()
     };
-    let stack = SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights,
-        k,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    };
+    let stack = SampleStack::new(lights, w, h, [1.0, 1.0], k);
     for basis in Basis::ALL {
         let portable = FitOptions {
             kernel: Some(Kernel::Portable),

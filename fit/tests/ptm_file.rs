@@ -76,17 +76,10 @@ fn channels_are_named_by_monomial_and_header_is_complete() {
         let r = (1.0 - z * z).sqrt();
         [r * a.cos(), r * a.sin(), z]
     }));
-    let stack = SampleStack {
-        width: 4,
-        height: 3,
-        tile: [1.0, 2.0],
-        lights: lights.clone(),
-        k: (0..20)
-            .map(|l| (0..12).map(|t| ((l * 5 + t) % 7) as f32 / 7.0).collect())
-            .collect(),
-        coverage: vec![1.0; 12],
-        uv: None,
-    };
+    let k = (0..20)
+        .map(|l| (0..12).map(|t| ((l * 5 + t) % 7) as f32 / 7.0).collect())
+        .collect();
+    let stack = SampleStack::new(lights.clone(), 4, 3, [1.0, 2.0], k);
     let (ptm, report) = fit_stack(&stack, &FitOptions::new(Basis::Ptm6)).unwrap();
     let p = dir.join("w.ptm.exr");
     let opts = SaveOptions {
@@ -241,15 +234,8 @@ fn foreign_truncated_and_unknown_files_are_named_errors() {
     assert!(e.contains("missing.exr"), "{e}");
 
     // A sample stack is not a PTM, and says so.
-    let stack = SampleStack {
-        width: 2,
-        height: 2,
-        tile: [1.0, 1.0],
-        lights: LightSet::from_dirs([[0.0, 0.0, 1.0]]),
-        k: vec![vec![0.0; 4]],
-        coverage: vec![1.0; 4],
-        uv: None,
-    };
+    let lights = LightSet::from_dirs([[0.0, 0.0, 1.0]]);
+    let stack = SampleStack::new(lights, 2, 2, [1.0, 1.0], vec![vec![0.0; 4]]);
     let p = dir.join("samples.exr");
     stack.write(&p).unwrap();
     let e = Ptm::load(&p).unwrap_err().to_string();

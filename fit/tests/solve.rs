@@ -44,15 +44,7 @@ fn poly_stack(
                 .collect()
         })
         .collect();
-    let stack = SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights: lights.clone(),
-        k,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    };
+    let stack = SampleStack::new(lights.clone(), w, h, [1.0, 1.0], k);
     (stack, coeffs)
 }
 
@@ -60,15 +52,7 @@ fn random_stack(lights: &LightSet, w: usize, h: usize, rng: &mut Rng) -> SampleS
     let k = (0..lights.len())
         .map(|_| (0..w * h).map(|_| rng.uniform() as f32).collect())
         .collect();
-    SampleStack {
-        width: w,
-        height: h,
-        tile: [2.0, 1.5],
-        lights: lights.clone(),
-        k,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    }
+    SampleStack::new(lights.clone(), w, h, [2.0, 1.5], k)
 }
 
 fn stream(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, ptm_fit::FitReport), Error> {

@@ -1,6 +1,6 @@
 //! Helpers shared by the fit crate's integration tests: the seeded generator, a Fibonacci dome,
 //! and a fully covered distant-light stack from its K planes.
-#![allow(dead_code)]
+#![allow(dead_code, unused_imports)] // each test crate uses a part (tests/ of the binary too)
 use ptm_fit::{LightSet, SampleStack};
 
 /// Deterministic uniform numbers (the workspace's splitmix64 stream).
@@ -20,13 +20,5 @@ pub fn fibonacci(n: usize, min_el: f64) -> LightSet {
 
 /// A w × h stack of distant lights, every texel fully covered, tile 1 × 1.
 pub fn stack(lights: &LightSet, w: usize, h: usize, k: Vec<Vec<f32>>) -> SampleStack {
-    SampleStack {
-        width: w,
-        height: h,
-        tile: [1.0, 1.0],
-        lights: lights.clone(),
-        k,
-        coverage: vec![1.0; w * h],
-        uv: None,
-    }
+    SampleStack::new(lights.clone(), w, h, [1.0, 1.0], k)
 }
