@@ -37,42 +37,53 @@ def signature(path):
     return params
 
 
-text = open(README).read()
-assert "<!-- readme-osl -->\n```\n" in text, "README has no <!-- readme-osl --> block"
-block = text.split("<!-- readme-osl -->\n```\n", 1)[1].split("```", 1)[0]
-layers, pending, checked = {}, [], 0
-for stmt in (x.split() for x in block.split(";")):
-    if not stmt:
-        continue
-    if stmt[0] == "param":  # param TYPE NAME VALUE... ; applies to the next shader
-        ty, pname, values = stmt[1], stmt[2], stmt[3:]
-        assert ty in WIDTH, f"README OSL example: unknown type {ty}"
-        assert len(values) == WIDTH[ty], f"README: {pname} ({ty}) needs {WIDTH[ty]} values: {values}"
-        if ty != "string":
-            [float(v) for v in values]
+def readme_group(readme=README):
+    """The README's shader group, checked against the shaders' signatures: a list of layers
+    (shader, layer, {param: (type, [values])}) and of connections (src, out, dst, in)."""
+    text = open(readme).read()
+    assert "<!-- readme-osl -->\n```\n" in text, "README has no <!-- readme-osl --> block"
+    block = text.split("<!-- readme-osl -->\n```\n", 1)[1].split("```", 1)[0]
+    layers, connections, pending = [], [], {}
+    sigs = {}
+    for stmt in (x.split() for x in block.split(";")):
+        if not stmt:
+            continue
+        if stmt[0] == "param":  # param TYPE NAME VALUE... ; applies to the next shader
+            ty, pname, values = stmt[1], stmt[2], stmt[3:]
+            assert ty in WIDTH, f"README OSL example: unknown type {ty}"
+            assert len(values) == WIDTH[ty], f"README: {pname} ({ty}) needs {WIDTH[ty]} values: {values}"
+            if ty == "string":
+                assert values[0].startswith('"') and values[0].endswith('"'), f"README: {pname} unquoted"
+                values = [values[0][1:-1]]
+            else:
+                values = [(int if ty == "int" else float)(v) for v in values]
+            pending[pname] = (ty, values)
+        elif stmt[0] == "shader":
+            name, layer = stmt[1], stmt[2]
+            path = os.path.join(HERE, name + ".osl")
+            assert os.path.exists(path), f"README OSL example: {name}.osl does not exist"
+            sig = signature(path)
+            for pname, (ty, _) in pending.items():
+                assert pname in sig, f"README OSL example: {name} has no parameter {pname}"
+                assert sig[pname] == (ty, False), f"README: {name}.{pname} is {sig[pname]}, not input {ty}"
+            layers.append((name, layer, pending))
+            sigs[layer], pending = sig, {}
+        elif stmt[0] == "connect":
+            (sl, sp), (dl, dp) = (w.split(".") for w in stmt[1:3])
+            assert sl in sigs and dl in sigs, f"README: connect names an unknown layer: {stmt}"
+            assert list(sigs).index(sl) < list(sigs).index(dl), f"README: {stmt} runs backwards"
+            src, dst = sigs[sl].get(sp), sigs[dl].get(dp)
+            assert src and src[1], f"README: {sl}.{sp} is not an output"
+            assert dst and not dst[1], f"README: {dl}.{dp} is not an input"
+            assert src[0] == dst[0], f"README: {stmt} joins {src[0]} to {dst[0]}"
+            connections.append((sl, sp, dl, dp))
         else:
-            assert values[0].startswith('"') and values[0].endswith('"'), f"README: {pname} unquoted"
-        pending.append((ty, pname))
-    elif stmt[0] == "shader":
-        name, layer = stmt[1], stmt[2]
-        path = os.path.join(HERE, name + ".osl")
-        assert os.path.exists(path), f"README OSL example: {name}.osl does not exist"
-        sig = signature(path)
-        for ty, pname in pending:
-            assert pname in sig, f"README OSL example: {name} has no parameter {pname}"
-            assert sig[pname] == (ty, False), f"README: {name}.{pname} is {sig[pname]}, not input {ty}"
-            checked += 1
-        layers[layer], pending = sig, []
-    elif stmt[0] == "connect":
-        (sl, sp), (dl, dp) = (w.split(".") for w in stmt[1:3])
-        assert sl in layers and dl in layers, f"README: connect names an unknown layer: {stmt}"
-        assert list(layers).index(sl) < list(layers).index(dl), f"README: {stmt} runs backwards"
-        src, dst = layers[sl].get(sp), layers[dl].get(dp)
-        assert src and src[1], f"README: {sl}.{sp} is not an output"
-        assert dst and not dst[1], f"README: {dl}.{dp} is not an input"
-        assert src[0] == dst[0], f"README: {stmt} joins {src[0]} to {dst[0]}"
-        checked += 1
-    else:
-        sys.exit(f"README OSL example: cannot read {' '.join(stmt)!r}")
-assert not pending, f"README OSL example: params {pending} apply to no shader"
-print(f"osl: README example's {len(layers)} layers, {checked} parameters and connections match the shaders")
+            sys.exit(f"README OSL example: cannot read {' '.join(stmt)!r}")
+    assert not pending, f"README OSL example: params {list(pending)} apply to no shader"
+    return layers, connections
+
+
+if __name__ == "__main__":
+    layers, connections = readme_group()
+    n = sum(len(p) for _, _, p in layers) + len(connections)
+    print(f"osl: README example's {len(layers)} layers, {n} parameters and connections match the shaders")
