@@ -200,8 +200,9 @@ class Evaluator:
             return default.copy()
         tex = self._texels(os.path.join(self.root, i["file"]))
         h, w, _ = tex.shape
-        # MaterialX (0, 0) is the image's bottom-left; row 0 of the file is its top (OSL and
-        # OIIO t = 0; genosl's mx_transform_uv flips v the same way). Texel centres at +0.5.
+        # MaterialX (0, 0) is the image's bottom-left; row 0 of the file is its top (OSL's and
+        # OIIO's t = 0: MaterialX's OSL flips v only with GenOptions.fileTextureVerticalFlip).
+        # Texel centres at +0.5.
         x = uv[..., 0] * w - 0.5
         y = (1.0 - uv[..., 1]) * h - 0.5
         outside = np.zeros(x.shape, dtype=bool)
