@@ -3,7 +3,9 @@
 # ~1 GB installed) into the ignored folder .deps/bpy on first use, then a headless Cycles CPU
 # render of a plane emitting K through the OSL script node and through the Blender-node group,
 # compared with Ptm::eval at every pixel centre (ptm6 and ptm11, both links, both (u, v) maps),
-# and the lit example picture. Run by scripts/test.sh when PTM_TEST_CLIENTS=1.
+# the same through the OSL MaterialX's generator writes for ND_ptm_occlusion_float (pinned
+# MaterialX of .deps/py, includes inlined; compiled by Cycles' OSL compiler), and the lit example
+# picture. Run by scripts/test.sh when PTM_TEST_CLIENTS=1.
 #   LIT_PNG=docs/blender_lit.png bash scripts/test-clients.sh   # also re-render the README picture
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -17,10 +19,13 @@ if [ ! -e .deps/bpy/.installed-5.0.1 ]; then
     .deps/bpy/bin/pip install -q bpy==5.0.1
     touch .deps/bpy/.installed-5.0.1
 fi
+bash scripts/setup.sh  # .deps/py: the pinned MaterialX that generates the OSL
 cargo build --release -q -p ptm
 cargo build --release -q -p ptm-fit --example ptm_eval
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
+.deps/py/bin/python integrations/materialx/mtlx_osl.py "$work/ptm_k.osl" >/dev/null
+.deps/py/bin/python integrations/materialx/mtlx_osl.py "$work/ptm_k_noflip.osl" --no-flip >/dev/null
 .deps/bpy/bin/python integrations/blender/test_blender.py target/release/ptm \
-    target/release/examples/ptm_eval "$work" ${LIT_PNG:+"$LIT_PNG"} 2>&1 \
+    target/release/examples/ptm_eval "$work/ptm_k.osl" "$work" ${LIT_PNG:+"$LIT_PNG"} 2>&1 \
     | grep -E '^(blender|Traceback|  File|[A-Za-z]*Error)' || { say "Blender test failed"; exit 1; }

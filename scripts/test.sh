@@ -57,9 +57,9 @@ rm -rf "$rw_work"
 echo "== the README's OSL shader group against the OSL shaders it names (integrations/osl)" >&2
 .deps/py/bin/python integrations/osl/test_readme_example.py
 
-echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL (integrations/materialx)" >&2
+echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL; its K in numpy against Ptm::eval (integrations/materialx)" >&2
 mx_work=$(mktemp -d)
-.deps/py/bin/python integrations/materialx/test_materialx.py "$mx_work"
+.deps/py/bin/python integrations/materialx/test_materialx.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$mx_work"
 rm -rf "$mx_work"
 
 if [ "${PTM_TEST_CLIENTS:-0}" = 1 ]; then

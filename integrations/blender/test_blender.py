@@ -1,9 +1,12 @@
 """Headless Blender (PyPI `bpy`) test of integrations/blender/ptm_blender.py: renders a plane in
 Cycles CPU emitting K (OSL script node and Blender-node group) under several light directions
 and compares every pixel centre with the Rust `Ptm::eval_dir` (fit/examples/ptm_eval.rs).
+The same for the OSL that MaterialX's generator writes for ND_ptm_occlusion_float
+(integrations/materialx/mtlx_osl.py makes MTLX_OSL), compiled by Cycles' OSL compiler: a
+compile error fails the test with the compiler's message.
 Then renders the lit example (plane tiled 4×, micro-shadows from one key sun) to a PNG.
 
-    python test_blender.py PTM_BIN PTM_EVAL WORKDIR [LIT_PNG]
+    python test_blender.py PTM_BIN PTM_EVAL MTLX_OSL WORKDIR [LIT_PNG]
 """
 import json
 import os
@@ -17,11 +20,12 @@ import mathutils
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import ptm_blender  # noqa: E402
 
-PTM, EVAL, WORK = sys.argv[1:4]
-LIT_PNG = sys.argv[4] if len(sys.argv) > 4 else None
+PTM, EVAL, MTLX_OSL, WORK = sys.argv[1:5]
+LIT_PNG = sys.argv[5] if len(sys.argv) > 5 else None
 RES = 16
 TOL = 1e-3
-DIRS = [(0.0, 0.0, 1.0), (0.6, 0.2, 0.5), (-0.5, 0.7, 0.4), (0.3, -0.8, 0.35), (-0.9, -0.3, 0.25)]
+DIRS = [(0.0, 0.0, 1.0), (0.6, 0.2, 0.5), (-0.5, 0.7, 0.4), (0.3, -0.8, 0.35), (-0.9, -0.3, 0.25),
+        (0.2, 0.97, 0.06)]  # the last one grazing (3.4° elevation)
 CASES = [
     ("ptm6", "identity", "projected"),
     ("ptm6", "logistic", "hemispherical"),
@@ -81,10 +85,77 @@ def render_k(sc, path):
     return [[px[((h - 1 - r) * w + c) * 4] for c in range(w)] for r in range(h)]
 
 
+def compile_osl(path):
+    """Compiles `path` with Cycles' OSL compiler (liboslcomp in bpy) to an .oso beside it in
+    WORK; returns the .oso path, or exits naming the compiler's messages."""
+    import _cycles
+
+    oso = os.path.join(WORK, os.path.basename(path)[:-4] + ".oso")
+    log = os.path.join(WORK, "oslc.log")
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    fd = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC)
+    os.dup2(fd, 1)
+    os.dup2(fd, 2)  # the compiler prints its errors to the process's stdout / stderr
+    try:
+        ok = _cycles.osl_compile(path, oso)
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        os.close(fd)
+    msg = open(log).read().strip()
+    if not ok:
+        print(f"blender: FAILED: Cycles' OSL compiler rejects {path}:\n" +
+              "\n".join("blender:   " + line for line in msg.splitlines()))
+        sys.exit(1)
+    return oso
+
+
+def mtlx_material(oso, stem, basis, link, uv, light_obj):
+    """Emission of K from the MaterialX-generated shader (mtlx_osl.py's parameters) in a Script node."""
+    mat = bpy.data.materials.new(f"MaterialX OSL {os.path.basename(stem)}")
+    mat.use_nodes = True
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out = tree.nodes.new("ShaderNodeOutputMaterial")
+    node = tree.nodes.new("ShaderNodeScript")
+    node.mode = "EXTERNAL"
+    node.filepath = oso
+    node.update()
+    if "uv" not in node.inputs or "out" not in node.outputs:
+        print(f"blender: FAILED: the Script node did not load {oso} (inputs {list(node.inputs.keys())})")
+        sys.exit(1)
+    nparts = 3 if basis == "ptm11" else 2
+    for k in range(nparts):
+        node.inputs[f"part{k}"].default_value = os.path.abspath(f"{stem}.c{k}.exr")
+    node.inputs["basis"].default_value = 11 if basis == "ptm11" else 6
+    node.inputs["link"].default_value = 1 if link == "logistic" else 0
+    node.inputs["uvmap"].default_value = 1 if uv == "hemispherical" else 0
+    node.inputs["filtertype"].default_value = "closest"
+    texco = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(texco.outputs["UV"], node.inputs["uv"])
+    tangent = tree.nodes.new("ShaderNodeTangent")  # MaterialX's Tworld is dPdu: the triangle's
+    tangent.direction_type = "UV_MAP"
+    tree.links.new(tangent.outputs["Tangent"], node.inputs["tangent"])
+    node.inputs["light"].default_value = ptm_blender.light_direction(light_obj)
+    ptm_blender._drive_light_dir(node.inputs["light"], light_obj)
+    emit = tree.nodes.new("ShaderNodeEmission")
+    emit.inputs["Strength"].default_value = 1.0
+    tree.links.new(node.outputs["out"], emit.inputs["Color"])
+    tree.links.new(emit.outputs[0], out.inputs["Surface"])
+    return mat
+
+
 def main():
     os.makedirs(WORK, exist_ok=True)
     worst = {}
     t0 = time.time()
+    mtlx_oso = compile_osl(os.path.abspath(MTLX_OSL))
+    # The same shader generated without GenOptions.fileTextureVerticalFlip (MaterialX's default).
+    noflip_oso = compile_osl(os.path.abspath(MTLX_OSL[:-4] + "_noflip.osl"))
+    flipped = {}
+    print(f"blender: MaterialX-generated OSL ({open(MTLX_OSL).read().count(chr(10))} lines) compiled by Cycles' OSL compiler")
     for basis, link, uv in CASES:
         name = os.path.join(WORK, f"{basis}-{link}.ptm.exr")
         subprocess.run([PTM, "bake", "--res", str(RES), "--spp", "4", "--dirs", "64", "--fit", basis,
@@ -93,22 +164,35 @@ def main():
         ref = json.loads(subprocess.run([EVAL, ptm_blender.stem_of(name) + ".c0.exr"]
                                         + [",".join(map(str, d)) for d in DIRS],
                                         check=True, capture_output=True, text=True).stdout)
-        for mode in ("osl", "nodes"):
+        modes = ["osl", "nodes", "mtlx-osl"] + (["mtlx-osl-noflip"] if basis == "ptm11" else [])
+        for mode in modes:
             sc, plane, sun = scene_setup()
-            mat = ptm_blender.build_material(name, light="Key", mode=mode, output="k",
-                                             interpolation="Closest")
+            if mode.startswith("mtlx-osl"):
+                mat = mtlx_material(noflip_oso if mode.endswith("noflip") else mtlx_oso,
+                                    ptm_blender.stem_of(name), basis, link, uv, sun)
+            else:
+                mat = ptm_blender.build_material(name, light="Key", mode=mode, output="k",
+                                                 interpolation="Closest")
             plane.data.materials.append(mat)
-            sc.cycles.shading_system = mode == "osl"
+            sc.cycles.shading_system = mode != "nodes"
             err = 0.0
             for i, d in enumerate(DIRS):
                 aim(sun, d)
                 got = render_k(sc, os.path.join(WORK, f"{basis}-{link}-{mode}-{i}.exr"))
                 err = max(err, max(abs(got[r][c] - ref[i][r][c]) for r in range(RES) for c in range(RES)))
                 spread = max(max(row) for row in ref[i]) - min(min(row) for row in ref[i])
-                assert spread > 0.05 or i == 0, f"{basis} {link}: K is flat for light {d}; the test would prove nothing"
+                assert spread > 0.05 or not 0.1 < d[2] < 0.9, f"{basis} {link}: K is flat for light {d}; the test would prove nothing"
+            if mode.endswith("noflip"):
+                flipped[f"{basis} {link} {uv}"] = err
+                print(f"blender: {basis} {link} {uv} {mode}: max |K - Ptm::eval| = {err:.2e}: rows upside down, "
+                      "as expected without fileTextureVerticalFlip", flush=True)
+                continue
             worst[f"{basis} {link} {uv} {mode}"] = err
             print(f"blender: {basis} {link} {uv} {mode}: max |K - Ptm::eval| = {err:.2e} over {len(DIRS)} lights", flush=True)
     bad = {k: v for k, v in worst.items() if not v <= TOL}
+    # OSL's t = 0 is the file's top row, MaterialX's v = 0 its bottom: without the flip K must
+    # be visibly wrong (else this test could not tell a flipped image from a right one).
+    bad.update({f"{k} mtlx-osl-noflip (expected > 0.05)": v for k, v in flipped.items() if not v > 0.05})
     # The README's Blender example, run as written (a scene with an active plane and a "Sun").
     readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "README.md")).read()
     block = readme.split("<!-- readme-blender -->\n```python\n", 1)[1].split("```", 1)[0]

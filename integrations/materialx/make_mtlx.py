@@ -7,7 +7,6 @@ light_dir is the direction towards the key light in world space; out is K in [0,
 
     python make_mtlx.py [OUT.mtlx]     # default: ptm_occlusion.mtlx beside this script
 """
-import math
 import os
 import sys
 
@@ -117,9 +116,14 @@ def build():
     pv = g.node("dotproduct", "float", in1=l, in2=b)
     pz = g.node("dotproduct", "float", in1=l, in2=n)
     # Hemispherical (u, v) = (θ/(π/2))/r · (pu, pv), θ = atan2(r, pz); r = 0 gives (0, 0).
+    # No float constant but small integers: MaterialX writes floats with 6 significant digits
+    # (π/2 became 1.5708) and its OSL and GLSL generators with 6 decimals (1e-20 became
+    # 0.000000, so r = 0 divided 0 by 0). π/2 is atan2(1, 0), computed; r = 0 is a branch.
     r = g.f("sqrt", g.add(g.mul(pu, pu), g.mul(pv, pv)))
     theta = g.node("atan2", "float", iny=r, inx=pz)
-    s = g.f("divide", g.f("divide", theta, math.pi / 2), g.f("max", r, 1e-20))
+    half_pi = g.node("atan2", "float", iny=1.0, inx=0.0)
+    s = g.node("ifgreater", "float", value1=r, value2=0.0,
+               in1=g.f("divide", g.f("divide", theta, half_pi), r), in2=0.0)
     mu = g.node("ifequal", "float", value1=iface("uvmap"), value2=1, in1=g.mul(pu, s), in2=pu)
     mv = g.node("ifequal", "float", value1=iface("uvmap"), value2=1, in1=g.mul(pv, s), in2=pv)
     polys = {}

@@ -1,12 +1,18 @@
 """MaterialX check (default test suite): ptm_occlusion.mtlx is what make_mtlx.py writes, it and
 the example material validate against the standard libraries, MaterialX's own generators
-produce OSL and GLSL from them, and glslangValidator compiles the GLSL.
+produce OSL and GLSL from them, and glslangValidator compiles the GLSL. Then the numbers:
+ND_ptm_occlusion_float's nodegraph, evaluated node by node in numpy (mx_numpy.py), gives the K
+of Rust `Ptm::eval_dir` (fit/examples/ptm_eval.rs) at every texel centre of renderer-layout PTMs
+fitted by the `ptm` binary (ptm6 and ptm11, both links, both (u, v) maps), for lights from the
+zenith down to grazing and below the horizon, in the swatch frame and in a rotated world frame.
 
-    python test_materialx.py WORKDIR
+    python test_materialx.py PTM_BIN PTM_EVAL WORKDIR
 """
+import json
 import os
 import subprocess
 import sys
+import time
 
 import MaterialX as mx
 import MaterialX.PyMaterialXGenGlsl as mx_glsl
@@ -16,8 +22,10 @@ import MaterialX.PyMaterialXGenShader as mx_gen
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import make_mtlx  # noqa: E402
+import mx_numpy  # noqa: E402
+import numpy as np  # noqa: E402
 
-WORK = sys.argv[1]
+PTM, EVAL, WORK = sys.argv[1:4]
 os.makedirs(WORK, exist_ok=True)
 
 fresh = os.path.join(WORK, "fresh.mtlx")
@@ -25,6 +33,16 @@ mx.writeToXmlFile(make_mtlx.build(), fresh)
 committed = os.path.join(HERE, "ptm_occlusion.mtlx")
 assert open(fresh).read() == open(committed).read(), "ptm_occlusion.mtlx is stale: run make_mtlx.py"
 
+# MaterialX's OSL and GLSL generators write float constants with 6 decimals, whatever the
+# document holds: a constant that does not survive that is another constant in the shader
+# (1e-20 was 0.000000, so 0 / 0 at the zenith; π/2 was 1.570800).
+own = mx.createDocument()
+mx.readFromXmlFile(own, committed)
+for elem in [own.getNodeDef("ND_ptm_occlusion_float")] + list(own.getNodeGraph("NG_ptm_occlusion_float").getNodes()):
+    for inp in elem.getInputs():
+        if inp.getType() in ("float", "vector2", "vector3", "vector4", "color3", "color4") and inp.hasValueString():
+            for x in inp.getValueString().split(","):
+                assert float(f"{float(x):.6f}") == float(x), f"{inp.getNamePath()} = {x}: not kept by 6-decimal code"
 lib = mx.createDocument()
 search = mx.getDefaultDataSearchPath()
 mx.loadLibraries(mx.getDefaultDataLibraryFolders(), search, lib)
@@ -65,3 +83,114 @@ block = readme.split("```xml\n", 1)[1].split("```", 1)[0]
 example = open(os.path.join(HERE, "example.mtlx")).read()
 assert all(line.strip() in example for line in block.splitlines()), "README MaterialX example differs from example.mtlx"
 print(f"materialx: ND_ptm_occlusion_float validates; OSL and GLSL generated, GLSL compiled by glslangValidator ({counts})")
+
+# --- K of the nodegraph, evaluated in numpy, against Ptm::eval ---------------------------------
+TOL = 1e-5
+RES = 16
+t0 = time.time()
+
+
+def ptm(*args):
+    subprocess.run([PTM, *args], check=True, capture_output=True, cwd=WORK)
+
+
+def toward(elev_deg, azim_deg):
+    e, a = np.radians(elev_deg), np.radians(azim_deg)
+    return (float(np.cos(e) * np.cos(a)), float(np.cos(e) * np.sin(a)), float(np.sin(e)))
+
+
+# Towards the light, swatch frame: zenith (and just off it, where the hemispherical map's
+# r → 0), mid elevations, grazing down to 0.05°, the horizon and below it (K = 1).
+DIRS = [(0.0, 0.0, 1.0), (1e-4, -2e-4, 1.0), (0.6, 0.2, 0.5), (-0.5, 0.7, 0.4), (0.3, -0.8, 0.35),
+        (-0.9, -0.3, 0.25), toward(10, 200), toward(3, 35), toward(1, 120), toward(0.3, 250),
+        toward(0.05, 300), (1.0, 0.0, 0.0), (0.0, -1.0, 0.0), (0.3, 0.2, -0.1), (0.0, 0.0, -1.0)]
+ptm("bake", "--res", str(RES), "--spp", "4", "--dirs", "64", "-o", "s.exr")
+lib_doc = mx.createDocument()
+mx.readFromXmlFile(lib_doc, committed)
+
+# A world frame for the second pass: rotation R, a tangent that is neither unit nor orthogonal
+# to N (the graph orthonormalises it), a light vector that is not unit (the graph normalises).
+ax = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
+ang = 0.9
+K_ = np.array([[0, -ax[2], ax[1]], [ax[2], 0, -ax[0]], [-ax[1], ax[0], 0]])
+R = np.eye(3) + np.sin(ang) * K_ + (1 - np.cos(ang)) * K_ @ K_
+jj, ii = np.meshgrid(np.arange(RES), np.arange(RES), indexing="ij")  # row j, column i
+uv_tex = np.stack([(ii + 0.5) / RES, 1 - (jj + 0.5) / RES], axis=-1).reshape(-1, 2)
+npts = uv_tex.shape[0]
+FRAMES = {
+    "swatch frame": (uv_tex, np.tile([0.0, 0.0, 1.0], (npts, 1)), np.tile([1.0, 0.0, 0.0], (npts, 1)),
+                     np.eye(3), 1.0),
+    # UVs one tile over (periodic addressing), the frame rotated by R.
+    "rotated frame": (uv_tex + [1.0, -2.0], np.tile(R[:, 2], (npts, 1)),
+                      np.tile(2.0 * R[:, 0] + 0.3 * R[:, 2], (npts, 1)), R, 3.0),
+}
+worst_all = {}
+used = set()
+for basis in ("ptm6", "ptm11"):
+    for link in ("identity", "logistic"):
+        for uvmap in ("projected", "hemispherical"):
+            stem = f"{basis}-{link}-{uvmap}.ptm"
+            ptm("fit", "s.exr", "--basis", basis, "--link", link, "--uv", uvmap, "--layout", "rgba",
+                "-o", stem + ".exr")
+            ref = np.array(json.loads(subprocess.run(
+                [EVAL, os.path.join(WORK, stem + ".c0.exr")] + [",".join(map(repr, d)) for d in DIRS],
+                check=True, capture_output=True, text=True).stdout)).reshape(len(DIRS), -1)
+            assert ref[2].max() - ref[2].min() > 0.05, f"{stem}: K is flat; the check would prove nothing"
+            assert ((ref > 1e-3) & (ref < 1 - 1e-3)).any(), f"{stem}: K is all clamped"
+            worst = 0.0
+            doc = mx.createDocument()
+            doc.importLibrary(lib_doc)
+            doc.importLibrary(lib)
+            node = doc.addNode("ptm_occlusion", "K", "float")
+            for k in range(3 if basis == "ptm11" else 2):
+                node.setInputValue(f"part{k}", f"{stem}.c{k}.exr", "filename")
+            node.setInputValue("basis", 11 if basis == "ptm11" else 6, "integer")
+            node.setInputValue("link", 1 if link == "logistic" else 0, "integer")
+            node.setInputValue("uvmap", 1 if uvmap == "hemispherical" else 0, "integer")
+            light = node.addInput("light_dir", "vector3")
+            light.setValueString("0, 0, 1")
+            filt = node.addInput("filtertype", "string")
+            filt.setValueString("linear")
+            ok, msg = doc.validate()
+            assert ok, msg
+            for fname, (uv, nrm, tan, rot, scale) in FRAMES.items():
+                ev = mx_numpy.Evaluator({"UV0": uv, "Nworld": nrm, "Tworld": tan}, root=WORK)
+                for ft in ("linear", "closest"):
+                    filt.setValueString(ft)
+                    for di, d in enumerate(DIRS):
+                        if fname != "swatch frame" and d[2] == 0.0:
+                            continue  # exactly on the horizon: rounding in R decides the side
+                        # As a string: MaterialX's own formatting (setInputValue) keeps 6 digits.
+                        light.setValueString(", ".join(repr(float(x)) for x in scale * rot @ np.array(d)))
+                        k = ev.node(node)
+                        assert k.shape == (npts,) and np.isfinite(k).all(), f"{stem}: K not finite for {d}"
+                        err = float(np.abs(k - ref[di]).max())
+                        assert err <= TOL, (f"{stem} {fname} {ft} light {d}: nodegraph K differs from "
+                                            f"Ptm::eval by {err:.2e} (tolerance {TOL})")
+                        worst = max(worst, err)
+                used |= ev.used
+            worst_all[f"{basis} {link} {uvmap}"] = worst
+            print(f"materialx: {basis} {link} {uvmap}: max |K(nodegraph, numpy) - Ptm::eval| = {worst:.1e} "
+                  f"over {len(DIRS)} lights x 2 frames x 2 filters x {npts} texels", flush=True)
+gdoc = mx.createDocument()
+gdoc.importLibrary(lib_doc)
+gdoc.importLibrary(lib)
+graph_defs = {n.getNodeDef().getName() for n in gdoc.getNodeGraph("NG_ptm_occlusion_float").getNodes()}
+assert graph_defs <= used, f"nodedefs of the graph never evaluated: {graph_defs - used}"
+# The evaluator must refuse what it does not know, not skip it: a graph with a node it lacks.
+bad = mx.createDocument()
+bad.importLibrary(lib_doc)
+bad_ng = bad.getNodeGraph("NG_ptm_occlusion_float")
+noise = bad_ng.addNode("noise2d", "noise", "float")
+next(n for n in bad_ng.getNodes() if n.getCategory() == "clamp").setConnectedNode("in", noise)
+bad.importLibrary(lib)
+node = bad.addNode("ptm_occlusion", "K", "float")
+try:
+    mx_numpy.Evaluator({"UV0": uv_tex, "Nworld": FRAMES["swatch frame"][1], "Tworld": FRAMES["swatch frame"][2]},
+                       root=WORK).node(node)
+    raise AssertionError("mx_numpy evaluated a noise2d node it does not implement")
+except mx_numpy.Unsupported as e:
+    assert "noise2d" in str(e), e
+print(f"materialx: nodegraph K = Ptm::eval to {max(worst_all.values()):.1e} (tolerance {TOL}) for "
+      f"{len(worst_all)} PTMs; {len(used)} standard nodedefs evaluated in numpy; an unknown node "
+      f"fails; {time.time() - t0:.1f} s")
