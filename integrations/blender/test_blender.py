@@ -4,6 +4,7 @@ and compares every pixel centre with the Rust `Ptm::eval_dir` (fit/examples/ptm_
 The same for the OSL that MaterialX's generator writes for ND_ptm_occlusion_float
 (integrations/materialx/mtlx_osl.py makes MTLX_OSL), compiled by Cycles' OSL compiler: a
 compile error fails the test with the compiler's message.
+The README's OSL shader group is built as written and lit: its shadowing equals 1 − Ptm::eval.
 Then renders the lit example (plane tiled 4×, micro-shadows from one key sun) to a PNG.
 
     python test_blender.py PTM_BIN PTM_EVAL MTLX_OSL WORKDIR [LIT_PNG]
@@ -147,6 +148,74 @@ def mtlx_material(oso, stem, basis, link, uv, light_obj):
     return mat
 
 
+def readme_osl_group():
+    """The README's OSL shader group (integrations/osl/test_readme_example.py reads it) built as
+    Script nodes with its parameters as written, plus what Cycles needs beside them (the UV and
+    the UV tangent, as the README says; closest lookups so pixel centres are texel values), lit
+    by a sun along its light_dir. The render divided by the same render with `visibility` left
+    at 1 is the visibility 1 − K: compared with Ptm::eval at every pixel centre."""
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "osl"))
+    from test_readme_example import readme_group
+
+    layers, connections = readme_group()
+    key = layers[0][2]
+    stem = os.path.join(WORK, key["stem"][1][0])
+    basis = f"ptm{key['basis'][1][0]}"
+    link = ["identity", "logistic"][key["link"][1][0]]
+    uv = ["projected", "hemispherical"][key["uvmap"][1][0]]
+    light = key["light_dir"][1]
+    subprocess.run([PTM, "bake", "--res", str(RES), "--spp", "4", "--dirs", "64", "--fit", basis, "--link", link,
+                    "--uv", uv, "--layout", "rgba", "-o", stem + ".exr"], check=True, capture_output=True)
+    ref = json.loads(subprocess.run([EVAL, stem + ".c0.exr", ",".join(map(str, light))],
+                                    check=True, capture_output=True, text=True).stdout)[0]
+    renders = []
+    cwd = os.getcwd()
+    os.chdir(WORK)  # the README's stem is relative
+    try:
+        for wired in (True, False):
+            sc, plane, sun = scene_setup()
+            sun.data.angle = 0.0
+            aim(sun, light)
+            sc.cycles.shading_system = True
+            mat = bpy.data.materials.new("README OSL group")
+            mat.use_nodes = True
+            tree = mat.node_tree
+            tree.nodes.clear()
+            nodes = {}
+            for shader, layer, params in layers:
+                node = tree.nodes.new("ShaderNodeScript")
+                node.mode = "EXTERNAL"
+                node.filepath = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", "osl", shader + ".osl"))
+                node.update()
+                for pname, (ty, values) in params.items():
+                    node.inputs[pname].default_value = values[0] if len(values) == 1 else values
+                nodes[layer] = node
+            if wired:
+                for sl, sp, dl, dp in connections:
+                    tree.links.new(nodes[sl].outputs[sp], nodes[dl].inputs[dp])
+            first = nodes[layers[0][1]]
+            texco = tree.nodes.new("ShaderNodeTexCoord")
+            tree.links.new(texco.outputs["UV"], first.inputs["UV"])
+            tangent = tree.nodes.new("ShaderNodeTangent")
+            tangent.direction_type = "UV_MAP"
+            tree.links.new(tangent.outputs["Tangent"], first.inputs["Tangent"])
+            first.inputs["interp"].default_value = "closest"
+            out = tree.nodes.new("ShaderNodeOutputMaterial")
+            tree.links.new(nodes[layers[-1][1]].outputs[0], out.inputs["Surface"])
+            plane.data.materials.append(mat)
+            renders.append(render_k(sc, os.path.join(WORK, f"readme-osl-{wired}.exr")))
+    finally:
+        os.chdir(cwd)
+    lit, bare = renders
+    assert min(min(r) for r in bare) > 1e-3, "the unshadowed README render is black: no light reached it"
+    err = max(abs(lit[r][c] / bare[r][c] - (1 - ref[r][c])) for r in range(RES) for c in range(RES))
+    spread = max(max(r) for r in ref) - min(min(r) for r in ref)
+    assert spread > 0.05, f"K is flat under the README's light {light}; the test would prove nothing"
+    print(f"blender: README OSL shader group ({' + '.join(l[0] for l in layers)}), lit: "
+          f"render / unshadowed render = 1 - Ptm::eval to {err:.2e}", flush=True)
+    return err
+
+
 def main():
     os.makedirs(WORK, exist_ok=True)
     worst = {}
@@ -207,6 +276,7 @@ def main():
     os.chdir(cwd)
     assert plane.data.materials and plane.data.materials[0].node_tree, "README example made no material"
     print("blender: README example builds its material")
+    worst["README OSL shader group (lit ratio)"] = readme_osl_group()
     if LIT_PNG:
         sc, plane, sun = scene_setup()
         name = os.path.join(WORK, "lit.ptm.exr")
