@@ -232,6 +232,24 @@ fn read_single(path: &Path) -> Result<Single> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| format_err(path, format!("not a readable OpenEXR file: {e}")))?;
+    single_of(path, image)
+}
+
+/// One single-part EXR from bytes this crate encoded (`shown` names it in errors).
+fn decode_single(shown: &Path, bytes: &[u8]) -> Result<Single> {
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .all_resolution_levels()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| format_err(shown, format!("reading back its EXR: {e}")))?;
+    single_of(shown, image)
+}
+
+/// The maps and attributes of a read image.
+fn single_of(path: &Path, image: Image<Layer<AnyChannels<Levels<FlatSamples>>>>) -> Result<Single> {
     let layer = image.layer_data;
     let (width, height) = (layer.size.0, layer.size.1);
     let sizes = mip_sizes(width, height);
@@ -389,6 +407,18 @@ impl PtmFile {
                     Basis::ALL.map(|b| b.name()).join(", ")
                 ),
             )
+        })
+    }
+
+    /// The maps and header attributes [`Ptm::save`] with `opts` writes for `ptm`, in memory
+    /// (`path` names the file in errors only).
+    pub fn from_ptm(ptm: &Ptm, path: &Path, opts: &SaveOptions) -> Result<PtmFile> {
+        let s = decode_single(path, &ptm.encode(path, opts)?)?;
+        Ok(PtmFile {
+            width: s.width,
+            height: s.height,
+            maps: s.maps,
+            attrs: s.attrs,
         })
     }
 
@@ -802,34 +832,16 @@ pub fn remove_stale_errors(path: &Path, layout: Layout, written: &[PathBuf]) {
 }
 
 /// The files [`save`] writes, encoded (nothing written): the channel layout's single file, or
-/// the renderer layout's parts, made from the channel layout's encoding (read back through a
-/// scratch file) so both carry the same header and maps.
+/// the renderer layout's parts, made from the channel layout's encoding (decoded in memory,
+/// [`PtmFile::from_ptm`]) so both carry the same header and maps.
 pub fn encode(
     ptm: &Ptm,
     path: &Path,
     opts: &SaveOptions,
     layout: Layout,
 ) -> Result<Vec<(PathBuf, Vec<u8>)>> {
-    let single = ptm.encode(path, opts)?;
     match layout {
-        Layout::Channels => Ok(vec![(path.to_path_buf(), single)]),
-        Layout::Rgba => {
-            let scratch = crate::atomic::tmp_path(path);
-            let s = std::fs::write(&scratch, &single)
-                .map_err(|source| Error::Io {
-                    path: scratch.display().to_string(),
-                    source,
-                })
-                .and_then(|()| read_single(&scratch));
-            let _ = std::fs::remove_file(&scratch);
-            let s = s?;
-            PtmFile {
-                width: s.width,
-                height: s.height,
-                maps: s.maps,
-                attrs: s.attrs,
-            }
-            .encode(path, Layout::Rgba)
-        }
+        Layout::Channels => Ok(vec![(path.to_path_buf(), ptm.encode(path, opts)?)]),
+        Layout::Rgba => PtmFile::from_ptm(ptm, path, opts)?.encode(path, Layout::Rgba),
     }
 }
