@@ -25,7 +25,7 @@ use exr::math::RoundingMode;
 use exr::meta::attribute::AttributeValue;
 use exr::prelude::*;
 
-use crate::ptm::{mip_sizes, Level};
+use crate::ptm::{mip_sizes, Level, PTM_VERSION, PTM_VERSION_2};
 use crate::{Basis, Error, Link, Ptm, Result, SaveOptions, UvMap};
 
 /// Value of `ptm:layout` in every part of the renderer layout.
@@ -445,6 +445,7 @@ impl PtmFile {
     /// The PTM these maps hold (checks link, (u, v) map, planes and MIP levels).
     pub fn to_ptm(&self, path: &Path) -> Result<Ptm> {
         let basis = self.basis(path)?;
+        check_version(&self.attrs, basis, path)?;
         let (link, uv) = link_and_uv(&self.attrs, path)?;
         let num = |name: &str| match self.attrs.get(name) {
             Some(AttributeValue::F64(x)) => Ok(*x),
@@ -620,6 +621,44 @@ impl PtmFile {
     }
 }
 
+/// Refuses what [`Ptm::load`] refuses in a header: a `ptm:version` other than
+/// [`PTM_VERSION`] and [`PTM_VERSION_2`] (or none), a `ptm:monomials` list that is not `basis`'s.
+fn check_version(
+    attrs: &BTreeMap<String, AttributeValue>,
+    basis: Basis,
+    path: &Path,
+) -> Result<()> {
+    match attr_text(attrs, "ptm:version") {
+        Some(v) if v == PTM_VERSION || v == PTM_VERSION_2 => {}
+        Some(v) => {
+            return Err(format_err(
+                path,
+                format!("PTM version {v:?} in `ptm:version` is not supported (this version reads {PTM_VERSION:?} and {PTM_VERSION_2:?})"),
+            ))
+        }
+        None => {
+            return Err(format_err(
+                path,
+                "not an occlusion PTM (no `ptm:version` attribute)",
+            ))
+        }
+    }
+    if let Some(AttributeValue::TextVector(list)) = attrs.get("ptm:monomials") {
+        let list: Vec<String> = list.iter().map(text_of).collect();
+        let want: Vec<&str> = basis.monomials().iter().map(|m| m.name).collect();
+        if list != want {
+            return Err(format_err(
+                path,
+                format!(
+                    "monomial list {list:?} in `ptm:monomials` does not match basis {} ({want:?})",
+                    basis.name()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The `ptm:link` and `ptm:uv` of a header (absent = the plain PTM's); unknown values are refused
 /// by name.
 fn link_and_uv(attrs: &BTreeMap<String, AttributeValue>, path: &Path) -> Result<(Link, UvMap)> {
@@ -701,6 +740,7 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
             .collect(),
     };
     let basis = file.basis(&p0)?;
+    check_version(&file.attrs, basis, &p0)?;
     link_and_uv(&file.attrs, &p0)?;
     let parts = parts(basis);
     let mut singles = vec![first];

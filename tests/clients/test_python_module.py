@@ -14,6 +14,7 @@ import sys
 import time
 
 import numpy as np
+import OpenEXR
 
 import ptm
 
@@ -240,6 +241,17 @@ expect_error(ValueError, "s.exr: not an occlusion PTM", lambda: ptm.load(w("s.ex
 with open(w("text.exr"), "w") as f:
     f.write("not an EXR\n")
 expect_error(ValueError, "text.exr: not a readable OpenEXR file", lambda: ptm.load(w("text.exr")), "a file that is no EXR")
+# A header that Ptm::load refuses is refused here too (written by Python OpenEXR).
+src = OpenEXR.File(w("ptm6-identity-projected.ptm.exr"))
+for key, value, needle in [("ptm:version", "occlusion-ptm/9", "occlusion-ptm/9"),
+                           ("ptm:monomials", ["u", "v"], "`ptm:monomials` does not match basis ptm6")]:
+    h = src.header()
+    kept = h[key]
+    h[key] = value
+    src.write(w("odd.ptm.exr"))
+    h[key] = kept
+    expect_error(ValueError, "odd.ptm.exr: ", lambda: ptm.load(w("odd.ptm.exr")), f"an unknown {key}")
+    expect_error(ValueError, needle, lambda: ptm.load(w("odd.ptm.exr")), f"an unknown {key}")
 p = ptm.load(w("ptm11-logistic-projected.ptm.exr"))
 p.save(w("gap.ptm.exr"), layout="rgba")
 os.remove(w("gap.ptm.c1.exr"))
