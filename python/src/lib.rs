@@ -246,8 +246,9 @@ fn flat<T: numpy::Element + Copy>(
 #[pyclass(name = "Ptm", module = "ptm", frozen)]
 struct PyPtm {
     ptm: Ptm,
-    /// Every map and header attribute as loaded (saved back verbatim); `None` for a PTM built
-    /// from arrays, whose file is what `Ptm::save` writes.
+    /// Every map and header attribute as loaded (saved back verbatim), the coefficient maps
+    /// without their levels (they are `ptm`'s planes and MIP levels, held once); `None` for a
+    /// PTM built from arrays, whose file is what `Ptm::save` writes.
     file: Option<PtmFile>,
     /// The layout it was loaded from.
     layout: Option<Layout>,
@@ -531,7 +532,7 @@ impl PyPtm {
                     };
                     layout::save(&self.ptm, &path, &opts, layout)
                 }
-                Some(file) => with_storage(file, &path, half)?.save(&path, layout),
+                Some(file) => with_storage(file, &self.ptm, &path, half)?.save(&path, layout),
             })
             .map_err(py_err)?;
         Ok(written
@@ -588,10 +589,34 @@ impl PyPtm {
     }
 }
 
-/// `file` stored as half floats or float32 (every map, and `ptm:storage`, as `Ptm::save` does);
-/// a coefficient a half float cannot hold is an error naming `path`.
-fn with_storage(file: &PtmFile, path: &Path, half: bool) -> ptm_format::Result<PtmFile> {
+/// The name of coefficient `j`'s map in a [`PtmFile`] (`ptm.u2`, …).
+fn coefficient_map(ptm: &Ptm, j: usize) -> String {
+    format!("ptm.{}", ptm.basis.monomials()[j].name)
+}
+
+/// `file` with its coefficient maps' levels moved out: `ptm` (made from it) holds them.
+fn without_coefficients(mut file: PtmFile, ptm: &Ptm) -> PtmFile {
+    for j in 0..ptm.basis.len() {
+        if let Some(m) = file.maps.get_mut(&coefficient_map(ptm, j)) {
+            m.levels = Vec::new();
+        }
+    }
+    file
+}
+
+/// `file` (as [`without_coefficients`] left it) with `ptm`'s planes and MIP levels back in its
+/// coefficient maps, stored as half floats or float32 (every map, and `ptm:storage`, as
+/// `Ptm::save` does); a coefficient a half float cannot hold is an error naming `path`.
+fn with_storage(file: &PtmFile, ptm: &Ptm, path: &Path, half: bool) -> ptm_format::Result<PtmFile> {
     let mut file = file.clone();
+    for j in 0..ptm.basis.len() {
+        if let Some(m) = file.maps.get_mut(&coefficient_map(ptm, j)) {
+            m.levels = std::iter::once(&ptm.planes[j])
+                .chain(ptm.mips.iter().map(|l| &l.planes[j]))
+                .cloned()
+                .collect();
+        }
+    }
     if half {
         let big = file
             .maps
@@ -632,8 +657,8 @@ fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyPtm> {
         .map_err(py_err)?;
     let (file, ptm) = file;
     Ok(PyPtm {
+        file: Some(without_coefficients(file, &ptm)),
         ptm,
-        file: Some(file),
         layout: Some(layout),
     })
 }
