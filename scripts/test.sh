@@ -24,6 +24,12 @@ if cargo tree -p ptm-format -e normal --prefix none | grep -E '^(nalgebra|rayon|
     exit 1
 fi
 
+echo "== ptm-python (the Python module) takes ptm-format, not the fitter" >&2
+if cargo tree -p ptm-python -e normal --prefix none | grep -E '^(ptm-fit|nalgebra|rayon|rayon-core|image|glob|embree4-sys|wgpu) ' ; then
+    echo "ptm-python must depend on ptm-format, not on ptm-fit, nalgebra, rayon, image, glob, embree4-sys or wgpu (see ARCHITECTURE.md)" >&2
+    exit 1
+fi
+
 echo "== cargo clippy --all-targets" >&2
 cargo clippy --workspace --all-targets -- -D warnings
 
@@ -56,6 +62,17 @@ rm -rf "$rw_work"
 
 echo "== the README's OSL shader group against the OSL shaders it names (integrations/osl)" >&2
 .deps/py/bin/python integrations/osl/test_readme_example.py
+
+echo "== the Python module ptm (python/, maturin) against Ptm::eval, round trips, errors, the README example (tests/clients)" >&2
+# A release build: the test times eval and a pipeline gets this build; it adds about 1 min.
+t_module=$SECONDS
+rm -rf target/wheels/ptm
+.deps/py/bin/maturin build --release -q -m python/Cargo.toml -i .deps/py/bin/python -o target/wheels/ptm
+.deps/py/bin/pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/ptm/ptm-*.whl
+echo "python module: built and installed in $((SECONDS - t_module)) s" >&2
+py_work=$(mktemp -d)
+.deps/py/bin/python tests/clients/test_python_module.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$py_work"
+rm -rf "$py_work"
 
 echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL; its K in numpy against Ptm::eval (integrations/materialx)" >&2
 mx_work=$(mktemp -d)

@@ -12,8 +12,8 @@
 //! Modules: [`basis`] (monomial tables, from `ptm-format`), [`lights`] (light sets, `.lp`), [`stack`] (the stored
 //! sample stack `samples.exr`), [`solve`] (shared-design SVD fit, streaming [`Accumulator`],
 //! per-texel solves, diagnostics), [`ptm`] (the PTM EXR, [`Ptm::load`], [`Ptm::eval`]), [`hp`]
-//! (HP PTM 1.2 LRGB export), [`atomic`] (atomic output) — these four from `ptm-format` —
-//! and [`images`] (RTI PNG stacks). File layouts: docs/FORMAT.md.
+//! (HP PTM 1.2 LRGB export), [`atomic`] (atomic output), [`layout`] (the renderer layout) —
+//! these five from `ptm-format` — and [`images`] (RTI PNG stacks). File layouts: docs/FORMAT.md.
 //!
 //! Loading a PTM in a render pipeline:
 //! ```no_run
@@ -29,7 +29,6 @@
 
 pub mod diagnostic;
 pub mod images;
-pub mod layout;
 pub mod lights;
 pub mod logistic;
 pub mod shard;
@@ -39,7 +38,7 @@ pub mod stack;
 
 // The file layer, re-exported so `ptm_fit::Ptm`, `ptm_fit::basis::…` and `crate::ptm::…` here
 // keep naming the same items.
-pub use ptm_format::{atomic, basis, exrio, hash, hp, ptm, vec3};
+pub use ptm_format::{atomic, basis, exrio, hash, hp, layout, ptm, vec3};
 pub use ptm_format::{Error as FormatError, FileFacts, ToFileFacts};
 
 pub use basis::{Basis, Link, Monomial, UvMap};

@@ -326,14 +326,20 @@ fn bad_rgba_sets_are_refused_naming_file_and_part() {
         "{e}"
     );
 
-    // Unknown link and (u, v) map: refused by name, in either layout, and never written.
-    for (key, value) in [("ptm:link", "softmax"), ("ptm:uv", "octahedral")] {
+    // Unknown link, (u, v) map and version: refused by name, in either layout, and never
+    // written (the version as `Ptm::load` refuses it).
+    for (key, value) in [
+        ("ptm:link", "softmax"),
+        ("ptm:uv", "octahedral"),
+        ("ptm:version", "occlusion-ptm/9"),
+    ] {
         let mut bad = f.clone();
         bad.attrs.insert(
             key.into(),
             exr::meta::attribute::AttributeValue::Text(Text::from(value)),
         );
-        let out = dir.join(format!("{value}.ptm.exr"));
+        let name = value.replace('/', "-");
+        let out = dir.join(format!("{name}.ptm.exr"));
         let e = bad.save(&out, Layout::Rgba).unwrap_err().to_string();
         assert!(e.contains(value) && e.contains(key), "{e}");
         assert!(!part_path(&out, 0).exists());
@@ -341,7 +347,7 @@ fn bad_rgba_sets_are_refused_naming_file_and_part() {
         assert!(e.contains(value), "{e}");
         assert!(!out.exists());
         // A set whose parts say so is refused on read, naming part c0.
-        let u = copy(&format!("u-{value}.ptm.exr"));
+        let u = copy(&format!("u-{name}.ptm.exr"));
         let img = read_all_flat_layers_from_file(part_path(&good, 0)).unwrap();
         let mut layer = img.layer_data[0].clone();
         layer.attributes.other.insert(
@@ -353,7 +359,7 @@ fn bad_rgba_sets_are_refused_naming_file_and_part() {
             .to_file(part_path(&u, 0))
             .unwrap();
         let e = err_of(&u);
-        assert!(e.contains(&format!("u-{value}.ptm.c0.exr")), "{e}");
+        assert!(e.contains(&format!("u-{name}.ptm.c0.exr")), "{e}");
         assert!(e.contains(value), "{e}");
     }
 

@@ -1,6 +1,7 @@
 //! `ptm-format`: the occlusion PTM file and all a render pipeline needs to use one — the
 //! polynomial bases, links and (u, v) maps ([`basis`]), the PTM in memory with [`Ptm::load`],
-//! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), HP PTM 1.2
+//! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), the
+//! renderer layout of RGB(A) parts and its lossless conversion ([`layout`]), HP PTM 1.2
 //! export ([`hp`]), the atomic file output every writer of the workspace uses ([`atomic`]), the
 //! one seeded hash every crate draws its random numbers from ([`hash`]) and the 3-vector helpers
 //! ([`vec3`]).
@@ -33,11 +34,13 @@ pub mod basis;
 pub mod exrio;
 pub mod hash;
 pub mod hp;
+pub mod layout;
 pub mod ptm;
 pub mod vec3;
 
 pub use atomic::{same_file, write_atomic, Transaction};
 pub use basis::{Basis, Link, Monomial, UvMap};
+pub use layout::{Layout, PtmFile};
 pub use ptm::{FileFacts, Level, Ptm, PtmInfo, SaveOptions, ToFileFacts};
 
 /// Errors of the format crate. Messages name the file and, where there is something to do, what.

@@ -13,8 +13,8 @@
 //!   `ptm:partChannels` and `wrapmodes` = `periodic,periodic`; MIP-mapped files are tiled
 //!   64×64 `MIPMAP_LEVELS` `ROUND_DOWN`, as `maketx` writes.
 //!
-//! This module is self-contained (the `exr` crate and ptm-fit's public [`Ptm`] / [`Basis`]
-//! types only): a [`PtmFile`] holds every map with all its levels and stored sample type and
+//! This module uses the `exr` crate and this crate's public [`Ptm`] / [`Basis`] types only
+//! (it moved here from `ptm-fit`, which re-exports it as `ptm_fit::layout`): a [`PtmFile`] holds every map with all its levels and stored sample type and
 //! every header attribute verbatim, so converting either way and back gives the same samples,
 //! types and attributes. Writes are atomic per file and all-or-nothing per set: every part is
 //! written to a temporary file first and renamed only when all are complete.
@@ -25,7 +25,7 @@ use exr::math::RoundingMode;
 use exr::meta::attribute::AttributeValue;
 use exr::prelude::*;
 
-use crate::ptm::{mip_sizes, Level};
+use crate::ptm::{mip_sizes, Level, PTM_VERSION, PTM_VERSION_2};
 use crate::{Basis, Error, Link, Ptm, Result, SaveOptions, UvMap};
 
 /// Value of `ptm:layout` in every part of the renderer layout.
@@ -232,6 +232,24 @@ fn read_single(path: &Path) -> Result<Single> {
         .all_attributes()
         .from_file(path)
         .map_err(|e| format_err(path, format!("not a readable OpenEXR file: {e}")))?;
+    single_of(path, image)
+}
+
+/// One single-part EXR from bytes this crate encoded (`shown` names it in errors).
+fn decode_single(shown: &Path, bytes: &[u8]) -> Result<Single> {
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .all_resolution_levels()
+        .all_channels()
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| format_err(shown, format!("reading back its EXR: {e}")))?;
+    single_of(shown, image)
+}
+
+/// The maps and attributes of a read image.
+fn single_of(path: &Path, image: Image<Layer<AnyChannels<Levels<FlatSamples>>>>) -> Result<Single> {
     let layer = image.layer_data;
     let (width, height) = (layer.size.0, layer.size.1);
     let sizes = mip_sizes(width, height);
@@ -392,6 +410,18 @@ impl PtmFile {
         })
     }
 
+    /// The maps and header attributes [`Ptm::save`] with `opts` writes for `ptm`, in memory
+    /// (`path` names the file in errors only).
+    pub fn from_ptm(ptm: &Ptm, path: &Path, opts: &SaveOptions) -> Result<PtmFile> {
+        let s = decode_single(path, &ptm.encode(path, opts)?)?;
+        Ok(PtmFile {
+            width: s.width,
+            height: s.height,
+            maps: s.maps,
+            attrs: s.attrs,
+        })
+    }
+
     /// Reads a PTM in either layout. `path` names the channel-layout file, or any file of the
     /// renderer layout (`w.ptm.c0.exr`, or `w.ptm.exr` when only the `.c*` files exist).
     pub fn load(path: &Path) -> Result<(PtmFile, Layout)> {
@@ -415,6 +445,7 @@ impl PtmFile {
     /// The PTM these maps hold (checks link, (u, v) map, planes and MIP levels).
     pub fn to_ptm(&self, path: &Path) -> Result<Ptm> {
         let basis = self.basis(path)?;
+        check_version(&self.attrs, basis, path)?;
         let (link, uv) = link_and_uv(&self.attrs, path)?;
         let num = |name: &str| match self.attrs.get(name) {
             Some(AttributeValue::F64(x)) => Ok(*x),
@@ -595,6 +626,44 @@ impl PtmFile {
     }
 }
 
+/// Refuses what [`Ptm::load`] refuses in a header: a `ptm:version` other than
+/// [`PTM_VERSION`] and [`PTM_VERSION_2`] (or none), a `ptm:monomials` list that is not `basis`'s.
+fn check_version(
+    attrs: &BTreeMap<String, AttributeValue>,
+    basis: Basis,
+    path: &Path,
+) -> Result<()> {
+    match attr_text(attrs, "ptm:version") {
+        Some(v) if v == PTM_VERSION || v == PTM_VERSION_2 => {}
+        Some(v) => {
+            return Err(format_err(
+                path,
+                format!("PTM version {v:?} in `ptm:version` is not supported (this version reads {PTM_VERSION:?} and {PTM_VERSION_2:?})"),
+            ))
+        }
+        None => {
+            return Err(format_err(
+                path,
+                "not an occlusion PTM (no `ptm:version` attribute)",
+            ))
+        }
+    }
+    if let Some(AttributeValue::TextVector(list)) = attrs.get("ptm:monomials") {
+        let list: Vec<String> = list.iter().map(text_of).collect();
+        let want: Vec<&str> = basis.monomials().iter().map(|m| m.name).collect();
+        if list != want {
+            return Err(format_err(
+                path,
+                format!(
+                    "monomial list {list:?} in `ptm:monomials` does not match basis {} ({want:?})",
+                    basis.name()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The `ptm:link` and `ptm:uv` of a header (absent = the plain PTM's); unknown values are refused
 /// by name.
 fn link_and_uv(attrs: &BTreeMap<String, AttributeValue>, path: &Path) -> Result<(Link, UvMap)> {
@@ -676,6 +745,7 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
             .collect(),
     };
     let basis = file.basis(&p0)?;
+    check_version(&file.attrs, basis, &p0)?;
     link_and_uv(&file.attrs, &p0)?;
     let parts = parts(basis);
     let mut singles = vec![first];
@@ -807,34 +877,16 @@ pub fn remove_stale_errors(path: &Path, layout: Layout, written: &[PathBuf]) {
 }
 
 /// The files [`save`] writes, encoded (nothing written): the channel layout's single file, or
-/// the renderer layout's parts, made from the channel layout's encoding (read back through a
-/// scratch file) so both carry the same header and maps.
+/// the renderer layout's parts, made from the channel layout's encoding (decoded in memory,
+/// [`PtmFile::from_ptm`]) so both carry the same header and maps.
 pub fn encode(
     ptm: &Ptm,
     path: &Path,
     opts: &SaveOptions,
     layout: Layout,
 ) -> Result<Vec<(PathBuf, Vec<u8>)>> {
-    let single = ptm.encode(path, opts)?;
     match layout {
-        Layout::Channels => Ok(vec![(path.to_path_buf(), single)]),
-        Layout::Rgba => {
-            let scratch = crate::atomic::tmp_path(path);
-            let s = std::fs::write(&scratch, &single)
-                .map_err(|source| Error::Io {
-                    path: scratch.display().to_string(),
-                    source,
-                })
-                .and_then(|()| read_single(&scratch));
-            let _ = std::fs::remove_file(&scratch);
-            let s = s?;
-            PtmFile {
-                width: s.width,
-                height: s.height,
-                maps: s.maps,
-                attrs: s.attrs,
-            }
-            .encode(path, Layout::Rgba)
-        }
+        Layout::Channels => Ok(vec![(path.to_path_buf(), ptm.encode(path, opts)?)]),
+        Layout::Rgba => PtmFile::from_ptm(ptm, path, opts)?.encode(path, Layout::Rgba),
     }
 }
