@@ -438,7 +438,7 @@ impl Ptm {
             ),
             (
                 "ptm:software",
-                Attr::Text(format!("ptm-fit {}", env!("CARGO_PKG_VERSION"))),
+                Attr::Text(format!("ptm {}", env!("CARGO_PKG_VERSION"))),
             ),
         ];
         if let Some(cov) = &self.coverage {
