@@ -277,6 +277,30 @@ impl Ptm {
                 self.basis.len()
             )));
         }
+        if !self.tile.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return Err(Error::Invalid(format!(
+                "PTM {}×{}: tile {} × {} is not a positive finite size",
+                self.width, self.height, self.tile[0], self.tile[1]
+            )));
+        }
+        let levels = std::iter::once((self.width, &self.planes))
+            .chain(self.mips.iter().map(|l| (l.width, &l.planes)));
+        for (level, (w, planes)) in levels.enumerate() {
+            for (j, plane) in planes.iter().enumerate() {
+                if let Some(i) = plane.iter().position(|c| !c.is_finite()) {
+                    return Err(Error::Invalid(format!(
+                        "PTM {}×{}: coefficient {} is {} at texel (column {}, row {}){}: not a number a renderer can use",
+                        self.width,
+                        self.height,
+                        self.basis.monomials().get(j).map_or("?", |m| m.name),
+                        plane[i],
+                        i % w.max(1),
+                        i / w.max(1),
+                        if level > 0 { format!(" of MIP level {level}") } else { String::new() }
+                    )));
+                }
+            }
+        }
         if let Some(cov) = &self.coverage {
             if cov.len() != n {
                 return Err(Error::Invalid(format!(

@@ -298,3 +298,43 @@ fn storage_is_the_channel_type_on_disk() {
         assert_eq!(back.planes, orig.planes);
     }
 }
+
+/// A coefficient that is not a number, or a tile that is not a size, is refused on save (and so
+/// on load: the reader validates the same way), naming the value and where it is.
+#[test]
+fn non_finite_coefficients_and_tiles_are_refused() {
+    let d = tempfile::tempdir().unwrap();
+    let p = d.path().join("w.ptm.exr");
+    let mut bad = ptm(9, 6, false);
+    bad.planes[2][9 + 4] = f32::NAN;
+    let e = bad
+        .save(&p, &SaveOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("coefficient uv is NaN at texel (column 4, row 1)"),
+        "{e}"
+    );
+    let mut bad = ptm(9, 6, true);
+    bad.mips[1].planes[0][0] = f32::INFINITY;
+    let e = bad
+        .save(&p, &SaveOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("inf") && e.contains("MIP level 2"), "{e}");
+    for tile in [
+        [f64::INFINITY, 1.0],
+        [1.0, 0.0],
+        [-1.0, 1.0],
+        [f64::NAN, 1.0],
+    ] {
+        let mut bad = ptm(9, 6, false);
+        bad.tile = tile;
+        let e = bad
+            .save(&p, &SaveOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("tile"), "{tile:?}: {e}");
+    }
+    assert!(!p.exists(), "nothing written");
+}
