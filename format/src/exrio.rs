@@ -106,7 +106,7 @@ pub fn encode_levels(
     attrs: Vec<(&str, Attr)>,
 ) -> Result<Vec<u8>> {
     let mipped = channels.first().is_some_and(|(_, l)| l.len() > 1);
-    let list: SmallVec<[AnyChannel<Levels<FlatSamples>>; 4]> = channels
+    let list: ChannelList = channels
         .into_iter()
         .map(|(name, levels)| {
             let data = if mipped {
@@ -130,6 +130,26 @@ pub fn encode_levels(
         };
         la.other.insert(text(name), value);
     }
+    encode_layer(path, width, height, la, list)
+}
+
+/// Channels of one layer with all their resolution levels, as the `exr` crate takes them.
+pub type ChannelList = SmallVec<[AnyChannel<Levels<FlatSamples>>; 4]>;
+
+/// The bytes of a single-part EXR of `channels` (channels with a MIP chain: tiled 64×64 ZIP
+/// `MIPMAP_LEVELS` `ROUND_DOWN`, the form texture systems read; else scanline ZIP, 16 lines a
+/// block), header attributes sorted so the same image always gives the same bytes (`path`
+/// names it in errors only). Every EXR the workspace writes is encoded here.
+pub fn encode_layer(
+    path: &Path,
+    width: usize,
+    height: usize,
+    attributes: LayerAttributes,
+    channels: ChannelList,
+) -> Result<Vec<u8>> {
+    let mipped = channels
+        .first()
+        .is_some_and(|c| matches!(c.sample_data, Levels::Mip { .. }));
     let encoding = if mipped {
         Encoding {
             compression: Compression::ZIP16,
@@ -139,7 +159,12 @@ pub fn encode_levels(
     } else {
         Encoding::SMALL_LOSSLESS
     };
-    let layer = Layer::new((width, height), la, encoding, AnyChannels::sort(list));
+    let layer = Layer::new(
+        (width, height),
+        attributes,
+        encoding,
+        AnyChannels::sort(channels),
+    );
     let mut bytes = std::io::Cursor::new(Vec::new());
     Image::from_layer(layer)
         .write()

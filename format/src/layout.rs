@@ -328,7 +328,7 @@ fn encode_single(
             FlatSamples::F32(v.to_vec())
         }
     };
-    let list: SmallVec<[AnyChannel<Levels<FlatSamples>>; 4]> = channels
+    let list: crate::exrio::ChannelList = channels
         .iter()
         .map(|(name, m)| {
             let data = if mipped {
@@ -352,24 +352,7 @@ fn encode_single(
             }
         }
     }
-    let encoding = if mipped {
-        Encoding {
-            compression: Compression::ZIP16,
-            blocks: Blocks::Tiles(Vec2(64, 64)),
-            line_order: LineOrder::Increasing,
-        }
-    } else {
-        Encoding::SMALL_LOSSLESS
-    };
-    let layer = Layer::new((width, height), la, encoding, AnyChannels::sort(list));
-    let mut out = std::io::Cursor::new(Vec::new());
-    Image::from_layer(layer)
-        .write()
-        .to_buffered(&mut out)
-        .map_err(|e| format_err(shown, format!("writing EXR: {e}")))?;
-    let mut bytes = out.into_inner();
-    crate::exrio::sort_header_attributes(&mut bytes, shown)?;
-    Ok(bytes)
+    crate::exrio::encode_layer(shown, width, height, la, list)
 }
 
 /// One file of a set: its path and the encoder of its bytes.
