@@ -4,7 +4,9 @@ produce OSL and GLSL from them, and glslangValidator compiles the GLSL. Then the
 ND_ptm_occlusion_float's nodegraph, evaluated node by node in numpy (mx_numpy.py), gives the K
 of Rust `Ptm::eval_dir` (fit/examples/ptm_eval.rs) at every texel centre of renderer-layout PTMs
 fitted by the `ptm` binary (ptm6 and ptm11, both links, both (u, v) maps), for lights from the
-zenith down to grazing and below the horizon, in the swatch frame and in a rotated world frame.
+zenith down to grazing and below the horizon, in the swatch frame and in a rotated world frame;
+and between texel centres with linear filtering (across the periodic seams), the K of the
+bilinearly filtered coefficients (the `ptm` Python module reads and evaluates them).
 
     python test_materialx.py PTM_BIN PTM_EVAL WORKDIR
 """
@@ -24,6 +26,7 @@ sys.path.insert(0, HERE)
 import make_mtlx  # noqa: E402
 import mx_numpy  # noqa: E402
 import numpy as np  # noqa: E402
+import ptm as ptm_module  # noqa: E402  the Python module (scripts/test.sh builds it first)
 
 PTM, EVAL, WORK = sys.argv[1:4]
 os.makedirs(WORK, exist_ok=True)
@@ -124,6 +127,11 @@ FRAMES = {
     "rotated frame": (uv_tex + [1.0, -2.0], np.tile(R[:, 2], (npts, 1)),
                       np.tile(2.0 * R[:, 0] + 0.3 * R[:, 2], (npts, 1)), R, 3.0),
 }
+# Points between texel centres, some within a hair of the periodic seams, and the lights there.
+rng = np.random.default_rng(11)
+uv_mid = np.concatenate([rng.random((400, 2)), [[1e-4, 0.5], [1 - 1e-4, 0.3], [0.5, 1e-4], [0.2, 1 - 1e-4],
+                                                [0.0, 0.0], [1.0, 1.0]]])
+MID_DIRS = [np.array(d) / np.linalg.norm(d) for d in DIRS[:6] + [toward(3, 35)]]
 worst_all = {}
 used = set()
 for basis in ("ptm6", "ptm11"):
@@ -169,9 +177,34 @@ for basis in ("ptm6", "ptm11"):
                                             f"Ptm::eval by {err:.2e} (tolerance {TOL})")
                         worst = max(worst, err)
                 used |= ev.used
+            # Between texel centres (linear filtering, across the periodic seams): the file's
+            # meaning is "filter the coefficients, then evaluate the polynomial and the link".
+            # Reference: the coefficients (read by the ptm module) interpolated bilinearly at
+            # MaterialX's image uv, then Rust's eval of them (the module's eval_dir is Ptm's).
+            src = ptm_module.load(os.path.join(WORK, stem + ".c0.exr"))
+            coef = src.coefficients.astype(np.float64)
+            _, hh, ww = coef.shape
+            x, y = uv_mid[:, 0] * ww - 0.5, (1.0 - uv_mid[:, 1]) * hh - 0.5
+            x0, y0 = np.floor(x).astype(int), np.floor(y).astype(int)
+            fx, fy = x - x0, y - y0
+            at = lambda r, c: coef[:, np.mod(r, hh), np.mod(c, ww)]  # noqa: E731
+            mid = ((1 - fy) * ((1 - fx) * at(y0, x0) + fx * at(y0, x0 + 1))
+                   + fy * ((1 - fx) * at(y0 + 1, x0) + fx * at(y0 + 1, x0 + 1)))
+            ref_mid = ptm_module.Ptm(basis, mid[:, None, :].astype(np.float32), tile=src.tile, link=link,
+                                     uv=uvmap).eval_dir(np.array(MID_DIRS))[:, 0, :]
+            ev = mx_numpy.Evaluator({"UV0": uv_mid, "Nworld": np.tile([0.0, 0.0, 1.0], (len(uv_mid), 1)),
+                                     "Tworld": np.tile([1.0, 0.0, 0.0], (len(uv_mid), 1))}, root=WORK)
+            filt.setValueString("linear")
+            for di, d in enumerate(MID_DIRS):
+                light.setValueString(", ".join(repr(float(x)) for x in d))
+                err = float(np.abs(ev.node(node) - ref_mid[di]).max())
+                assert err <= TOL, (f"{stem} between texels, light {d}: nodegraph K differs from the "
+                                    f"bilinearly filtered coefficients' K by {err:.2e} (tolerance {TOL})")
+                worst = max(worst, err)
             worst_all[f"{basis} {link} {uvmap}"] = worst
             print(f"materialx: {basis} {link} {uvmap}: max |K(nodegraph, numpy) - Ptm::eval| = {worst:.1e} "
-                  f"over {len(DIRS)} lights x 2 frames x 2 filters x {npts} texels", flush=True)
+                  f"over {len(DIRS)} lights x 2 frames x 2 filters x {npts} texel centres, and "
+                  f"{len(MID_DIRS)} lights x {len(uv_mid)} points between them", flush=True)
 gdoc = mx.createDocument()
 gdoc.importLibrary(lib_doc)
 gdoc.importLibrary(lib)
