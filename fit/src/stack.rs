@@ -111,16 +111,14 @@ impl SampleStack {
 
     /// Writes the stack as EXR, atomically (temporary file, then rename).
     pub fn write(&self, path: &Path) -> Result<()> {
-        self.validate()?;
-        self.write_planes(path, self.k.clone())
+        self.clone().write_into(path)
     }
 
     /// As [`SampleStack::write`], handing the K planes to the EXR writer instead of copying
     /// them: the peak memory of a large stack stays one stack.
-    pub fn write_into(mut self, path: &Path) -> Result<()> {
-        self.validate()?;
-        let k = std::mem::take(&mut self.k);
-        self.write_planes(path, k)
+    pub fn write_into(self, path: &Path) -> Result<()> {
+        let bytes = self.encode_into(path)?;
+        Ok(crate::atomic::write_bytes(path, &bytes)?)
     }
 
     /// The bytes [`SampleStack::write_into`] writes (`path` names the file in errors only), to
@@ -130,17 +128,6 @@ impl SampleStack {
         let k = std::mem::take(&mut self.k);
         let (channels, attrs) = self.channels(k);
         Ok(exrio::encode(
-            path,
-            self.width,
-            self.height,
-            channels,
-            attrs,
-        )?)
-    }
-
-    fn write_planes(&self, path: &Path, k: Vec<Vec<f32>>) -> Result<()> {
-        let (channels, attrs) = self.channels(k);
-        Ok(exrio::write(
             path,
             self.width,
             self.height,

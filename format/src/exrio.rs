@@ -312,6 +312,16 @@ pub fn check_claimed_size(path: &Path, file_len: u64) -> Result<()> {
     Ok(())
 }
 
+/// A channel's resolution levels, finest first: one for a plain image, the chain for a MIP map.
+/// A rip map's diagonal is not a MIP chain; its full-resolution level only.
+pub fn level_list(levels: Levels<FlatSamples>) -> Vec<FlatSamples> {
+    match levels {
+        Levels::Singular(s) => vec![s],
+        Levels::Mip { level_data, .. } => level_data,
+        Levels::Rip { level_data, .. } => level_data.map_data.into_iter().take(1).collect(),
+    }
+}
+
 /// Reads every channel and attribute of the first layer. Attributes of other types are skipped.
 pub fn read(path: &Path) -> Result<Contents> {
     let shown = path.display().to_string();
@@ -349,12 +359,7 @@ pub fn read(path: &Path) -> Result<Contents> {
     let mut level_sizes = Vec::new();
     for ch in layer.channel_data.list {
         let name = string(&ch.name);
-        let list: Vec<FlatSamples> = match ch.sample_data {
-            Levels::Singular(s) => vec![s],
-            Levels::Mip { level_data, .. } => level_data,
-            // A rip map's diagonal is not a MIP chain; take its full-resolution level only.
-            Levels::Rip { level_data, .. } => level_data.map_data.into_iter().take(1).collect(),
-        };
+        let list = level_list(ch.sample_data);
         let mut it = list.into_iter();
         let Some(first) = it.next() else { continue };
         channels.insert(name.clone(), samples(first));

@@ -224,28 +224,35 @@ fn read_single(path: &Path) -> Result<Single> {
     };
     // A corrupt header must be refused before the exr crate allocates what it claims.
     crate::exrio::check_claimed_size(path, len)?;
-    let image = exr::prelude::read()
-        .no_deep_data()
-        .all_resolution_levels()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_file(path)
-        .map_err(|e| format_err(path, format!("not a readable OpenEXR file: {e}")))?;
-    single_of(path, image)
+    let file = std::fs::File::open(path).map_err(|e| Error::Io {
+        path: path.display().to_string(),
+        source: e,
+    })?;
+    let source = std::io::BufReader::new(file);
+    decode(path, source, "not a readable OpenEXR file")
 }
 
 /// One single-part EXR from bytes this crate encoded (`shown` names it in errors).
 fn decode_single(shown: &Path, bytes: &[u8]) -> Result<Single> {
+    decode(shown, std::io::Cursor::new(bytes), "reading back its EXR")
+}
+
+/// Every map (all levels) and attribute of the first layer read from `source`; a failure is
+/// `what: <exr's reason>`.
+fn decode(
+    path: &Path,
+    source: impl std::io::Read + std::io::Seek + Send,
+    what: &str,
+) -> Result<Single> {
     let image = exr::prelude::read()
         .no_deep_data()
         .all_resolution_levels()
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .map_err(|e| format_err(shown, format!("reading back its EXR: {e}")))?;
-    single_of(shown, image)
+        .from_buffered(source)
+        .map_err(|e| format_err(path, format!("{what}: {e}")))?;
+    single_of(path, image)
 }
 
 /// The maps and attributes of a read image.
@@ -256,11 +263,7 @@ fn single_of(path: &Path, image: Image<Layer<AnyChannels<Levels<FlatSamples>>>>)
     let mut maps = BTreeMap::new();
     for ch in layer.channel_data.list {
         let name = text_of(&ch.name);
-        let list: Vec<FlatSamples> = match ch.sample_data {
-            Levels::Singular(s) => vec![s],
-            Levels::Mip { level_data, .. } => level_data,
-            Levels::Rip { level_data, .. } => level_data.map_data.into_iter().take(1).collect(),
-        };
+        let list = crate::exrio::level_list(ch.sample_data);
         let half = list.iter().any(|s| matches!(s, FlatSamples::F16(_)));
         let levels: Vec<Vec<f32>> = list
             .into_iter()
