@@ -30,6 +30,14 @@ if cargo tree -p ptm-python -e normal --prefix none | grep -E '^(ptm-fit|nalgebr
     exit 1
 fi
 
+echo "== ptm-bake and ptm-runtime take the file layer (ptm-format), not the fitter" >&2
+for c in ptm-bake ptm-runtime; do
+    if cargo tree -p "$c" -e normal --prefix none | grep -E '^ptm-fit ' ; then
+        echo "$c must not depend on ptm-fit: it never fits; take ptm-format (see ARCHITECTURE.md)" >&2
+        exit 1
+    fi
+done
+
 echo "== cargo clippy --all-targets" >&2
 cargo clippy --workspace --all-targets -- -D warnings
 

@@ -8,9 +8,10 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh};
-use ptm_fit::atomic::{same_file, Transaction};
 use ptm_fit::shard::PartMeta;
-use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, SampleStack, SaveOptions};
+use ptm_fit::{Accumulator, FitOptions, SampleStack};
+use ptm_format::atomic::{same_file, Transaction};
+use ptm_format::{Basis, LightSet, SaveOptions};
 use serde_json::{json, Value};
 
 // `--fit BASIS` takes the same basis argument as `ptm fit --basis`; `FitArg` is its name here.
@@ -66,7 +67,7 @@ pub struct Args {
     pub regularize: Option<f64>,
     /// With --fit: file layout, channels or rgba (the renderer layout; see `ptm fit --layout`).
     #[arg(long, value_name = "channels|rgba", default_value = "channels", value_parser = crate::convert::parse_layout, requires = "fit")]
-    pub layout: ptm_fit::Layout,
+    pub layout: ptm_format::Layout,
     /// Worker threads (0: one per core; at most 1024).
     #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     pub threads: usize,
@@ -175,7 +176,7 @@ fn resolve_rows(args: &Args) -> anyhow::Result<([usize; 2], Range<usize>)> {
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
     }
-    if args.shard.is_some() && args.layout != ptm_fit::Layout::Channels {
+    if args.shard.is_some() && args.layout != ptm_format::Layout::Channels {
         bail!("--shard writes part files: merge them, then `ptm convert` to --layout rgba");
     }
     Ok((res, rows))
@@ -243,7 +244,7 @@ struct Destinations {
     /// The `.lp` that describes the output's lights (written, or the user's `--lights`).
     lights_file: Option<PathBuf>,
     /// The PTM's file layout (`--layout`; the renderer layout writes parts beside `output`).
-    layout: ptm_fit::Layout,
+    layout: ptm_format::Layout,
 }
 
 /// Refuses an output that is an input (the swatch OBJ, its draft, the `--lights` file) and checks
@@ -270,8 +271,8 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
     let lp = beside.clone().filter(|p| !user_lp(p));
     // The renderer layout's parts replace the one file (not for a farm part: refused above).
     let rgba = match (args.fit, args.layout) {
-        (Some(f), ptm_fit::Layout::Rgba) if args.shard.is_none() => {
-            ptm_fit::layout::rgba_paths(&output, f.into())
+        (Some(f), ptm_format::Layout::Rgba) if args.shard.is_none() => {
+            ptm_format::layout::rgba_paths(&output, f.into())
         }
         _ => vec![output.clone()],
     };
@@ -387,9 +388,10 @@ fn trace(
         }
         match accumulator.as_mut() {
             Some(acc) => match uv {
-                Some(uv) => acc.add_light_uv(i, k, uv)?,
-                None => acc.add_light(i, k)?,
-            },
+                Some(uv) => acc.add_light_uv(i, k, uv),
+                None => acc.add_light(i, k),
+            }
+            .map_err(ptm_bake::Error::sink)?,
             None => planes.push(i, k, uv)?,
         }
         Ok(())
@@ -519,7 +521,7 @@ fn write_outputs(
                         report: Some(&fit),
                         error_map: false,
                     };
-                    let encoded = ptm_fit::layout::encode(&ptm, &output, &save, layout)
+                    let encoded = ptm_format::layout::encode(&ptm, &output, &save, layout)
                         .with_context(writing)?;
                     for (p, bytes) in &encoded {
                         tx.add(p).with_context(writing)?;
@@ -676,7 +678,7 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
     let (sink, what) = match args.fit {
         // What the accumulator will hold (its sums, or the logistic link's counts).
         Some(f) => {
-            let link: ptm_fit::Link = args.model.link.into();
+            let link: ptm_format::Link = args.model.link.into();
             let counts = Accumulator::count_bytes(link, args.spp) as f64;
             let bytes = Accumulator::memory_bytes(
                 res[0].saturating_mul(res[1]),

@@ -295,7 +295,7 @@ fn write_slurm(args: &Args, jobs: &[Job], dir: &Path, out: &Path) -> anyhow::Res
     .map(|(name, text)| (out.join(name), text));
     let paths: Vec<&Path> = files.iter().map(|(p, _)| p.as_path()).collect();
     crate::outputs::refuse_inputs(&paths, &[("manifest", args.manifest.as_path())])?;
-    let mut tx = ptm_fit::atomic::Transaction::new(&paths)?;
+    let mut tx = ptm_format::atomic::Transaction::new(&paths)?;
     for (path, text) in &files {
         tx.stage_bytes(path, text.as_bytes())?;
     }

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use ptm_fit::layout::{Layout, PtmFile};
+use ptm_format::layout::{Layout, PtmFile};
 use serde_json::{json, Value};
 
 /// `--layout channels|rgba`.
@@ -45,16 +45,16 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let mut inputs = vec![args.input.clone()];
     if from == Layout::Rgba {
         let basis = file.basis(&args.input)?;
-        inputs.extend(ptm_fit::layout::rgba_paths(&args.input, basis));
-        inputs.push(ptm_fit::layout::err_path(&args.input));
+        inputs.extend(ptm_format::layout::rgba_paths(&args.input, basis));
+        inputs.push(ptm_format::layout::err_path(&args.input));
     }
     let inputs: Vec<(&str, &std::path::Path)> =
         inputs.iter().map(|p| ("PTM", p.as_path())).collect();
     let outputs: Vec<&std::path::Path> = files.iter().map(|(p, _)| p.as_path()).collect();
     crate::outputs::refuse_inputs(&outputs, &inputs)?;
-    let written = ptm_fit::layout::publish(&files)
+    let written = ptm_format::layout::publish(&files)
         .with_context(|| format!("writing {}", args.output.display()))?;
-    ptm_fit::layout::remove_stale_errors(&args.output, to, &written);
+    ptm_format::layout::remove_stale_errors(&args.output, to, &written);
     for p in &written {
         eprintln!("ptm convert: wrote {}", p.display());
     }

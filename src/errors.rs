@@ -45,7 +45,7 @@ pub fn fit_warnings(ds: &[Diagnostic]) -> Vec<String> {
 
 /// The command's wording of one cause, when it is a library error that needs one.
 fn hinted(e: &(dyn StdError + 'static)) -> Option<String> {
-    if let Some(e) = e.downcast_ref::<ptm_fit::FormatError>() {
+    if let Some(e) = e.downcast_ref::<ptm_format::Error>() {
         return format_error(e);
     }
     if let Some(e) = e.downcast_ref::<ptm_fit::Error>() {
@@ -69,12 +69,12 @@ fn hinted(e: &(dyn StdError + 'static)) -> Option<String> {
     None
 }
 
-fn format_error(e: &ptm_fit::FormatError) -> Option<String> {
-    use ptm_fit::FormatError as E;
+fn format_error(e: &ptm_format::Error) -> Option<String> {
+    use ptm_format::Error as E;
     Some(match e {
         E::HpNeedsPtm6 { .. } => format!("{e}: fit with --basis ptm6 to export it"),
         E::HalfOverflow { .. } => format!("{e} (drop --half)"),
-        E::Io { .. } | E::Format { .. } | E::Invalid(_) => return None,
+        E::Io { .. } | E::Format { .. } | E::LightFile { .. } | E::Invalid(_) => return None,
     })
 }
 
@@ -103,7 +103,8 @@ fn fit_error(e: &ptm_fit::Error) -> Option<String> {
 fn bake_error(e: &ptm_bake::Error) -> Option<String> {
     use ptm_bake::Error as E;
     Some(match e {
-        E::Fit(e) => return fit_error(e),
+        E::Format(e) => return format_error(e),
+        E::Sink(e) => return e.downcast_ref::<ptm_fit::Error>().and_then(fit_error),
         E::Tile {
             path,
             reason,
@@ -142,7 +143,7 @@ fn runtime_error(e: &ptm_runtime::Error) -> Option<String> {
              box passes assume one blur radius per light), but the caster is tilted {tilt_deg}°: \
              use --blur sat, mip or explicit"
         )),
-        E::Fit(e) => fit_error(e),
+        E::Format(e) => format_error(e),
         _ => None,
     }
 }
@@ -167,11 +168,11 @@ mod tests {
              fix the input, or pass --skip-bad to drop such samples"
         );
         // Through the bake's and the report's wrappers, and the file layer's variant inside fit's.
-        let hp = ptm_fit::FormatError::HpNeedsPtm6 {
+        let hp = ptm_format::Error::HpNeedsPtm6 {
             path: "w.ptm".into(),
-            basis: ptm_fit::Basis::Ptm11,
+            basis: ptm_format::Basis::Ptm11,
         };
-        let e = anyhow::Error::from(ptm_bake::Error::Fit(ptm_fit::Error::from(hp)));
+        let e = anyhow::Error::from(ptm_bake::Error::Format(hp));
         assert!(
             explain(&e).ends_with("fit with --basis ptm6 to export it"),
             "{e:#}"

@@ -3,14 +3,15 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_fit::atomic::Transaction;
-use ptm_fit::hp::encode_hp_lrgb;
 use ptm_fit::images::{read_image_stack, Decoding};
 use ptm_fit::solve::{fit_stack, ErrorStats, FitOptions, FitReport, Weight};
-use ptm_fit::{Basis, SampleStack, SaveOptions};
+use ptm_fit::SampleStack;
+use ptm_format::atomic::Transaction;
+use ptm_format::hp::encode_hp_lrgb;
+use ptm_format::{Basis, SaveOptions};
 use serde_json::{json, Value};
 
-/// `ptm fit --basis` and `ptm bake --fit`: the polynomial basis (`ptm_fit::Basis`).
+/// `ptm fit --basis` and `ptm bake --fit`: the polynomial basis (`ptm_format::Basis`).
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
 pub enum BasisArg {
     Ptm6,
@@ -35,11 +36,11 @@ pub enum LinkArg {
     Logistic,
 }
 
-impl From<LinkArg> for ptm_fit::Link {
+impl From<LinkArg> for ptm_format::Link {
     fn from(l: LinkArg) -> Self {
         match l {
-            LinkArg::Identity => ptm_fit::Link::Identity,
-            LinkArg::Logistic => ptm_fit::Link::Logistic,
+            LinkArg::Identity => ptm_format::Link::Identity,
+            LinkArg::Logistic => ptm_format::Link::Logistic,
         }
     }
 }
@@ -53,11 +54,11 @@ pub enum UvArg {
     Hemispherical,
 }
 
-impl From<UvArg> for ptm_fit::UvMap {
+impl From<UvArg> for ptm_format::UvMap {
     fn from(u: UvArg) -> Self {
         match u {
-            UvArg::Projected => ptm_fit::UvMap::Projected,
-            UvArg::Hemispherical => ptm_fit::UvMap::Hemispherical,
+            UvArg::Projected => ptm_format::UvMap::Projected,
+            UvArg::Hemispherical => ptm_format::UvMap::Hemispherical,
         }
     }
 }
@@ -178,7 +179,7 @@ pub struct Args {
     /// File layout: channels (one `ptm.<monomial>` channel each) or rgba (the renderer layout:
     /// RGB(A) parts NAME.ptm.c0.exr, … that texture systems, OSL, MaterialX and Blender read).
     #[arg(long, value_name = "channels|rgba", default_value = "channels", value_parser = crate::convert::parse_layout)]
-    pub layout: ptm_fit::Layout,
+    pub layout: ptm_format::Layout,
     /// Also write a 6-term map in HP's PTM 1.2 LRGB format (visibility 1 − K, 8-bit).
     #[arg(long, value_name = "OUT.ptm")]
     pub export_hp: Option<PathBuf>,
@@ -209,15 +210,15 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         bail!(
             "--export-hp: HP's .ptm format is a polynomial in the projected (u, v) = (l·T, l·B); \
              a {} PTM with {} (u, v) cannot be written in it. Fit with --link identity --uv projected to export",
-            ptm_fit::Link::from(args.model.link).name(),
-            ptm_fit::UvMap::from(args.model.uv).name()
+            ptm_format::Link::from(args.model.link).name(),
+            ptm_format::UvMap::from(args.model.uv).name()
         );
     }
     // Every output is checked before the work (an output that is an input, two outputs that
     // are one file, a missing directory) and all are published together at the end.
     let mut outputs = match args.layout {
-        ptm_fit::Layout::Channels => vec![args.output.clone()],
-        ptm_fit::Layout::Rgba => ptm_fit::layout::rgba_paths(&args.output, args.basis.into()),
+        ptm_format::Layout::Channels => vec![args.output.clone()],
+        ptm_format::Layout::Rgba => ptm_format::layout::rgba_paths(&args.output, args.basis.into()),
     };
     outputs.extend(args.export_hp.iter().cloned());
     let mut inputs = Vec::new();
@@ -316,7 +317,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         report: Some(&report),
         error_map: args.error_map,
     };
-    let files = ptm_fit::layout::encode(&ptm, &args.output, &save, args.layout)
+    let files = ptm_format::layout::encode(&ptm, &args.output, &save, args.layout)
         .with_context(|| format!("writing {}", args.output.display()))?;
     for (p, bytes) in &files {
         tx.add(p)?; // the renderer layout's error-map file, when there is one
@@ -333,7 +334,7 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         None => None,
     };
     tx.commit()?;
-    ptm_fit::layout::remove_stale_errors(&args.output, args.layout, &files);
+    ptm_format::layout::remove_stale_errors(&args.output, args.layout, &files);
     let t_write = t1.elapsed().as_secs_f64();
     let half_bound = args.half.then(|| ptm.half_error_bound());
     print_summary(&report, &files, half_bound);

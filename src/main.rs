@@ -175,13 +175,14 @@ fn error_input(e: &anyhow::Error) -> Option<String> {
     e.chain()
         .rev()
         .find_map(|cause| {
-            if let Some(x) = cause.downcast_ref::<ptm_fit::FormatError>() {
-                use ptm_fit::FormatError as F;
+            if let Some(x) = cause.downcast_ref::<ptm_format::Error>() {
+                use ptm_format::Error as F;
                 return match x {
                     F::Io { path, .. }
                     | F::Format { path, .. }
                     | F::HpNeedsPtm6 { path, .. }
-                    | F::HalfOverflow { path, .. } => Some(path.clone()),
+                    | F::HalfOverflow { path, .. }
+                    | F::LightFile { path, .. } => Some(path.clone()),
                     F::Invalid(_) => None,
                 };
             }

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_fit::atomic::Transaction;
 use ptm_fit::shard;
+use ptm_format::atomic::Transaction;
 
 use crate::outputs::json_path;
 use serde_json::{json, Value};

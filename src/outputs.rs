@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
-use ptm_fit::atomic::same_file;
+use ptm_format::atomic::same_file;
 use serde_json::Value;
 
 /// Refuses an output that is one of the inputs: `inputs` are (what it is, its path), e.g.

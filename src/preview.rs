@@ -4,9 +4,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_fit::atomic::Transaction;
-use ptm_fit::exrio::{self, Samples};
-use ptm_fit::Ptm;
+use ptm_format::atomic::Transaction;
+use ptm_format::exrio::{self, Samples};
+use ptm_format::Ptm;
 use ptm_runtime::scene::{Perspective, Prepared};
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
 use serde_json::{json, Value};
@@ -177,11 +177,11 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
         None => {
             let mut s = Scene::over_ptm(
                 Ptm {
-                    basis: ptm_fit::Basis::Ptm6,
+                    basis: ptm_format::Basis::Ptm6,
                     width: 1,
                     height: 1,
-                    link: ptm_fit::Link::Identity,
-                    uv: ptm_fit::UvMap::Projected,
+                    link: ptm_format::Link::Identity,
+                    uv: ptm_format::UvMap::Projected,
                     mips: Vec::new(),
                     coverage: None,
                     tile: [1.0, 1.0],

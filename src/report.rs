@@ -11,7 +11,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use ptm_fit::atomic::Transaction;
+use ptm_format::atomic::Transaction;
 use ptm_report::{g3, Options, Report};
 use serde_json::json;
 

@@ -5,7 +5,8 @@ use std::path::Path;
 
 use ptm_bake::PreparedMesh;
 use ptm_fit::shard::{self, PartLevels, PartMeta, PtmPart, Shard};
-use ptm_fit::{FitReport, LightSet, Ptm, SampleStack};
+use ptm_fit::{FitReport, SampleStack};
+use ptm_format::{LightSet, Ptm};
 
 use crate::bake::Args;
 
@@ -31,8 +32,8 @@ pub fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet)
         Some(f) => format!(
             "{} link={} uv={} mips={} regularize={:?} tolerance={:e} max-iterations={}",
             format!("{f:?}").to_lowercase(),
-            ptm_fit::Link::from(m.link).name(),
-            ptm_fit::UvMap::from(m.uv).name(),
+            ptm_format::Link::from(m.link).name(),
+            ptm_format::UvMap::from(m.uv).name(),
             !m.no_mips,
             args.regularize,
             m.tolerance,

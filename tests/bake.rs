@@ -3,7 +3,8 @@
 use std::path::Path;
 use std::process::Command;
 
-use ptm_fit::{LightSet, Ptm, SampleStack};
+use ptm_fit::SampleStack;
+use ptm_format::{LightSet, Ptm};
 
 fn ptm(args: &[&str], dir: &Path) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_ptm"))
@@ -276,7 +277,7 @@ fn bake_fit_writes_the_renderer_layout_and_convert_round_trips_it() {
     let (ok, out, err) = ptm(&["convert", "w.ptm.exr", "-o", "c.ptm.exr", "--json"], d);
     assert!(ok, "{err}");
     assert!(out.contains("\"to\":\"channels\""), "{out}");
-    let direct = ptm_fit::layout::load(&d.join("w.ptm.c0.exr")).unwrap();
+    let direct = ptm_format::layout::load(&d.join("w.ptm.c0.exr")).unwrap();
     assert_eq!(Ptm::load(&d.join("c.ptm.exr")).unwrap(), direct);
     let (ok, _, err) = ptm(&["convert", "c.ptm.exr", "-o", "r.ptm.exr"], d);
     assert!(ok, "{err}");

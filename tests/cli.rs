@@ -198,7 +198,7 @@ fn no_output_may_be_an_input() {
     let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(j["lights_file"], "cap.lp");
     let stack = ptm_fit::SampleStack::read(&d.join("cap.exr")).unwrap();
-    let user = ptm_fit::LightSet::read_lp(&d.join("cap.lp")).unwrap();
+    let user = ptm_format::LightSet::read_lp(&d.join("cap.lp")).unwrap();
     assert_eq!(stack.lights, user);
 }
 
@@ -484,7 +484,8 @@ fn counts_that_would_allocate_without_bound_are_refused_with_the_limit() {
 /// half-written output); the next `ptm` that writes into that directory removes it.
 #[test]
 fn a_killed_writers_temporary_is_swept_by_the_next_write() {
-    use ptm_fit::{LightSet, SampleStack};
+    use ptm_fit::SampleStack;
+    use ptm_format::LightSet;
     let d = tempfile::tempdir().unwrap();
     let (w, h, n) = (512, 512, 48);
     let lights = LightSet::from_dirs((0..n).map(|i| {

@@ -3,8 +3,9 @@
 use std::path::Path;
 use std::process::Command;
 
-use ptm_fit::exrio::Attr;
-use ptm_fit::{LightSet, SampleStack};
+use ptm_fit::SampleStack;
+use ptm_format::exrio::Attr;
+use ptm_format::LightSet;
 
 fn ptm() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ptm"))
@@ -82,7 +83,7 @@ fn fit_errors_name_the_flag_that_fixes_them() {
         "1 non-finite samples in 1 texels were dropped; 0 of those texels lost rank (--skip-bad)"
     );
     // The file records the fact, without the command's flag.
-    let c = ptm_fit::exrio::read(&out).unwrap();
+    let c = ptm_format::exrio::read(&out).unwrap();
     assert_eq!(
         c.attrs.get("ptm:warnings"),
         Some(&Attr::Texts(vec![

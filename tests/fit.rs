@@ -3,7 +3,8 @@
 use std::path::Path;
 use std::process::Command;
 
-use ptm_fit::{Basis, LightSet, Ptm, SampleStack};
+use ptm_fit::SampleStack;
+use ptm_format::{Basis, LightSet, Ptm};
 
 fn ptm() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ptm"))
@@ -533,8 +534,12 @@ fn fit_command_reads_an_rti_image_stack() {
     let fitted = Ptm::load(&out).unwrap();
     assert_eq!(fitted.tile, [2.0, 1.0]);
     // The header says how the images became K.
-    let samples = |path: &Path| match ptm_fit::exrio::read(path).unwrap().attrs.get("ptm:samples") {
-        Some(ptm_fit::exrio::Attr::Text(t)) => t.clone(),
+    let samples = |path: &Path| match ptm_format::exrio::read(path)
+        .unwrap()
+        .attrs
+        .get("ptm:samples")
+    {
+        Some(ptm_format::exrio::Attr::Text(t)) => t.clone(),
         other => panic!("{}: ptm:samples is {other:?}", path.display()),
     };
     assert!(

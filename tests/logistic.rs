@@ -3,9 +3,10 @@
 use std::path::Path;
 use std::process::Command;
 
-use ptm_fit::basis::sigmoid64;
 use ptm_fit::solve::{fit_stack, FitOptions};
-use ptm_fit::{Basis, Link, Ptm, SampleStack, UvMap};
+use ptm_fit::SampleStack;
+use ptm_format::basis::sigmoid64;
+use ptm_format::{Basis, Link, Ptm, UvMap};
 
 fn ptm() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ptm"))
@@ -222,5 +223,5 @@ fn bake_fit_writes_the_default_model_and_the_plain_ptm_on_request() {
         (q.link, q.uv, q.mips.len()),
         (Link::Identity, UvMap::Projected, 0)
     );
-    assert_eq!(q.version(), ptm_fit::ptm::PTM_VERSION);
+    assert_eq!(q.version(), ptm_format::ptm::PTM_VERSION);
 }

@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use ptm_fit::{Basis, Ptm, SaveOptions};
+use ptm_format::{Basis, Ptm, SaveOptions};
 use serde_json::Value;
 
 fn ptm() -> Command {
@@ -24,8 +24,8 @@ fn write_ptm(dir: &Path) -> PathBuf {
         basis: Basis::Ptm6,
         width: w,
         height: h,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
+        link: ptm_format::Link::Identity,
+        uv: ptm_format::UvMap::Projected,
         mips: Vec::new(),
         coverage: None,
         tile: [1.0, 1.0],

@@ -4,7 +4,8 @@
 use std::process::Command;
 
 use ptm_fit::diagnostic::Solution;
-use ptm_fit::{Basis, Diagnostic, Link, UvMap};
+use ptm_fit::Diagnostic;
+use ptm_format::{Basis, Link, UvMap};
 use ptm_report::stability::GeometryCase;
 use ptm_report::{Options, Report};
 

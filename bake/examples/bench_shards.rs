@@ -16,7 +16,8 @@ use std::time::Instant;
 
 use ptm_bake::{dome, BakeConfig, Baker, PreparedMesh};
 use ptm_fit::shard::{self, PartMeta, PtmPart, Shard};
-use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, SampleStack, SaveOptions};
+use ptm_fit::{Accumulator, FitOptions, SampleStack};
+use ptm_format::{Basis, LightSet, SaveOptions};
 
 /// Seconds per stage of one bake or shard.
 #[derive(Clone, Copy, Default)]
@@ -115,7 +116,7 @@ fn bake(
         if let Some(planes) = keep.as_deref_mut() {
             planes.push(k.to_vec());
         }
-        Ok(acc.add_light(i, k)?)
+        acc.add_light(i, k).map_err(ptm_bake::Error::sink)
     })?;
     st.scene = rep.seconds_scene;
     st.primary = rep.seconds_primary;

@@ -1,8 +1,8 @@
 //! Light domes: spherical Fibonacci directions above a minimum elevation, RTI-style rings, or a
-//! `.lp` file. Every dome is a `ptm_fit::LightSet` of unit vectors towards the lights (z up).
+//! `.lp` file. Every dome is a `ptm_format::LightSet` of unit vectors towards the lights (z up).
 use std::f64::consts::PI;
 
-use ptm_fit::LightSet;
+use ptm_format::LightSet;
 
 use crate::{Error, Result};
 

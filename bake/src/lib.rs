@@ -104,15 +104,19 @@ pub enum Error {
     /// Embree refused a device, scene or geometry.
     #[error("embree: {0}")]
     Embree(String),
-    /// An error of the fit crate or the file layer under it (writing samples, fitting on the fly).
+    /// An error of the file layer (`ptm-format`: writing samples, reading light files).
     #[error(transparent)]
-    Fit(#[from] ptm_fit::Error),
+    Format(#[from] ptm_format::Error),
+    /// The consumer of the K planes (a [`Sink`]: a streaming fit, a stack being collected)
+    /// failed; its error, as it said it.
+    #[error(transparent)]
+    Sink(Box<dyn std::error::Error + Send + Sync + 'static>),
 }
 
-/// The PTM file layer's errors (loading, saving, atomic output) arrive as fit errors.
-impl From<ptm_fit::FormatError> for Error {
-    fn from(e: ptm_fit::FormatError) -> Error {
-        Error::Fit(e.into())
+impl Error {
+    /// Wraps the error of a [`Sink`] (e.g. the fit crate's), for `.map_err(Error::sink)`.
+    pub fn sink(e: impl std::error::Error + Send + Sync + 'static) -> Error {
+        Error::Sink(Box::new(e))
     }
 }
 

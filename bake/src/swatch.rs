@@ -4,7 +4,7 @@
 //! not periodic over its tile gets a warning with the measured seam mismatch.
 use std::path::Path;
 
-use ptm_fit::vec3::{cross, norm, sub};
+use ptm_format::vec3::{cross, norm, sub};
 use ptm_swatches::{obj, Mesh};
 
 use crate::{Error, Result};

@@ -9,8 +9,8 @@ use std::collections::HashMap;
 use std::ops::Range;
 use std::time::Instant;
 
-use ptm_fit::hash::splitmix64;
-use ptm_fit::LightSet;
+use ptm_format::hash::splitmix64;
+use ptm_format::LightSet;
 use rayon::prelude::*;
 
 use crate::embree::{self, Device, Scene};

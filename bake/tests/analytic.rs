@@ -2,7 +2,7 @@
 //! infinitely long wall under grazing lights, a sphere on a plane), plus seams, packets versus
 //! single rays, thread-count and scale invariance.
 use ptm_bake::{bake_planes, BakeConfig, PreparedMesh};
-use ptm_fit::LightSet;
+use ptm_format::LightSet;
 use ptm_swatches::Mesh;
 
 fn cfg(res: usize, spp: u32) -> BakeConfig {

@@ -2,7 +2,7 @@
 //! of a full (2k+1)² block of copies, k = ⌈H_z / (W·tan e)⌉, in f64): same sample positions,
 //! same offsets, no Embree and none of the baker's copy selection.
 use ptm_bake::{bake_planes, dome, sample_xy, BakeConfig, PreparedMesh};
-use ptm_fit::vec3::{cross, dot, sub};
+use ptm_format::vec3::{cross, dot, sub};
 
 /// Distance t ∈ (0, tfar) to triangle `v` along `o + t·d`, if hit.
 fn hit(o: [f64; 3], d: [f64; 3], v: [[f64; 3]; 3], tfar: f64) -> Option<(f64, [f64; 3])> {

@@ -8,7 +8,8 @@
 use std::time::Instant;
 
 use ptm_fit::solve::{fit_stack, Accumulator, FitOptions};
-use ptm_fit::{Basis, LightSet, Link, SampleStack};
+use ptm_fit::SampleStack;
+use ptm_format::{Basis, LightSet, Link};
 
 fn dome(n: usize) -> LightSet {
     let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());

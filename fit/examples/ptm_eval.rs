@@ -11,7 +11,7 @@ fn main() {
         eprintln!("usage: ptm_eval FILE X,Y,Z|U,V ...");
         std::process::exit(2);
     };
-    let ptm = match ptm_fit::layout::load(Path::new(file)) {
+    let ptm = match ptm_format::layout::load(Path::new(file)) {
         Ok(p) => p,
         Err(e) => {
             eprintln!("ptm_eval: {e}");

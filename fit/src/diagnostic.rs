@@ -5,7 +5,7 @@
 //! It names no command-line flag: the `ptm` binary adds those.
 use std::fmt;
 
-use crate::Basis;
+use ptm_format::Basis;
 
 /// One diagnostic of a fit (`FitReport::warnings`). Each variant's doc names its fields and
 /// their units, so the fields carry none of their own.

@@ -7,7 +7,8 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use crate::{Error, LightSet, Result, SampleStack};
+use crate::{Error, Result, SampleStack};
+use ptm_format::LightSet;
 
 /// How 8-bit image values become visibility before K = 1 − visibility.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -1,51 +1,34 @@
-//! `ptm-fit`: fitting occlusion PTMs — light sets, per-texel least squares and logistic
-//! maximum likelihood, the sample stack, farm parts — over the file layer `ptm-format` (bases,
-//! the PTM EXR format, `Ptm::load` and CPU evaluation of K(u, v)), which it re-exports: a
-//! render pipeline that only loads PTM files needs `ptm-format` alone. It depends on neither
-//! Embree nor wgpu.
+//! `ptm-fit`: fitting occlusion PTMs — per-texel least squares and logistic maximum
+//! likelihood, the sample stack, RTI image stacks, farm parts — over the file layer
+//! `ptm-format` (bases, light sets, the PTM EXR format, `Ptm::load` and CPU evaluation of
+//! K(u, v)). A render pipeline that only loads PTM files needs `ptm-format` alone; this crate
+//! does not re-export it, so every file-layer item has one path (`ptm_format::…`). It depends
+//! on neither Embree nor wgpu.
 //!
 //! Conventions (docs/FORMAT.md): one tile spans [0, W]×[0, H] with z up; tangent +X, bitangent
 //! +Y; images have column 0 at x = 0 and **row 0 at the far edge y = H**; K is the fraction of a
 //! texel's footprint that cannot see the light (0 = lit, 1 = occluded); (u, v) = (l·X, l·Y) for
 //! the unit vector l towards the light.
 //!
-//! Modules: [`basis`] (monomial tables, from `ptm-format`), [`lights`] (light sets, `.lp`), [`stack`] (the stored
-//! sample stack `samples.exr`), [`solve`] (shared-design SVD fit, streaming [`Accumulator`],
-//! per-texel solves, diagnostics), [`ptm`] (the PTM EXR, [`Ptm::load`], [`Ptm::eval`]), [`hp`]
-//! (HP PTM 1.2 LRGB export), [`atomic`] (atomic output), [`layout`] (the renderer layout) —
-//! these five from `ptm-format` — and [`images`] (RTI PNG stacks). File layouts: docs/FORMAT.md.
-//!
-//! Loading a PTM in a render pipeline:
-//! ```no_run
-//! let ptm = ptm_fit::Ptm::load("weave.ptm.exr".as_ref())?;
-//! let (u, v) = (0.5f32, 0.25f32); // (l·X, l·Y) of the unit vector towards the light
-//! let k = ptm.eval(3, 7, u, v); // occluded fraction at column 3, row 7, clamped to [0, 1]
-//! # let _ = k;
-//! # Ok::<(), ptm_fit::Error>(())
-//! ```
+//! Modules: [`stack`] (the stored sample stack `samples.exr`), [`solve`] (shared-design SVD fit,
+//! streaming [`Accumulator`], per-texel solves, diagnostics), [`logistic`] (the maximum-likelihood
+//! fit of the logistic link), [`images`] (RTI PNG stacks), [`shard`] (farm parts and their
+//! merge), [`diagnostic`] (the fit's typed diagnostics). File layouts: docs/FORMAT.md.
 
 // Index loops over terms and lights mirror the maths (cᵢ, Aᵢⱼ) and keep several arrays in step.
 #![allow(clippy::needless_range_loop)]
 
 pub mod diagnostic;
 pub mod images;
-pub mod lights;
 pub mod logistic;
 pub mod shard;
 mod simd;
 pub mod solve;
 pub mod stack;
 
-// The file layer, re-exported so `ptm_fit::Ptm`, `ptm_fit::basis::…` and `crate::ptm::…` here
-// keep naming the same items.
-pub use ptm_format::{atomic, basis, exrio, hash, hp, layout, ptm, vec3};
-pub use ptm_format::{Error as FormatError, FileFacts, ToFileFacts};
+use ptm_format::{FileFacts, ToFileFacts};
 
-pub use basis::{Basis, Link, Monomial, UvMap};
 pub use diagnostic::Diagnostic;
-pub use layout::{Layout, PtmFile};
-pub use lights::LightSet;
-pub use ptm::{Level, Ptm, PtmInfo, SaveOptions};
 pub use solve::{fit_stack, Accumulator, ErrorStats, FitOptions, FitReport, Weight};
 pub use stack::SampleStack;
 
@@ -155,6 +138,9 @@ impl From<ptm_format::Error> for Error {
             ptm_format::Error::Io { path, source } => Error::Io { path, source },
             ptm_format::Error::Format { path, reason } => Error::Format { path, reason },
             ptm_format::Error::Invalid(s) => Error::Invalid(s),
+            ptm_format::Error::LightFile { path, line, reason } => {
+                Error::LightFile { path, line, reason }
+            }
             e
             @ (ptm_format::Error::HpNeedsPtm6 { .. } | ptm_format::Error::HalfOverflow { .. }) => {
                 Error::File(e)

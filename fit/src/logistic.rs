@@ -10,7 +10,7 @@
 //! number of samples per texel scales J uniformly, so it does not move the optimum: fractions
 //! from a stored stack and exact counts from a streaming bake fit the same. Newton (IRLS) per
 //! texel: ∇J = Σ ωₙ(σₙ − kₙ)·aₙ + ρc, H = Σ ωₙσₙ(1 − σₙ)·aₙaₙᵀ + ρI. H's packed entries are
-//! the per-texel weights times the distinct products mᵢmⱼ of the basis ([`crate::basis::products`]):
+//! the per-texel weights times the distinct products mᵢmⱼ of the basis ([`ptm_format::basis::products`]):
 //! a [texels × lights] · [lights × products] matrix product, done tile by tile in registers.
 //!
 //! Texels whose samples a polynomial boundary separates exactly (always lit, always occluded,
@@ -24,9 +24,9 @@
 //! contraction and width.
 use rayon::prelude::*;
 
-use crate::basis::products;
 use crate::simd::{Portable, Simd};
-use crate::Basis;
+use ptm_format::basis::products;
+use ptm_format::Basis;
 
 /// Default ridge λ of the logistic fit (relative to the mean eigenvalue of AᵀΩA).
 pub const DEFAULT_RIDGE: f64 = 1e-5;

@@ -19,13 +19,12 @@ use std::path::{Path, PathBuf};
 
 use exr::meta::attribute::AttributeValue;
 
-use crate::exrio::{self, Attr, Samples};
-use crate::ptm::channel_name;
 use crate::solve::LogisticStats;
 use crate::stack::k_channel;
-use crate::{
-    Basis, Error, ErrorStats, FitReport, LightSet, Link, Ptm, Result, SampleStack, UvMap, Weight,
-};
+use crate::{Error, ErrorStats, FitReport, Result, SampleStack, Weight};
+use ptm_format::exrio::{self, Attr, Samples};
+use ptm_format::ptm::channel_name;
+use ptm_format::{Basis, LightSet, Link, Ptm, UvMap};
 
 mod chunks;
 
@@ -172,7 +171,7 @@ pub struct PtmPart {
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartLevels {
     /// Levels 1 … S for the part's rows (sizes from [`local_levels`]).
-    pub levels: Vec<crate::Level>,
+    pub levels: Vec<ptm_format::Level>,
     /// Pooled counts of level S for the part's rows, when the chain goes deeper:
     /// (covered samples per texel, occluded samples `[light][texel]`).
     pub counts: Option<(Vec<u32>, Vec<Vec<u32>>)>,
@@ -284,7 +283,7 @@ fn write_sealed(
     let crc = chunks::crc_without(&bytes, &layout, "part:checksum").ok_or_else(unexpected)?;
     let at = layout.value("part:checksum").ok_or_else(unexpected)?;
     bytes[at].copy_from_slice(format!("crc32:{crc:08x}").as_bytes());
-    Ok(crate::atomic::write_bytes(path, &bytes)?)
+    Ok(ptm_format::atomic::write_bytes(path, &bytes)?)
 }
 
 /// Reads a part's bytes and checks them: its header and chunk table lie inside the file and
@@ -801,7 +800,7 @@ fn read_logistic(
     let mut at = 0;
     for f in &local {
         let n = f.width * f.height;
-        out.levels.push(crate::Level {
+        out.levels.push(ptm_format::Level {
             width: f.width,
             height: f.height,
             planes: planes.iter().map(|p| p[at..at + n].to_vec()).collect(),
@@ -955,7 +954,7 @@ pub fn check_set(paths: &[PathBuf]) -> Result<Vec<(PathBuf, PartMeta)>> {
 /// written atomically, byte for byte what one machine writes. See [`merge_encode`].
 pub fn merge_into(paths: &[PathBuf], out: &Path) -> Result<Merged> {
     let (merged, bytes) = merge_encode(paths, out)?;
-    crate::atomic::write_bytes(out, &bytes)?;
+    ptm_format::atomic::write_bytes(out, &bytes)?;
     Ok(merged)
 }
 
@@ -972,7 +971,7 @@ pub fn merge_encode(paths: &[PathBuf], out: &Path) -> Result<(Merged, Vec<u8>)> 
         "stack" => merge_stack(&set)?,
         "ptm" => {
             let (ptm, fit, lights) = merge_ptm(&set)?;
-            let save = crate::SaveOptions {
+            let save = ptm_format::SaveOptions {
                 half: false,
                 report: Some(&fit),
                 error_map: false,

@@ -8,8 +8,9 @@
 //! shortest round-trip decimal), `stack:lightNames` (text vector), `stack:K`, `stack:frame`.
 use std::path::Path;
 
-use crate::exrio::{self, Attr, Samples};
-use crate::{Error, LightSet, Result};
+use crate::{Error, Result};
+use ptm_format::exrio::{self, Attr, Samples};
+use ptm_format::LightSet;
 
 /// Value of `stack:version`; a file without it is not a sample stack.
 pub const STACK_VERSION: &str = "ptm-samples/1";
@@ -118,11 +119,11 @@ impl SampleStack {
     /// them: the peak memory of a large stack stays one stack.
     pub fn write_into(self, path: &Path) -> Result<()> {
         let bytes = self.encode_into(path)?;
-        Ok(crate::atomic::write_bytes(path, &bytes)?)
+        Ok(ptm_format::atomic::write_bytes(path, &bytes)?)
     }
 
     /// The bytes [`SampleStack::write_into`] writes (`path` names the file in errors only), to
-    /// stage in an [`atomic::Transaction`](crate::atomic::Transaction) with other outputs.
+    /// stage in an [`atomic::Transaction`](ptm_format::atomic::Transaction) with other outputs.
     pub fn encode_into(mut self, path: &Path) -> Result<Vec<u8>> {
         self.validate()?;
         let k = std::mem::take(&mut self.k);
@@ -413,7 +414,7 @@ mod tests {
                 "{f}: {e}"
             );
         }
-        let e = crate::Ptm::load(&dir.join("ptm/regress-size-1348.ptm.exr"))
+        let e = ptm_format::Ptm::load(&dir.join("ptm/regress-size-1348.ptm.exr"))
             .unwrap_err()
             .to_string();
         assert!(e.contains("67108862×3 pixels"), "{e}");

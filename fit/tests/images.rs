@@ -1,7 +1,7 @@
 //! RTI image stacks: PNGs + `.lp` → sample stack (K = 1 − luminance) → fit.
 use ptm_fit::images::{read_image_stack, Decoding};
 use ptm_fit::solve::{fit_stack, FitOptions};
-use ptm_fit::{Basis, LightSet};
+use ptm_format::{Basis, LightSet};
 
 #[test]
 fn png_stack_with_lp_fits_the_visibility_polynomial() {

@@ -4,9 +4,10 @@
 use std::path::{Path, PathBuf};
 
 use exr::prelude::*;
-use ptm_fit::layout::{self, part_path, parts, Layout, PtmFile, Slot};
-use ptm_fit::ptm::{mip_sizes, Level};
-use ptm_fit::{Basis, FitReport, Link, Ptm, SaveOptions, UvMap};
+use ptm_fit::FitReport;
+use ptm_format::layout::{self, part_path, parts, Layout, PtmFile, Slot};
+use ptm_format::ptm::{mip_sizes, Level};
+use ptm_format::{Basis, Link, Ptm, SaveOptions, UvMap};
 
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("ptm-layout-{name}-{}", std::process::id()));

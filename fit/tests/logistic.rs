@@ -1,11 +1,12 @@
 //! The logistic link: exact recovery of K = σ(p), every kernel build against the portable one,
 //! an independent f64 Newton solve, separable / constant / one-ring texels, streaming counts
 //! against the stored stack, and MIP levels against fits of the box-filtered stack.
-use ptm_fit::basis::sigmoid64;
 use ptm_fit::diagnostic::Solution;
 use ptm_fit::logistic::Kernel;
 use ptm_fit::solve::{fit_stack, Accumulator, FitOptions};
-use ptm_fit::{Basis, Diagnostic, LightSet, Link, SampleStack, UvMap};
+use ptm_fit::{Diagnostic, SampleStack};
+use ptm_format::basis::sigmoid64;
+use ptm_format::{Basis, LightSet, Link, UvMap};
 
 mod common;
 use common::{fibonacci, Rng};

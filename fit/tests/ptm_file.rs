@@ -2,7 +2,8 @@
 use std::path::PathBuf;
 
 use ptm_fit::solve::{fit_stack, FitOptions};
-use ptm_fit::{Basis, LightSet, Ptm, SampleStack, SaveOptions};
+use ptm_fit::SampleStack;
+use ptm_format::{Basis, LightSet, Ptm, SaveOptions};
 
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("ptm-fit-{name}-{}", std::process::id()));
@@ -23,8 +24,8 @@ fn sample_ptm(basis: Basis) -> Ptm {
         basis,
         width: w,
         height: h,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
+        link: ptm_format::Link::Identity,
+        uv: ptm_format::UvMap::Projected,
         mips: Vec::new(),
         coverage: None,
         tile: [1.5, 0.75],
@@ -162,7 +163,7 @@ fn channels_are_named_by_monomial_and_header_is_complete() {
     );
     // The logistic link, stored and streamed, with MIP levels.
     let mut logistic = FitOptions::new(Basis::Ptm6);
-    logistic.link = ptm_fit::Link::Logistic;
+    logistic.link = ptm_format::Link::Logistic;
     logistic.mips = true;
     let mut binary = holed.clone();
     for k in &mut binary.k {
@@ -283,12 +284,12 @@ fn logistic_hemispherical_mip_chain_round_trips() {
     let dir = tmpdir("mip");
     for basis in Basis::ALL {
         let mut ptm = sample_ptm(basis);
-        ptm.link = ptm_fit::Link::Logistic;
-        ptm.uv = ptm_fit::UvMap::Hemispherical;
-        ptm.mips = ptm_fit::ptm::mip_sizes(ptm.width, ptm.height)
+        ptm.link = ptm_format::Link::Logistic;
+        ptm.uv = ptm_format::UvMap::Hemispherical;
+        ptm.mips = ptm_format::ptm::mip_sizes(ptm.width, ptm.height)
             .into_iter()
             .enumerate()
-            .map(|(l, (width, height))| ptm_fit::Level {
+            .map(|(l, (width, height))| ptm_format::Level {
                 width,
                 height,
                 planes: (0..basis.len())
@@ -305,12 +306,12 @@ fn logistic_hemispherical_mip_chain_round_trips() {
         ptm.save(&p, &SaveOptions::default()).unwrap();
         let back = Ptm::load(&p).unwrap();
         assert_eq!(back, ptm);
-        assert_eq!(back.version(), ptm_fit::ptm::PTM_VERSION_2);
+        assert_eq!(back.version(), ptm_format::ptm::PTM_VERSION_2);
         // σ of the polynomial at the hemispherical coordinates.
         let c = ptm.coeffs(3, 2);
         let (pu, pv) = (0.4f32, -0.3f32);
-        let (u, v) = ptm_fit::UvMap::Hemispherical.of_projected(pu, pv);
-        let want = ptm_fit::basis::sigmoid(basis.eval(&c, u, v));
+        let (u, v) = ptm_format::UvMap::Hemispherical.of_projected(pu, pv);
+        let want = ptm_format::basis::sigmoid(basis.eval(&c, u, v));
         assert!((back.eval(3, 2, pu, pv) - want).abs() < 1e-6);
     }
 }
@@ -321,8 +322,8 @@ fn logistic_hemispherical_mip_chain_round_trips() {
 fn unknown_link_or_uv_map_is_an_error_naming_it() {
     let dir = tmpdir("unknown");
     let mut ptm = sample_ptm(Basis::Ptm6);
-    ptm.link = ptm_fit::Link::Logistic;
-    ptm.uv = ptm_fit::UvMap::Hemispherical;
+    ptm.link = ptm_format::Link::Logistic;
+    ptm.uv = ptm_format::UvMap::Hemispherical;
     let p = dir.join("u.ptm.exr");
     ptm.save(&p, &SaveOptions::default()).unwrap();
     let bytes = std::fs::read(&p).unwrap();

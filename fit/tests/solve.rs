@@ -3,7 +3,8 @@
 use nalgebra::{DMatrix, DVector};
 use ptm_fit::diagnostic::Solution;
 use ptm_fit::solve::{fit_stack, holdout_indices, Accumulator, FitOptions, Weight};
-use ptm_fit::{Basis, Diagnostic, Error, LightSet, Ptm, SampleStack};
+use ptm_fit::{Diagnostic, Error, SampleStack};
+use ptm_format::{Basis, LightSet, Ptm};
 
 mod common;
 use common::{fibonacci, Rng};
@@ -555,7 +556,7 @@ fn out_of_range_rcond_and_negative_ridge_are_refused_by_both_paths() {
 /// widths (spp ≤ 255 and above).
 #[test]
 fn memory_estimate_matches_the_allocations() {
-    use ptm_fit::Link;
+    use ptm_format::Link;
     let (w, h) = (13usize, 7usize);
     let t = w * h;
     let lights = fibonacci(24, 10.0);

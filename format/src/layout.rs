@@ -14,7 +14,7 @@
 //!   64×64 `MIPMAP_LEVELS` `ROUND_DOWN`, as `maketx` writes.
 //!
 //! This module uses the `exr` crate and this crate's public [`Ptm`] / [`Basis`] types only
-//! (it moved here from `ptm-fit`, which re-exports it as `ptm_fit::layout`): a [`PtmFile`] holds every map with all its levels and stored sample type and
+//! (no solver, no thread pool): a [`PtmFile`] holds every map with all its levels and stored sample type and
 //! every header attribute verbatim, so converting either way and back gives the same samples,
 //! types and attributes. Writes are atomic per file and all-or-nothing per set: every part is
 //! written to a temporary file first and renamed only when all are complete.

@@ -3,12 +3,12 @@
 //! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), the
 //! renderer layout of RGB(A) parts and its lossless conversion ([`layout`]), HP PTM 1.2
 //! export ([`hp`]), the atomic file output every writer of the workspace uses ([`atomic`]), the
-//! one seeded hash every crate draws its random numbers from ([`hash`]) and the 3-vector helpers
-//! ([`vec3`]).
+//! one seeded hash every crate draws its random numbers from ([`hash`]), the 3-vector helpers
+//! ([`vec3`]) and the light sets that bakes and fits share, with the RTI `.lp` file ([`lights`]).
 //!
 //! It depends on `exr`, `half` and `thiserror` only: no solver (nalgebra), no thread pool
-//! (rayon), no image codec, no Embree, no wgpu. The fitter (`ptm-fit`) builds on it and
-//! re-exports it.
+//! (rayon), no image codec, no Embree, no wgpu. The fitter (`ptm-fit`), the baker (`ptm-bake`)
+//! and the renderer (`ptm-runtime`) build on it; each item has one path, here.
 //!
 //! Conventions (docs/FORMAT.md): one tile spans [0, W]×[0, H] with z up; tangent +X, bitangent
 //! +Y; images have column 0 at x = 0 and **row 0 at the far edge y = H**; K is the fraction of a
@@ -35,12 +35,14 @@ pub mod exrio;
 pub mod hash;
 pub mod hp;
 pub mod layout;
+pub mod lights;
 pub mod ptm;
 pub mod vec3;
 
 pub use atomic::{same_file, write_atomic, Transaction};
 pub use basis::{Basis, Link, Monomial, UvMap};
 pub use layout::{Layout, PtmFile};
+pub use lights::LightSet;
 pub use ptm::{FileFacts, Level, Ptm, PtmInfo, SaveOptions, ToFileFacts};
 
 /// Errors of the format crate. Messages name the file and, where there is something to do, what.
@@ -60,6 +62,16 @@ pub enum Error {
         /// The file, as given.
         path: String,
         /// What is wrong with it.
+        reason: String,
+    },
+    /// A malformed line of a light file (`.lp`).
+    #[error("{path}: line {line}: {reason}")]
+    LightFile {
+        /// The light file, as given.
+        path: String,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with the line.
         reason: String,
     },
     /// Arguments that make no file (plane sizes, mismatched maps).

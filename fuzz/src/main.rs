@@ -167,7 +167,7 @@ fn run_obj(bytes: &[u8], _: &Path) -> Result<(), String> {
 /// grazing directions).
 fn run_lp(bytes: &[u8], _: &Path) -> Result<(), String> {
     let text = std::str::from_utf8(bytes).map_err(err)?;
-    let set = ptm_fit::LightSet::parse_lp(text, "fuzz.lp").map_err(err)?;
+    let set = ptm_format::LightSet::parse_lp(text, "fuzz.lp").map_err(err)?;
     let b = ptm_bake::swatch::Bounds {
         min: [0.0; 3],
         max: [1.0, 1.0, 0.4],
@@ -208,7 +208,7 @@ fn run_stack(bytes: &[u8], tmp: &Path) -> Result<(), String> {
 fn run_ptm(bytes: &[u8], tmp: &Path) -> Result<(), String> {
     let path = tmp.join("case.ptm.exr");
     std::fs::write(&path, bytes).map_err(err)?;
-    let p = ptm_fit::Ptm::load(&path).map_err(err)?;
+    let p = ptm_format::Ptm::load(&path).map_err(err)?;
     if p.width > 0 && p.height > 0 {
         let _ = p.eval(0, 0, 0.3, -0.2) + p.eval(p.width - 1, p.height - 1, 0.0, 0.9);
     }
@@ -223,9 +223,9 @@ const LAYOUT_C1: &[u8] = include_bytes!("../pair/ptm6.ptm.c1.exr");
 /// part c0 beside a valid part c1, loaded, turned into a `Ptm` and evaluated at its corners.
 fn run_layout(bytes: &[u8], tmp: &Path) -> Result<(), String> {
     let path = tmp.join("case.ptm.exr");
-    std::fs::write(ptm_fit::layout::part_path(&path, 0), bytes).map_err(err)?;
-    std::fs::write(ptm_fit::layout::part_path(&path, 1), LAYOUT_C1).map_err(err)?;
-    let (file, _) = ptm_fit::PtmFile::load(&path).map_err(err)?;
+    std::fs::write(ptm_format::layout::part_path(&path, 0), bytes).map_err(err)?;
+    std::fs::write(ptm_format::layout::part_path(&path, 1), LAYOUT_C1).map_err(err)?;
+    let (file, _) = ptm_format::PtmFile::load(&path).map_err(err)?;
     let p = file.to_ptm(&path).map_err(err)?;
     if p.width > 0 && p.height > 0 {
         let _ = p.eval(0, 0, 0.3, -0.2) + p.eval(p.width - 1, p.height - 1, 0.0, 0.9);
@@ -245,7 +245,7 @@ fn run_caster(bytes: &[u8], tmp: &Path) -> Result<(), String> {
 }
 
 // splitmix64: mutants are a function of (seed, reader, case) alone.
-use ptm_fit::hash::SplitMix as Rng;
+use ptm_format::hash::SplitMix as Rng;
 
 /// Numbers and tokens that break readers: zero, negative, huge counts, non-finite values,
 /// subnormals, integer limits.
@@ -657,7 +657,8 @@ fn main() -> ExitCode {
 
 /// Writes the binary corpus files (sample stacks, PTMs, casters) from the crates' own writers.
 fn gen_corpus() {
-    use ptm_fit::{Basis, LightSet, Ptm, SampleStack, SaveOptions};
+    use ptm_fit::SampleStack;
+    use ptm_format::{Basis, LightSet, Ptm, SaveOptions};
     let dir = corpus_dir();
     let lights = LightSet::from_dirs([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8], [0.0, -0.6, 0.8]]);
     let (w, h) = (4, 3);
@@ -685,8 +686,8 @@ fn gen_corpus() {
         basis: Basis::Ptm6,
         width: w,
         height: h,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
+        link: ptm_format::Link::Identity,
+        uv: ptm_format::UvMap::Projected,
         mips: Vec::new(),
         tile: [1.0, 0.75],
         planes,
@@ -708,11 +709,11 @@ fn gen_corpus() {
     std::fs::create_dir_all(dir.join("layout")).unwrap();
     let pair = dir.join("../pair");
     std::fs::create_dir_all(&pair).unwrap();
-    let files = ptm_fit::layout::save(
+    let files = ptm_format::layout::save(
         &p,
         &pair.join("ptm6.ptm.exr"),
         &SaveOptions::default(),
-        ptm_fit::Layout::Rgba,
+        ptm_format::Layout::Rgba,
     )
     .unwrap();
     std::fs::rename(&files[0], dir.join("layout/ptm6.ptm.c0.exr")).unwrap();

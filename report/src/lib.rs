@@ -18,7 +18,8 @@ mod tables;
 use std::path::PathBuf;
 
 use ptm_bake::PreparedMesh;
-use ptm_fit::{Basis, Link, UvMap, Weight};
+use ptm_fit::Weight;
+use ptm_format::{Basis, Link, UvMap};
 
 pub use runtime::Runtime;
 pub use sheet::ContactSheet;
@@ -38,7 +39,7 @@ pub enum Error {
     Fit(#[from] ptm_fit::Error),
     /// Writing or reading a scratch PTM failed.
     #[error(transparent)]
-    Format(#[from] ptm_fit::FormatError),
+    Format(#[from] ptm_format::Error),
     /// A builtin swatch could not be built.
     #[error(transparent)]
     Swatch(#[from] ptm_swatches::Error),

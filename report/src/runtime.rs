@@ -2,7 +2,7 @@
 //! ground truth beside its frame time, and the extreme cases of the penumbra map (R → 0,
 //! d_ca → 0, d_lc → 0, a huge light, an 8192² caster through the summed-area table), each
 //! measured against its analytic answer and against the CPU twin.
-use ptm_fit::{Basis, Ptm};
+use ptm_format::{Basis, Ptm};
 use ptm_runtime::penumbra::{caster_radius, half_plane_fraction};
 use ptm_runtime::synthetic::{half_plane, leaves};
 use ptm_runtime::{compare, cpu, gpu, Blur, Gpu, Light, Scene};

@@ -1,7 +1,7 @@
 //! The contact sheet's data: every builtin swatch baked under one low light, as visibility
 //! 1 − K per texel (the `ptm report` command draws each as 2×2 tiles so that a seam would show).
 use ptm_bake::{bake_planes, PreparedMesh};
-use ptm_fit::LightSet;
+use ptm_format::LightSet;
 
 use crate::study::bake_config;
 use crate::Result;

@@ -5,9 +5,8 @@ use std::path::Path;
 
 use ptm_bake::{bake_planes, dome, PreparedMesh};
 use ptm_fit::solve::LogisticStats;
-use ptm_fit::{
-    fit_stack, Basis, FitOptions, FitReport, LightSet, Link, Ptm, SampleStack, SaveOptions, UvMap,
-};
+use ptm_fit::{fit_stack, FitOptions, FitReport, SampleStack};
+use ptm_format::{Basis, LightSet, Link, Ptm, SaveOptions, UvMap};
 use ptm_swatches::Mesh;
 
 use crate::study::{bake_config, measure, Errors, Truth};

@@ -5,7 +5,8 @@
 use std::time::Instant;
 
 use ptm_bake::{dome, BakeConfig, Baker, PreparedMesh};
-use ptm_fit::{Accumulator, Basis, FitOptions, LightSet, Link, Ptm, UvMap, Weight};
+use ptm_fit::{Accumulator, FitOptions, Weight};
+use ptm_format::{Basis, LightSet, Link, Ptm, UvMap};
 use rayon::prelude::*;
 
 use crate::{Plan, Result, MODELS};
@@ -292,7 +293,7 @@ pub fn run_settings(
     baker.trace(&lights, &mut |i, k, _| {
         for (acc, secs) in accs.iter_mut().zip(fit_s.iter_mut()) {
             let t = Instant::now();
-            acc.add_light(i, k)?;
+            acc.add_light(i, k).map_err(ptm_bake::Error::sink)?;
             let dt = t.elapsed().as_secs_f64();
             *secs += dt;
             stream_s += dt;

@@ -9,8 +9,8 @@
 
 use std::time::Instant;
 
-use ptm_fit::hash::splitmix64 as hash;
-use ptm_fit::{Basis, Ptm};
+use ptm_format::hash::splitmix64 as hash;
+use ptm_format::{Basis, Ptm};
 use ptm_runtime::gpu::Renderer;
 use ptm_runtime::synthetic::leaves as caster;
 use ptm_runtime::{Blur, Gpu, Light, Scene};

@@ -88,16 +88,9 @@ pub enum Error {
         /// The caster's tilt about its centre line, in degrees.
         tilt_deg: f32,
     },
-    /// An error of the fit crate or the file layer under it (loading a PTM).
+    /// An error of the file layer (`ptm-format`: loading a PTM, writing images).
     #[error(transparent)]
-    Fit(#[from] ptm_fit::Error),
-}
-
-/// The PTM file layer's errors (loading, saving, atomic output) arrive as fit errors.
-impl From<ptm_fit::FormatError> for Error {
-    fn from(e: ptm_fit::FormatError) -> Error {
-        Error::Fit(e.into())
-    }
+    Format(#[from] ptm_format::Error),
 }
 
 /// The runtime crate's result type.

@@ -97,7 +97,7 @@ impl Image {
     pub fn write_exr(&self, path: &Path) -> Result<()> {
         use exr::prelude::*;
         // A failed EXR write publishes nothing (the temporary file is removed).
-        ptm_fit::atomic::write_path(path, |tmp| {
+        ptm_format::atomic::write_path(path, |tmp| {
             write_rgb_file(tmp, self.width, self.height, |x, y| {
                 let p = self.pixels[y * self.width + x];
                 (p[0], p[1], p[2])
@@ -121,7 +121,7 @@ pub fn write_png_rgba8(path: &Path, width: usize, height: usize, rgba: &[u8]) ->
             ),
         },
     )?;
-    ptm_fit::atomic::write_atomic(path, |w| {
+    ptm_format::atomic::write_atomic(path, |w| {
         img.write_to(w, image::ImageFormat::Png)
             .map_err(std::io::Error::other)
     })?;

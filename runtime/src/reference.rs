@@ -4,8 +4,8 @@
 
 use std::f64::consts::PI;
 
-use ptm_fit::hash::{splitmix64 as hash, unit_f64 as unit};
-use ptm_fit::vec3::{cross, dot, normalize};
+use ptm_format::hash::{splitmix64 as hash, unit_f64 as unit};
+use ptm_format::vec3::{cross, dot, normalize};
 
 use crate::cpu::shade::opacity_raw;
 use crate::layout::{Frame, LightGpu};

@@ -4,7 +4,7 @@
 //! World space is the swatch frame: the acceptor is the plane z = 0, tangent +X, bitangent +Y,
 //! normal +Z. Lengths are swatch units (the PTM tile is `ptm.tile` = [W, H] of them).
 
-use ptm_fit::{Link, Ptm, UvMap};
+use ptm_format::{Link, Ptm, UvMap};
 
 pub use crate::caster::{Caster, MAX_CASTER_SIDE};
 use crate::layout::{Frame, LightGpu, PtmLevel};
@@ -470,7 +470,7 @@ impl std::fmt::Display for Warning {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct Variant {
     /// The PTM's basis; `None` without a PTM (unoccluded cloth).
-    pub basis: Option<ptm_fit::Basis>,
+    pub basis: Option<ptm_format::Basis>,
     /// Albedo from a texture rather than a constant.
     pub albedo_texture: bool,
     /// The blur method when there is a caster.
@@ -493,8 +493,8 @@ impl Variant {
         let mut out = Vec::new();
         for basis in [
             None,
-            Some(ptm_fit::Basis::Ptm6),
-            Some(ptm_fit::Basis::Ptm11),
+            Some(ptm_format::Basis::Ptm6),
+            Some(ptm_format::Basis::Ptm11),
         ] {
             // Link, map, MIP chain and coverage exist only with a PTM.
             let mut ptm_kinds = vec![(Link::Identity, UvMap::Projected, false, false)];

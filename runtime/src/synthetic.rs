@@ -4,7 +4,7 @@
 
 use crate::scene::Caster;
 
-use ptm_fit::hash::splitmix64 as hash;
+use ptm_format::hash::splitmix64 as hash;
 
 /// A leafy `n`² caster (n ≥ 12): 60 green discs of radius n/40 to n/40 + n/12 texels and alpha
 /// 128–255 on transparent, over the world rectangle `rect` at height `elevation`, untilted.

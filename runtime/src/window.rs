@@ -795,7 +795,7 @@ impl Blit {
 mod tests {
     use super::*;
     use crate::scene::{Caster, Light};
-    use ptm_fit::{Basis, Ptm};
+    use ptm_format::{Basis, Ptm};
 
     #[test]
     fn fit_letterboxes_and_keeps_aspect() {
@@ -821,8 +821,8 @@ mod tests {
             basis: Basis::Ptm6,
             width: 4,
             height: 4,
-            link: ptm_fit::Link::Identity,
-            uv: ptm_fit::UvMap::Projected,
+            link: ptm_format::Link::Identity,
+            uv: ptm_format::UvMap::Projected,
             mips: Vec::new(),
             coverage: None,
             tile: [1.0, 1.0],

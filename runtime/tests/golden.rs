@@ -7,7 +7,7 @@ mod common;
 use std::path::PathBuf;
 
 use common::*;
-use ptm_fit::Basis;
+use ptm_format::Basis;
 use ptm_runtime::output::{read_rgba8, write_png_rgba8};
 use ptm_runtime::{gpu, Blur, Scene};
 

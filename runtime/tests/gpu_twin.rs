@@ -4,7 +4,7 @@
 mod common;
 
 use common::*;
-use ptm_fit::Basis;
+use ptm_format::Basis;
 use ptm_runtime::{cpu, gpu, Blur, Scene};
 
 fn scene(basis: Option<Basis>, size: [u32; 2]) -> Scene {
@@ -134,18 +134,18 @@ fn no_lights_render_black() {
 }
 
 /// A 64² ptm6 whose constant term is a texel checkerboard of K = 0 and 1 (no light dependence).
-fn checker_ptm() -> ptm_fit::Ptm {
+fn checker_ptm() -> ptm_format::Ptm {
     let n = 64;
     let mut planes = vec![vec![0.0f32; n * n]; 6];
     for (t, c) in planes[5].iter_mut().enumerate() {
         *c = ((t % n + t / n) % 2) as f32;
     }
-    ptm_fit::Ptm {
+    ptm_format::Ptm {
         basis: Basis::Ptm6,
         width: n,
         height: n,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
+        link: ptm_format::Link::Identity,
+        uv: ptm_format::UvMap::Projected,
         mips: Vec::new(),
         coverage: None,
         tile: [1.0, 1.0],
@@ -198,11 +198,11 @@ fn perspective_over_a_mip_mapped_ptm_matches_twin() {
 
 /// `random_ptm` with `link` and `uv`; logistic coefficients are scaled ×6 so σ has sharp edges,
 /// and every 7th texel's constant term is ±200 (σ saturates: a naive exp(−p) overflows f32).
-fn link_ptm(basis: Basis, link: ptm_fit::Link, uv: ptm_fit::UvMap) -> ptm_fit::Ptm {
+fn link_ptm(basis: Basis, link: ptm_format::Link, uv: ptm_format::UvMap) -> ptm_format::Ptm {
     let mut ptm = random_ptm(basis, 13, 9, 5);
     ptm.link = link;
     ptm.uv = uv;
-    if link == ptm_fit::Link::Logistic {
+    if link == ptm_format::Link::Logistic {
         let one = basis.len() - 1;
         for (k, plane) in ptm.planes.iter_mut().enumerate() {
             for (t, c) in plane.iter_mut().enumerate() {
@@ -223,7 +223,7 @@ fn link_ptm(basis: Basis, link: ptm_fit::Link, uv: ptm_fit::UvMap) -> ptm_fit::P
 
 #[test]
 fn gpu_matches_twin_for_every_link_and_uv_map() {
-    use ptm_fit::{Link, UvMap};
+    use ptm_format::{Link, UvMap};
     for basis in [Basis::Ptm6, Basis::Ptm11] {
         for link in Link::ALL {
             for uv in UvMap::ALL {
@@ -245,19 +245,19 @@ fn gpu_matches_twin_for_every_link_and_uv_map() {
 /// A 64² logistic ptm6 whose constant term is a texel checkerboard of p = ±20 (K ≈ 0 and 1),
 /// with stored levels of p = ln(1/3) (K = 1/4) that averaged coefficients (p = 0, K = 1/2)
 /// would not give.
-fn logistic_checker(stored: bool) -> ptm_fit::Ptm {
+fn logistic_checker(stored: bool) -> ptm_format::Ptm {
     let mut ptm = checker_ptm();
-    ptm.link = ptm_fit::Link::Logistic;
+    ptm.link = ptm_format::Link::Logistic;
     for c in &mut ptm.planes[5] {
         *c = 40.0 * *c - 20.0;
     }
     if stored {
-        ptm.mips = ptm_fit::ptm::mip_sizes(64, 64)
+        ptm.mips = ptm_format::ptm::mip_sizes(64, 64)
             .into_iter()
             .map(|(w, h)| {
                 let mut planes = vec![vec![0.0f32; w * h]; 6];
                 planes[5].fill((1.0f32 / 3.0).ln());
-                ptm_fit::ptm::Level {
+                ptm_format::ptm::Level {
                     width: w,
                     height: h,
                     planes,
@@ -284,7 +284,7 @@ fn minified_logistic_ptm_renders_from_its_stored_levels() {
         logistic_checker(stored)
             .save(&path, &Default::default())
             .unwrap();
-        let ptm = ptm_fit::Ptm::load(&path).unwrap();
+        let ptm = ptm_format::Ptm::load(&path).unwrap();
         assert_eq!(ptm, logistic_checker(stored));
         let mut s = free.clone();
         s.ptm = Some(ptm);
@@ -323,15 +323,15 @@ fn stored_levels_of_odd_sizes_match_twin_under_perspective() {
     let mut s = scene(Some(Basis::Ptm11), [96, 64]);
     let mut ptm = link_ptm(
         Basis::Ptm11,
-        ptm_fit::Link::Logistic,
-        ptm_fit::UvMap::Hemispherical,
+        ptm_format::Link::Logistic,
+        ptm_format::UvMap::Hemispherical,
     );
-    ptm.mips = ptm_fit::ptm::mip_sizes(13, 9)
+    ptm.mips = ptm_format::ptm::mip_sizes(13, 9)
         .into_iter()
         .enumerate()
         .map(|(k, (w, h))| {
             let level = random_ptm(Basis::Ptm11, w, h, 100 + k as u64);
-            ptm_fit::ptm::Level {
+            ptm_format::ptm::Level {
                 width: w,
                 height: h,
                 planes: level.planes,
@@ -414,10 +414,10 @@ fn holes_render_black_and_match_twin_plain_minified_and_stored() {
 
     // Stored levels of odd sizes (rounded down) under perspective.
     let mut ptm = holed_ptm(Basis::Ptm6, 13, 9, 4);
-    ptm.mips = ptm_fit::ptm::mip_sizes(13, 9)
+    ptm.mips = ptm_format::ptm::mip_sizes(13, 9)
         .into_iter()
         .enumerate()
-        .map(|(k, (w, h))| ptm_fit::ptm::Level {
+        .map(|(k, (w, h))| ptm_format::ptm::Level {
             width: w,
             height: h,
             planes: random_ptm(Basis::Ptm6, w, h, 50 + k as u64).planes,

@@ -6,7 +6,7 @@
 mod common;
 
 use common::*;
-use ptm_fit::{Basis, Ptm};
+use ptm_format::{Basis, Ptm};
 use ptm_runtime::penumbra::{acceptor_radius, caster_radius, half_plane_fraction};
 use ptm_runtime::reference::{mc_opacity, render_reference};
 use ptm_runtime::{cpu, gpu, Blur, Caster, Image, Scene};
@@ -234,8 +234,8 @@ fn constant_ptm(k: f32) -> Ptm {
         basis: Basis::Ptm6,
         width: 2,
         height: 2,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
+        link: ptm_format::Link::Identity,
+        uv: ptm_format::UvMap::Projected,
         mips: Vec::new(),
         coverage: None,
         tile: [0.5, 0.5],

@@ -16,7 +16,8 @@ use super::options::{
 use super::refit::{bad_sample, refuse_per_texel_logistic};
 use super::{fit_logistic, identity_mips};
 use crate::logistic::Source;
-use crate::{Diagnostic, Error, LightSet, Link, Ptm, Result};
+use crate::{Diagnostic, Error, Result};
+use ptm_format::{LightSet, Link, Ptm};
 
 /// Streaming accumulator used by `ptm bake --fit`: samples are added light by light, memory is
 /// O(texels × terms) (plus the held-out lights' samples, if asked), never O(texels × lights).

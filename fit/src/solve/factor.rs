@@ -4,7 +4,8 @@ use nalgebra::{DMatrix, SymmetricEigen};
 
 use super::options::{check_strict, holdout_indices, FitOptions, Weight, COND_WARN};
 use crate::diagnostic::{Diagnostic, Solution};
-use crate::{logistic, Basis, Error, LightSet, Link, Result, UvMap};
+use crate::{logistic, Error, Result};
+use ptm_format::{Basis, LightSet, Link, UvMap};
 
 pub(super) fn light_weights(
     lights: &LightSet,

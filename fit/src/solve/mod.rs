@@ -24,7 +24,8 @@ use std::ops::Range;
 use std::time::Instant;
 
 use crate::logistic::{self, Footprint, Kernel, Source, Tables};
-use crate::{Diagnostic, Error, LightSet, Link, Ptm, Result};
+use crate::{Diagnostic, Error, Result};
+use ptm_format::{LightSet, Link, Ptm};
 
 mod accumulator;
 mod factor;
@@ -122,7 +123,7 @@ fn logistic_levels(
     src_w: usize,
     levels: &[Footprint],
     keep_last: bool,
-) -> (Vec<crate::Level>, Option<logistic::Pooled>) {
+) -> (Vec<ptm_format::Level>, Option<logistic::Pooled>) {
     // Each level pools the one above (exact counts, or coverage-weighted K), is fitted, and
     // replaces it: at most two levels' data are alive, the first a quarter of level 0.
     let mut out = Vec::with_capacity(levels.len());
@@ -142,7 +143,7 @@ fn logistic_levels(
             &|_| true,
             kernel,
         );
-        out.push(crate::Level {
+        out.push(ptm_format::Level {
             width: fp.width,
             height: fp.height,
             planes: level.planes,
@@ -163,7 +164,7 @@ pub(crate) fn logistic_coarse_levels(
     occ: &[Vec<u32>],
     src_w: usize,
     levels: &[Footprint],
-) -> Result<Vec<crate::Level>> {
+) -> Result<Vec<ptm_format::Level>> {
     let prep = factor::prepare(lights, opts)?;
     let (tables, kernel, _) = logistic_tables(&prep, lights, opts)?;
     let src = Source::Counts32 { occ, cov };
@@ -296,7 +297,7 @@ fn fit_logistic(
 /// MIP levels of an identity-link PTM: the least-squares fit of box-filtered K equals the
 /// coverage-weighted box average of the coefficients (K is linear in them and every texel
 /// shares the design), so no refit is needed.
-pub(crate) fn identity_mips(ptm: &Ptm, coverage: &[f32]) -> Vec<crate::Level> {
+pub(crate) fn identity_mips(ptm: &Ptm, coverage: &[f32]) -> Vec<ptm_format::Level> {
     let m = ptm.basis.len();
     let chain = Footprint::chain(ptm.width, ptm.height);
     let mut planes: Vec<Vec<f32>> = ptm.planes.clone();
@@ -329,7 +330,7 @@ pub(crate) fn identity_mips(ptm: &Ptm, coverage: &[f32]) -> Vec<crate::Level> {
                 }
             }
         }
-        out.push(crate::Level {
+        out.push(ptm_format::Level {
             width: fp.width,
             height: fp.height,
             planes: next.clone(),

@@ -1,7 +1,8 @@
 //! What a fit is asked for ([`FitOptions`], [`Weight`]) and what it reports beside the PTM
 //! ([`FitReport`], [`ErrorStats`], [`LogisticStats`]).
 use crate::logistic::{self, Kernel};
-use crate::{Basis, Diagnostic, Error, Link, Result, UvMap};
+use crate::{Diagnostic, Error, Result};
+use ptm_format::{Basis, Link, UvMap};
 
 /// How each light's squared error counts in the fit.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -225,7 +226,7 @@ pub(super) fn partial_coverage(coverage: &[f32]) -> Vec<f32> {
     }
 }
 
-/// The coverage a fitted [`Ptm`](crate::Ptm) carries: the map when some texel is not fully
+/// The coverage a fitted [`Ptm`](ptm_format::Ptm) carries: the map when some texel is not fully
 /// covered.
 pub(crate) fn ptm_coverage(coverage: &[f32]) -> Option<Vec<f32>> {
     coverage.iter().any(|&c| c < 1.0).then(|| coverage.to_vec())

@@ -11,7 +11,8 @@ use super::kernel::{kernel, Block, KernelIn, BLOCK};
 use super::options::{partial_coverage, ptm_coverage, ErrorStats, FitOptions, FitReport};
 use super::{fit_logistic, identity_mips, Accumulator};
 use crate::logistic::{Kernel, Source};
-use crate::{Diagnostic, Error, Link, Ptm, Result, SampleStack};
+use crate::{Diagnostic, Error, Result, SampleStack};
+use ptm_format::{Link, Ptm};
 
 pub(super) fn bad_sample(texel: usize, width: usize, light: usize, value: f32) -> Error {
     Error::BadSample {

@@ -1,10 +1,11 @@
 //! Helpers shared by the fit crate's integration tests: the seeded generator, a Fibonacci dome,
 //! and a fully covered distant-light stack from its K planes.
 #![allow(dead_code, unused_imports)] // each test crate uses a part (tests/ of the binary too)
-use ptm_fit::{LightSet, SampleStack};
+use ptm_fit::SampleStack;
+use ptm_format::LightSet;
 
 /// Deterministic uniform numbers (the workspace's splitmix64 stream).
-pub use ptm_fit::hash::SplitMix as Rng;
+pub use ptm_format::hash::SplitMix as Rng;
 
 /// Fibonacci hemisphere, elevations above `min_el` degrees.
 pub fn fibonacci(n: usize, min_el: f64) -> LightSet {

@@ -3,7 +3,7 @@
 //! block take it as `f`; those that read storage buffers are methods of [`Twin`]). Tests
 //! compare the GPU image with it (≤ 1e-3 linear radiance); `cpu::TWINS` lists the pairs.
 
-use ptm_fit::{Link, UvMap};
+use ptm_format::{Link, UvMap};
 
 use crate::layout::{Frame, LightGpu, MipLevel, PtmLevel};
 use crate::scene::{Blur, Prepared, Variant};
@@ -141,7 +141,7 @@ pub fn ptm_sigmoid(p: f32) -> f32 {
 
 /// K of `link` and `uv` before the clamp for the unit light direction l: what `ptm_k` clamps.
 pub fn ptm_k_unclamped(
-    basis: ptm_fit::Basis,
+    basis: ptm_format::Basis,
     link: Link,
     uv: UvMap,
     c: &[f32],
@@ -556,7 +556,7 @@ impl Twin<'_> {
 mod tests {
     use super::*;
     use crate::cpu::sat::build;
-    use ptm_fit::{Basis, Ptm};
+    use ptm_format::{Basis, Ptm};
 
     #[test]
     fn twin_k_equals_the_fit_crates_eval_dir_for_every_link_and_map() {
@@ -597,7 +597,7 @@ mod tests {
         assert_eq!(ptm_sigmoid(-1e30), 0.0);
         assert_eq!(ptm_sigmoid(0.0), 0.5);
         for p in [-30.0f32, -3.0, -0.1, 0.1, 3.0, 30.0] {
-            assert!((ptm_sigmoid(p) - ptm_fit::basis::sigmoid(p)).abs() < 1e-7);
+            assert!((ptm_sigmoid(p) - ptm_format::basis::sigmoid(p)).abs() < 1e-7);
         }
     }
 

@@ -5,7 +5,7 @@
 //! `{{NC}}`, `{{PTM_EVAL}}`, `{{SAT_CHANNELS}}`. The PTM polynomial is generated from the fit
 //! crate's monomial table, so the shader and `Basis::eval` cannot disagree on the order.
 
-use ptm_fit::{Basis, Link, UvMap};
+use ptm_format::{Basis, Link, UvMap};
 
 use crate::scene::{Blur, Variant};
 use crate::{Error, Result};

@@ -1,10 +1,10 @@
 //! Shared helpers of the runtime tests: deterministic in-memory PTMs, casters and the GPU.
 #![allow(dead_code)]
 
-use ptm_fit::{Basis, Ptm};
+use ptm_format::{Basis, Ptm};
 use ptm_runtime::{Caster, Gpu, Light};
 
-pub use ptm_fit::hash::splitmix64 as hash;
+pub use ptm_format::hash::splitmix64 as hash;
 
 /// Uniform in [lo, hi) from a key.
 pub fn rand(key: u64, lo: f32, hi: f32) -> f32 {
@@ -32,8 +32,8 @@ pub fn random_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
         basis,
         width,
         height,
-        link: ptm_fit::Link::Identity,
-        uv: ptm_fit::UvMap::Projected,
+        link: ptm_format::Link::Identity,
+        uv: ptm_format::UvMap::Projected,
         mips: Vec::new(),
         coverage: None,
         tile: [1.0, 1.0],

@@ -130,7 +130,7 @@ impl LightSet {
 
     /// Writes an `.lp` file atomically.
     pub fn write_lp(&self, path: &Path) -> Result<()> {
-        Ok(crate::atomic::write_bytes(path, self.to_lp().as_bytes())?)
+        crate::atomic::write_bytes(path, self.to_lp().as_bytes())
     }
 }
 
