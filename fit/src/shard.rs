@@ -543,11 +543,6 @@ fn err(path: &Path, reason: impl Into<String>) -> Error {
     }
 }
 
-/// EXR text is Latin-1 bytes (as `exrio` reads it).
-fn latin1(t: &exr::meta::attribute::Text) -> String {
-    t.bytes().iter().map(|&b| b as char).collect()
-}
-
 /// Header attributes of a part, without decoding its pixels.
 fn read_header(path: &Path) -> Result<BTreeMap<String, Attr>> {
     if let Err(e) = std::fs::metadata(path) {
@@ -571,13 +566,15 @@ fn read_header(path: &Path) -> Result<BTreeMap<String, Attr>> {
             .chain(&h.shared_attributes.other)
         {
             let a = match value {
-                AttributeValue::Text(t) => Attr::Text(latin1(t)),
-                AttributeValue::TextVector(v) => Attr::Texts(v.iter().map(latin1).collect()),
+                AttributeValue::Text(t) => Attr::Text(exrio::decode_text(t)),
+                AttributeValue::TextVector(v) => {
+                    Attr::Texts(v.iter().map(exrio::decode_text).collect())
+                }
                 AttributeValue::F64(x) => Attr::F64(*x),
                 AttributeValue::I32(x) => Attr::I32(*x),
                 _ => continue,
             };
-            out.insert(latin1(name), a);
+            out.insert(exrio::decode_text(name), a);
         }
     }
     Ok(out)

@@ -3,9 +3,16 @@
 //! portable header attributes (text, text vector, f64, i32), encoded in memory with the header
 //! attributes sorted (byte-identical files for identical content) and written atomically.
 //!
+//! Reading: [`read_decoded`] (a file) and [`decode_bytes`] (bytes this crate encoded) are the one
+//! decode of an EXR in the workspace: every channel with all its resolution levels and every
+//! header attribute as stored ([`Decoded`]). The PTM readers of both layouts build their
+//! `PtmFile` from it (`layout.rs`); [`read`] turns it into the portable [`Contents`] that the
+//! sample stack and the farm parts read. This layer knows EXR, not PTMs.
+//!
 //! Header text is written as UTF-8 (what OpenEXR's Python bindings decode) and read leniently:
-//! bytes that are not UTF-8 are taken as Latin-1, as files before this version wrote them.
-use std::collections::HashMap;
+//! bytes that are not UTF-8 are taken as Latin-1, as files before this version wrote them
+//! ([`decode_text`], the one text decoder of every reader of the workspace).
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use exr::math::RoundingMode;
@@ -35,13 +42,14 @@ pub enum Attr {
     I32(i32),
 }
 
-/// EXR `Text` holds bytes; we write UTF-8.
-fn text(s: &str) -> Text {
+/// Header text as we write it: EXR `Text` holds bytes, and ours are UTF-8.
+pub fn encode_text(s: &str) -> Text {
     Text::from_bytes_unchecked(s.as_bytes().into())
 }
 
-/// UTF-8 when the bytes are, else Latin-1 (files written before headers were UTF-8).
-fn string(t: &Text) -> String {
+/// Header text as read: UTF-8 when the bytes are, else Latin-1 (files written before headers
+/// were UTF-8). The one text decoder of every EXR reader of the workspace.
+pub fn decode_text(t: &Text) -> String {
     match std::str::from_utf8(t.bytes()) {
         Ok(s) => s.to_string(),
         Err(_) => t.bytes().iter().map(|&b| b as char).collect(),
@@ -117,18 +125,20 @@ pub fn encode_levels(
             } else {
                 Levels::Singular(flat(levels.into_iter().next().expect("one level")))
             };
-            AnyChannel::new(text(&name), data)
+            AnyChannel::new(encode_text(&name), data)
         })
         .collect();
     let mut la = LayerAttributes::default();
     for (name, a) in attrs {
         let value = match a {
-            Attr::Text(s) => AttributeValue::Text(text(&s)),
-            Attr::Texts(v) => AttributeValue::TextVector(v.iter().map(|s| text(s)).collect()),
+            Attr::Text(s) => AttributeValue::Text(encode_text(&s)),
+            Attr::Texts(v) => {
+                AttributeValue::TextVector(v.iter().map(|s| encode_text(s)).collect())
+            }
             Attr::F64(x) => AttributeValue::F64(x),
             Attr::I32(x) => AttributeValue::I32(x),
         };
-        la.other.insert(text(name), value);
+        la.other.insert(encode_text(name), value);
     }
     encode_layer(path, width, height, la, list)
 }
@@ -312,29 +322,49 @@ pub fn check_claimed_size(path: &Path, file_len: u64) -> Result<()> {
     Ok(())
 }
 
-/// A channel's resolution levels, finest first: one for a plain image, the chain for a MIP map.
-/// A rip map's diagonal is not a MIP chain; its full-resolution level only.
-pub fn level_list(levels: Levels<FlatSamples>) -> Vec<FlatSamples> {
-    match levels {
-        Levels::Singular(s) => vec![s],
-        Levels::Mip { level_data, .. } => level_data,
-        Levels::Rip { level_data, .. } => level_data.map_data.into_iter().take(1).collect(),
-    }
+/// A single-part EXR as decoded, before any reader interprets it: every channel with all its
+/// resolution levels as stored, and every header attribute (the part's and the file's shared
+/// ones) verbatim, by name.
+pub struct Decoded {
+    /// The file, for messages.
+    pub path: String,
+    /// Width of the full-resolution level, pixels.
+    pub width: usize,
+    /// Height of the full-resolution level, pixels.
+    pub height: usize,
+    /// Every channel by name with its resolution levels, finest first: one for a plain image,
+    /// the chain for a MIP map (a rip map's full-resolution level only: its diagonal is no MIP
+    /// chain).
+    pub channels: Vec<(String, Vec<FlatSamples>)>,
+    /// Sizes of levels 1, 2, … of a MIP-mapped file, as its rounding mode gives them (empty
+    /// without levels).
+    pub level_sizes: Vec<(usize, usize)>,
+    /// Every header attribute by name, verbatim (names decoded by [`decode_text`]).
+    pub attrs: BTreeMap<String, AttributeValue>,
 }
 
-/// Reads every channel and attribute of the first layer. Attributes of other types are skipped.
-pub fn read(path: &Path) -> Result<Contents> {
-    let shown = path.display().to_string();
-    let file_len = match std::fs::metadata(path) {
-        Ok(m) => m.len(),
-        Err(e) => {
-            return Err(Error::Io {
-                path: shown,
-                source: e,
-            })
-        }
+/// Decodes the single-part EXR at `path`: refuses a header that claims more pixels than the
+/// file holds ([`check_claimed_size`]) before anything is allocated, then decodes every level
+/// of every channel of the first layer, strictly (the exr crate's pedantic mode).
+pub fn read_decoded(path: &Path) -> Result<Decoded> {
+    let io = |e: std::io::Error| Error::Io {
+        path: path.display().to_string(),
+        source: e,
     };
+    let file_len = std::fs::metadata(path).map_err(io)?.len();
     check_claimed_size(path, file_len)?;
+    let file = std::fs::File::open(path).map_err(io)?;
+    decode(path, std::io::BufReader::new(file))
+}
+
+/// Decodes an EXR held in memory, as [`read_decoded`] decodes a file (`shown` names it in
+/// errors); for bytes this crate encoded, whose size is known to be sound.
+pub fn decode_bytes(shown: &Path, bytes: &[u8]) -> Result<Decoded> {
+    decode(shown, std::io::Cursor::new(bytes))
+}
+
+/// The one call of the exr crate's reader in the workspace.
+fn decode(path: &Path, source: impl std::io::Read + std::io::Seek + Send) -> Result<Decoded> {
     let image = exr::prelude::read()
         .no_deep_data()
         .all_resolution_levels()
@@ -342,56 +372,101 @@ pub fn read(path: &Path) -> Result<Contents> {
         .first_valid_layer()
         .all_attributes()
         .pedantic()
-        .from_file(path)
+        .from_buffered(source)
         .map_err(|e| Error::Format {
-            path: shown.clone(),
+            path: path.display().to_string(),
             reason: format!("not a readable OpenEXR file (truncated or foreign?): {e}"),
         })?;
     let layer = image.layer_data;
     let size = layer.size;
-    let samples = |s: FlatSamples| match s {
-        FlatSamples::F32(v) => Samples::F32(v),
-        FlatSamples::F16(v) => Samples::F16(v),
-        FlatSamples::U32(v) => Samples::F32(v.into_iter().map(|x| x as f32).collect()),
-    };
-    let mut channels = HashMap::new();
-    let mut levels = HashMap::new();
     let mut level_sizes = Vec::new();
+    let mut channels = Vec::with_capacity(layer.channel_data.list.len());
     for ch in layer.channel_data.list {
-        let name = string(&ch.name);
-        let list = level_list(ch.sample_data);
-        let mut it = list.into_iter();
-        let Some(first) = it.next() else { continue };
-        channels.insert(name.clone(), samples(first));
-        let rest: Vec<Samples> = it.map(samples).collect();
-        if !rest.is_empty() {
-            levels.insert(name, rest);
-        }
-    }
-    if !levels.is_empty() {
-        level_sizes = crate::ptm::mip_sizes(size.0, size.1);
-    }
-    let mut attrs = HashMap::new();
-    for (name, value) in layer.attributes.other.iter().chain(&image.attributes.other) {
-        let a = match value {
-            AttributeValue::Text(t) => Attr::Text(string(t)),
-            AttributeValue::TextVector(v) => Attr::Texts(v.iter().map(string).collect()),
-            AttributeValue::F64(x) => Attr::F64(*x),
-            AttributeValue::F32(x) => Attr::F64(*x as f64),
-            AttributeValue::I32(x) => Attr::I32(*x),
-            _ => continue,
+        let levels = match ch.sample_data {
+            Levels::Singular(s) => vec![s],
+            Levels::Mip {
+                rounding_mode,
+                level_data,
+            } => {
+                if level_sizes.is_empty() {
+                    level_sizes = exr::meta::mip_map_levels(rounding_mode, size)
+                        .skip(1)
+                        .map(|(_, s)| (s.0, s.1))
+                        .collect();
+                }
+                level_data
+            }
+            Levels::Rip { level_data, .. } => level_data.map_data.into_iter().take(1).collect(),
         };
-        attrs.insert(string(name), a);
+        channels.push((decode_text(&ch.name), levels));
     }
-    Ok(Contents {
-        path: shown,
+    let attrs = layer
+        .attributes
+        .other
+        .iter()
+        .chain(&image.attributes.other)
+        .map(|(k, v)| (decode_text(k), v.clone()))
+        .collect();
+    Ok(Decoded {
+        path: path.display().to_string(),
         width: size.0,
         height: size.1,
         channels,
-        levels,
         level_sizes,
         attrs,
     })
+}
+
+/// Reads every channel and the portable attributes of the first layer ([`read_decoded`], then
+/// [`Contents`]). Attributes of other types are skipped.
+pub fn read(path: &Path) -> Result<Contents> {
+    Ok(Contents::from(read_decoded(path)?))
+}
+
+impl From<Decoded> for Contents {
+    fn from(d: Decoded) -> Contents {
+        let samples = |s: FlatSamples| match s {
+            FlatSamples::F32(v) => Samples::F32(v),
+            FlatSamples::F16(v) => Samples::F16(v),
+            FlatSamples::U32(v) => Samples::F32(v.into_iter().map(|x| x as f32).collect()),
+        };
+        let mut channels = HashMap::new();
+        let mut levels = HashMap::new();
+        for (name, list) in d.channels {
+            let mut it = list.into_iter();
+            let Some(first) = it.next() else { continue };
+            channels.insert(name.clone(), samples(first));
+            let rest: Vec<Samples> = it.map(samples).collect();
+            if !rest.is_empty() {
+                levels.insert(name, rest);
+            }
+        }
+        let mut attrs = HashMap::new();
+        for (name, value) in d.attrs {
+            let a = match value {
+                AttributeValue::Text(t) => Attr::Text(decode_text(&t)),
+                AttributeValue::TextVector(v) => Attr::Texts(v.iter().map(decode_text).collect()),
+                AttributeValue::F64(x) => Attr::F64(x),
+                AttributeValue::F32(x) => Attr::F64(x as f64),
+                AttributeValue::I32(x) => Attr::I32(x),
+                _ => continue,
+            };
+            attrs.insert(name, a);
+        }
+        Contents {
+            path: d.path,
+            width: d.width,
+            height: d.height,
+            channels,
+            level_sizes: if levels.is_empty() {
+                Vec::new()
+            } else {
+                d.level_sizes
+            },
+            levels,
+            attrs,
+        }
+    }
 }
 
 impl Contents {

@@ -18,6 +18,13 @@
 //! every header attribute verbatim, so converting either way and back gives the same samples,
 //! types and attributes. Writes are atomic per file and all-or-nothing per set: every part is
 //! written to a temporary file first and renamed only when all are complete.
+//!
+//! It is also the one PTM decoder: every file of either layout is decoded by
+//! [`exrio::read_decoded`] into a [`PtmFile`], whose header [`Header::parse`] checks and whose
+//! maps [`PtmFile::to_ptm`] turns into a [`Ptm`] (MIP chain, coverage, [`Ptm::validate`]).
+//! [`Ptm::load`] is that path for the channel layout, [`PtmFile::load`] for either, so both
+//! refuse the same files in the same words.
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -25,8 +32,10 @@ use exr::math::RoundingMode;
 use exr::meta::attribute::AttributeValue;
 use exr::prelude::*;
 
-use crate::ptm::{mip_sizes, Level, PTM_VERSION, PTM_VERSION_2};
-use crate::{Basis, Error, Link, Ptm, Result, SaveOptions, UvMap};
+use crate::exrio::{self, decode_text, encode_text, Decoded};
+use crate::header::{self, Attributes, Header};
+use crate::ptm::{channel_name, clamp_ringing, mip_sizes, Level};
+use crate::{Basis, Error, Ptm, PtmInfo, Result, SaveOptions};
 
 /// Value of `ptm:layout` in every part of the renderer layout.
 pub const RGBA_LAYOUT: &str = "rgba/1";
@@ -191,79 +200,25 @@ fn format_err(path: &Path, reason: impl Into<String>) -> Error {
     }
 }
 
-/// Header text as written: UTF-8, read leniently (bytes that are not UTF-8 are Latin-1, as
-/// files before UTF-8 headers wrote them).
-pub fn text_of(t: &Text) -> String {
-    match std::str::from_utf8(t.bytes()) {
-        Ok(s) => s.to_string(),
-        Err(_) => t.bytes().iter().map(|&b| b as char).collect(),
+/// The [`PtmFile`] shape of one decoded EXR: its maps by channel name (levels as f32, with
+/// their stored type) and its attributes. A MIP chain must be OpenEXR's `ROUND_DOWN` chain to
+/// 1×1 ([`mip_sizes`]), the one a PTM's levels follow.
+fn file_of(d: Decoded) -> Result<PtmFile> {
+    let path = Path::new(&d.path);
+    let (width, height) = (d.width, d.height);
+    let want = mip_sizes(width, height);
+    if !d.level_sizes.is_empty() && d.level_sizes != want {
+        return Err(format_err(
+            path,
+            format!(
+                "its MIP levels {:?} are not the {width}×{height} chain {want:?} (halved, rounded \
+                 down, to 1×1: OpenEXR's `ROUND_DOWN`)",
+                d.level_sizes
+            ),
+        ));
     }
-}
-
-fn utf8(s: &str) -> Text {
-    Text::from_bytes_unchecked(s.as_bytes().into())
-}
-
-/// One single-part EXR as read: its maps by channel name and its attributes.
-struct Single {
-    width: usize,
-    height: usize,
-    maps: BTreeMap<String, Map>,
-    attrs: BTreeMap<String, AttributeValue>,
-}
-
-fn read_single(path: &Path) -> Result<Single> {
-    let len = match std::fs::metadata(path) {
-        Ok(m) => m.len(),
-        Err(e) => {
-            return Err(Error::Io {
-                path: path.display().to_string(),
-                source: e,
-            })
-        }
-    };
-    // A corrupt header must be refused before the exr crate allocates what it claims.
-    crate::exrio::check_claimed_size(path, len)?;
-    let file = std::fs::File::open(path).map_err(|e| Error::Io {
-        path: path.display().to_string(),
-        source: e,
-    })?;
-    let source = std::io::BufReader::new(file);
-    decode(path, source, "not a readable OpenEXR file")
-}
-
-/// One single-part EXR from bytes this crate encoded (`shown` names it in errors).
-fn decode_single(shown: &Path, bytes: &[u8]) -> Result<Single> {
-    decode(shown, std::io::Cursor::new(bytes), "reading back its EXR")
-}
-
-/// Every map (all levels) and attribute of the first layer read from `source`; a failure is
-/// `what: <exr's reason>`.
-fn decode(
-    path: &Path,
-    source: impl std::io::Read + std::io::Seek + Send,
-    what: &str,
-) -> Result<Single> {
-    let image = exr::prelude::read()
-        .no_deep_data()
-        .all_resolution_levels()
-        .all_channels()
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(source)
-        .map_err(|e| format_err(path, format!("{what}: {e}")))?;
-    single_of(path, image)
-}
-
-/// The maps and attributes of a read image.
-fn single_of(path: &Path, image: Image<Layer<AnyChannels<Levels<FlatSamples>>>>) -> Result<Single> {
-    let layer = image.layer_data;
-    let (width, height) = (layer.size.0, layer.size.1);
-    let sizes = mip_sizes(width, height);
     let mut maps = BTreeMap::new();
-    for ch in layer.channel_data.list {
-        let name = text_of(&ch.name);
-        let list = crate::exrio::level_list(ch.sample_data);
+    for (name, list) in d.channels {
         let half = list.iter().any(|s| matches!(s, FlatSamples::F16(_)));
         let levels: Vec<Vec<f32>> = list
             .into_iter()
@@ -273,37 +228,40 @@ fn single_of(path: &Path, image: Image<Layer<AnyChannels<Levels<FlatSamples>>>>)
                 FlatSamples::U32(v) => v.into_iter().map(|x| x as f32).collect(),
             })
             .collect();
-        if levels.len() > 1 && levels.len() != sizes.len() + 1 {
+        if levels.len() > 1 && levels.len() != want.len() + 1 {
             return Err(format_err(
                 path,
                 format!(
                     "channel `{name}` has {} resolution levels; a {width}×{height} MIP chain to 1×1 has {}",
                     levels.len(),
-                    sizes.len() + 1
+                    want.len() + 1
                 ),
             ));
         }
         maps.insert(name, Map { levels, half });
     }
-    let attrs = layer
-        .attributes
-        .other
-        .iter()
-        .chain(&image.attributes.other)
-        .map(|(k, v)| (text_of(k), v.clone()))
-        .collect();
-    Ok(Single {
+    Ok(PtmFile {
         width,
         height,
         maps,
-        attrs,
+        attrs: d.attrs,
     })
 }
 
-fn attr_text(attrs: &BTreeMap<String, AttributeValue>, name: &str) -> Option<String> {
-    match attrs.get(name) {
-        Some(AttributeValue::Text(t)) => Some(text_of(t)),
-        _ => None,
+/// One file as a [`PtmFile`]: every map and attribute, nothing checked beyond the EXR.
+fn read_single(path: &Path) -> Result<PtmFile> {
+    file_of(exrio::read_decoded(path)?)
+}
+
+/// How an attribute of a part reads in a message: its text, quoted, or its type.
+fn shown_attr(v: Option<&AttributeValue>) -> String {
+    match v {
+        None => "absent".into(),
+        Some(AttributeValue::Text(t)) => format!("{:?}", decode_text(t)),
+        Some(v) => format!(
+            "an EXR `{}` attribute",
+            String::from_utf8_lossy(v.kind_name())
+        ),
     }
 }
 
@@ -342,7 +300,7 @@ fn encode_single(
             } else {
                 Levels::Singular(flat(&m.levels[0], m.half))
             };
-            AnyChannel::new(utf8(name), data)
+            AnyChannel::new(encode_text(name), data)
         })
         .collect();
     let mut la = LayerAttributes::default();
@@ -351,7 +309,7 @@ fn encode_single(
             // A standard attribute the `exr` crate keeps in a field of its own.
             ("wrapmodes", AttributeValue::Text(t)) => la.wrap_mode_name = Some(t.clone()),
             _ => {
-                la.other.insert(utf8(name), value.clone());
+                la.other.insert(encode_text(name), value.clone());
             }
         }
     }
@@ -381,117 +339,65 @@ pub fn publish(files: &[(PathBuf, Vec<u8>)]) -> Result<Vec<PathBuf>> {
 }
 
 impl PtmFile {
-    /// Basis named by `ptm:basis`.
+    /// Basis named by `ptm:basis`, once the whole header reads ([`Header::parse`]).
     pub fn basis(&self, path: &Path) -> Result<Basis> {
-        let name = attr_text(&self.attrs, "ptm:basis")
-            .ok_or_else(|| format_err(path, "not an occlusion PTM (no `ptm:basis` attribute)"))?;
-        Basis::from_name(&name).ok_or_else(|| {
-            format_err(
-                path,
-                format!(
-                    "unknown basis {name:?} (this version reads {})",
-                    Basis::ALL.map(|b| b.name()).join(", ")
-                ),
-            )
-        })
+        Ok(Header::parse(&self.attrs, path)?.basis)
     }
 
     /// The maps and header attributes [`Ptm::save`] with `opts` writes for `ptm`, in memory
     /// (`path` names the file in errors only).
     pub fn from_ptm(ptm: &Ptm, path: &Path, opts: &SaveOptions) -> Result<PtmFile> {
-        let s = decode_single(path, &ptm.encode(path, opts)?)?;
-        Ok(PtmFile {
-            width: s.width,
-            height: s.height,
-            maps: s.maps,
-            attrs: s.attrs,
-        })
+        file_of(exrio::decode_bytes(path, &ptm.encode(path, opts)?)?)
     }
 
     /// Reads a PTM in either layout. `path` names the channel-layout file, or any file of the
-    /// renderer layout (`w.ptm.c0.exr`, or `w.ptm.exr` when only the `.c*` files exist).
+    /// renderer layout (`w.ptm.c0.exr`, or `w.ptm.exr` when only the `.c*` files exist). The
+    /// file set is checked as [`PtmFile::to_ptm`] checks it.
     pub fn load(path: &Path) -> Result<(PtmFile, Layout)> {
         let layout = detect(path)?;
         let file = match layout {
-            Layout::Channels => {
-                let s = read_single(path)?;
-                PtmFile {
-                    width: s.width,
-                    height: s.height,
-                    maps: s.maps,
-                    attrs: s.attrs,
-                }
-            }
+            Layout::Channels => read_single(path)?,
             Layout::Rgba => read_rgba(path)?,
         };
         file.to_ptm(path)?;
         Ok((file, layout))
     }
 
-    /// The PTM these maps hold (checks link, (u, v) map, planes and MIP levels).
+    /// The PTM these maps hold: the header as [`Header::parse`] reads it, every coefficient
+    /// map with the same MIP chain, coverage clamped and checked, and [`Ptm::validate`]; a
+    /// refusal names `path`. The one place a PTM is made from a file.
     pub fn to_ptm(&self, path: &Path) -> Result<Ptm> {
-        let basis = self.basis(path)?;
-        check_version(&self.attrs, basis, path)?;
-        let (link, uv) = link_and_uv(&self.attrs, path)?;
-        let num = |name: &str| match self.attrs.get(name) {
-            Some(AttributeValue::F64(x)) => Ok(*x),
-            Some(AttributeValue::F32(x)) => Ok(*x as f64),
-            _ => Err(format_err(
-                path,
-                format!("PTM lacks the number attribute `{name}`"),
-            )),
+        let take = |name: &str| self.maps.get(name).map(Cow::Borrowed);
+        Ok(ptm_of(self.width, self.height, &self.attrs, path, take)?.0)
+    }
+
+    /// [`PtmFile::to_ptm`] moving the maps out of `self`, with the header's facts and the error
+    /// maps ([`Ptm::load_with_info`]).
+    fn into_ptm_with_info(self, path: &Path) -> Result<(Ptm, PtmInfo)> {
+        let PtmFile {
+            width,
+            height,
+            mut maps,
+            attrs,
+        } = self;
+        let take = |name: &str| maps.remove(name).map(Cow::Owned);
+        let (ptm, storage) = ptm_of(width, height, &attrs, path, take)?;
+        let mut level0 = |name: &str| maps.remove(name).and_then(|m| m.levels.into_iter().next());
+        // Facts beside the coefficients: informative, so one of an unexpected type reads as
+        // not recorded rather than refusing the file.
+        let fact = |name: &str| header::number(&attrs, name, path).ok().flatten();
+        let info = PtmInfo {
+            storage: storage.into(),
+            lights: fact("ptm:nLights").map(|x| x as usize),
+            solver: header::text(&attrs, "ptm:solver", path).ok().flatten(),
+            rank: fact("ptm:rank").map(|x| x as usize),
+            cond: fact("ptm:cond"),
+            rms_mean: fact("ptm:rmsMean"),
+            err_rms: level0("err.rms"),
+            err_max: level0("err.max"),
+            coverage: ptm.coverage.clone(),
         };
-        let tile = [num("ptm:tileW")?, num("ptm:tileH")?];
-        let mut planes = Vec::new();
-        let mut levels: Vec<Vec<Vec<f32>>> = Vec::new();
-        for m in basis.monomials() {
-            let name = format!("ptm.{}", m.name);
-            let map = self
-                .maps
-                .get(&name)
-                .ok_or_else(|| format_err(path, format!("PTM lacks channel `{name}`")))?;
-            planes.push(map.levels[0].clone());
-            levels.push(map.levels[1..].to_vec());
-        }
-        let sizes = mip_sizes(self.width, self.height);
-        let n = levels[0].len();
-        if levels.iter().any(|l| l.len() != n) {
-            return Err(format_err(
-                path,
-                "coefficient maps have different numbers of MIP levels",
-            ));
-        }
-        let mips = (0..n)
-            .map(|i| Level {
-                width: sizes[i].0,
-                height: sizes[i].1,
-                planes: levels.iter().map(|l| l[i].clone()).collect(),
-            })
-            .collect();
-        let ptm = Ptm {
-            basis,
-            link,
-            uv,
-            width: self.width,
-            height: self.height,
-            tile,
-            planes,
-            mips,
-            // As a fit leaves it: none when every texel is fully covered (the renderer layout
-            // stores ones then).
-            // A resampled file's ringing past [0, 1] is clamped, as `Ptm::load` does.
-            coverage: self
-                .coverage()
-                .map(|c| {
-                    let mut c = c.to_vec();
-                    crate::ptm::clamp_ringing(&mut c);
-                    c
-                })
-                .filter(|c| c.iter().any(|&x| x < 1.0)),
-        };
-        ptm.validate()
-            .map_err(|e| format_err(path, e.to_string()))?;
-        Ok(ptm)
+        Ok((ptm, info))
     }
 
     /// Per-texel coverage when the file has it (level 0).
@@ -536,14 +442,22 @@ impl PtmFile {
                 for (i, slots) in parts.iter().enumerate() {
                     let p = part_path(path, i);
                     let mut attrs = self.attrs.clone();
-                    attrs.insert("ptm:layout".into(), AttributeValue::Text(utf8(RGBA_LAYOUT)));
+                    attrs.insert(
+                        "ptm:layout".into(),
+                        AttributeValue::Text(encode_text(RGBA_LAYOUT)),
+                    );
                     attrs.insert("ptm:part".into(), AttributeValue::I32(i as i32));
                     attrs.insert("ptm:parts".into(), AttributeValue::I32(parts.len() as i32));
                     attrs.insert(
                         "ptm:partChannels".into(),
-                        AttributeValue::TextVector(slots.iter().map(|s| utf8(s.short())).collect()),
+                        AttributeValue::TextVector(
+                            slots.iter().map(|s| encode_text(s.short())).collect(),
+                        ),
                     );
-                    attrs.insert("wrapmodes".into(), AttributeValue::Text(utf8(WRAPMODES)));
+                    attrs.insert(
+                        "wrapmodes".into(),
+                        AttributeValue::Text(encode_text(WRAPMODES)),
+                    );
                     let mut channels = Vec::new();
                     for (k, slot) in slots.iter().enumerate() {
                         let map = match slot {
@@ -570,8 +484,11 @@ impl PtmFile {
                 let ep = err_path(path);
                 if !errs.is_empty() {
                     let mut attrs = self.attrs.clone();
-                    attrs.insert("ptm:layout".into(), AttributeValue::Text(utf8(RGBA_LAYOUT)));
-                    attrs.insert("ptm:part".into(), AttributeValue::Text(utf8("err")));
+                    attrs.insert(
+                        "ptm:layout".into(),
+                        AttributeValue::Text(encode_text(RGBA_LAYOUT)),
+                    );
+                    attrs.insert("ptm:part".into(), AttributeValue::Text(encode_text("err")));
                     let shown = ep.clone();
                     let (w, h) = (self.width, self.height);
                     jobs.push((
@@ -612,73 +529,118 @@ impl PtmFile {
     }
 }
 
-/// Refuses what [`Ptm::load`] refuses in a header: a `ptm:version` other than
-/// [`PTM_VERSION`] and [`PTM_VERSION_2`] (or none), a `ptm:monomials` list that is not `basis`'s.
-fn check_version(
-    attrs: &BTreeMap<String, AttributeValue>,
-    basis: Basis,
+/// The [`Ptm`] of a file's header and maps (`take` hands out the map of a name), and how its
+/// coefficients are stored (`"float32"`, `"half"` or `"mixed"`, from the maps' types, whatever
+/// `ptm:storage` says: a tool that rewrote the file keeps our attributes but not necessarily
+/// their truth). See [`PtmFile::to_ptm`].
+fn ptm_of<'a>(
+    width: usize,
+    height: usize,
+    attrs: &Attributes,
     path: &Path,
-) -> Result<()> {
-    match attr_text(attrs, "ptm:version") {
-        Some(v) if v == PTM_VERSION || v == PTM_VERSION_2 => {}
-        Some(v) => {
+    mut take: impl FnMut(&str) -> Option<Cow<'a, Map>>,
+) -> Result<(Ptm, &'static str)> {
+    let Header {
+        basis,
+        link,
+        uv,
+        tile,
+    } = Header::parse(attrs, path)?;
+    let sizes = mip_sizes(width, height);
+    let mut planes = Vec::with_capacity(basis.len());
+    let mut levels: Vec<std::vec::IntoIter<Vec<f32>>> = Vec::with_capacity(basis.len());
+    let mut halves = Vec::with_capacity(basis.len());
+    for m in basis.monomials() {
+        let name = channel_name(m.name);
+        let Some(map) = take(&name).filter(|m| !m.levels.is_empty()) else {
+            let why = if attrs.contains_key("ptm:layout") {
+                "it is a part of the renderer layout, which `layout::load` and `PtmFile::load` read"
+            } else {
+                "the file is truncated in content or was written by another tool"
+            };
             return Err(format_err(
                 path,
-                format!("PTM version {v:?} in `ptm:version` is not supported (this version reads {PTM_VERSION:?} and {PTM_VERSION_2:?})"),
-            ))
-        }
-        None => {
-            return Err(format_err(
-                path,
-                "not an occlusion PTM (no `ptm:version` attribute)",
-            ))
-        }
-    }
-    if let Some(AttributeValue::TextVector(list)) = attrs.get("ptm:monomials") {
-        let list: Vec<String> = list.iter().map(text_of).collect();
-        let want: Vec<&str> = basis.monomials().iter().map(|m| m.name).collect();
-        if list != want {
-            return Err(format_err(
-                path,
-                format!(
-                    "monomial list {list:?} in `ptm:monomials` does not match basis {} ({want:?})",
-                    basis.name()
-                ),
+                format!("PTM lacks channel `{name}` ({why})"),
             ));
-        }
+        };
+        halves.push(map.half);
+        let mut chain = map.into_owned().levels.into_iter();
+        planes.push(chain.next().expect("a level"));
+        levels.push(chain);
     }
-    Ok(())
+    let n = levels[0].len();
+    if levels.iter().any(|l| l.len() != n) {
+        return Err(format_err(
+            path,
+            "coefficient channels have different numbers of MIP levels",
+        ));
+    }
+    if n > 0 && n != sizes.len() {
+        return Err(format_err(
+            path,
+            format!(
+                "coefficient channels have {} resolution levels; a {width}×{height} MIP chain to 1×1 has {}",
+                n + 1,
+                sizes.len() + 1
+            ),
+        ));
+    }
+    let mips = sizes[..n]
+        .iter()
+        .map(|&(width, height)| Level {
+            width,
+            height,
+            planes: levels
+                .iter_mut()
+                .map(|l| l.next().expect("a level"))
+                .collect(),
+        })
+        .collect();
+    let storage = match (halves.iter().all(|&h| h), halves.iter().any(|&h| h)) {
+        (true, _) => "half",
+        (false, true) => "mixed",
+        (false, false) => "float32",
+    };
+    // A resampled file's ringing past [0, 1] is clamped; then a coverage of ones is none, as a
+    // fit leaves it (the renderer layout stores ones then). Anything else is for `validate`.
+    let coverage = take("coverage")
+        .and_then(|m| match m {
+            Cow::Borrowed(m) => m.levels.first().cloned(),
+            Cow::Owned(m) => m.levels.into_iter().next(),
+        })
+        .map(|mut c| {
+            clamp_ringing(&mut c);
+            c
+        })
+        .filter(|c| !c.iter().all(|&x| x == 1.0));
+    let ptm = Ptm {
+        basis,
+        link,
+        uv,
+        width,
+        height,
+        tile,
+        planes,
+        mips,
+        coverage,
+    };
+    ptm.validate()
+        .map_err(|e| format_err(path, e.to_string()))?;
+    Ok((ptm, storage))
 }
 
-/// The `ptm:link` and `ptm:uv` of a header (absent = the plain PTM's); unknown values are refused
-/// by name.
-fn link_and_uv(attrs: &BTreeMap<String, AttributeValue>, path: &Path) -> Result<(Link, UvMap)> {
-    let link = match attr_text(attrs, "ptm:link") {
-        None => Link::Identity,
-        Some(name) => Link::from_name(&name).ok_or_else(|| {
-            format_err(
-                path,
-                format!(
-                    "unknown link {name:?} in `ptm:link` (this version reads {})",
-                    Link::ALL.map(|l| l.name()).join(", ")
-                ),
-            )
-        })?,
-    };
-    let uv = match attr_text(attrs, "ptm:uv") {
-        None => UvMap::Projected,
-        Some(name) if name == UvMap::Projected.formula() => UvMap::Projected,
-        Some(name) => UvMap::from_name(&name).ok_or_else(|| {
-            format_err(
-                path,
-                format!(
-                    "unknown (u, v) map {name:?} in `ptm:uv` (this version reads {})",
-                    UvMap::ALL.map(|m| m.name()).join(", ")
-                ),
-            )
-        })?,
-    };
-    Ok((link, uv))
+impl Ptm {
+    /// Loads a PTM EXR (the channel layout; [`load`] reads either layout). A file that is not
+    /// a PTM, lacks a coefficient channel, or whose header this version does not understand
+    /// ([`Header::parse`]) is an error saying which, as [`PtmFile::load`] says it.
+    pub fn load(path: &Path) -> Result<Ptm> {
+        Ok(Self::load_with_info(path)?.0)
+    }
+
+    /// Loads a PTM EXR and its header facts and error maps.
+    pub fn load_with_info(path: &Path) -> Result<(Ptm, PtmInfo)> {
+        read_single(path)?.into_ptm_with_info(path)
+    }
 }
 
 /// Which layout `path` names: a file with `ptm:layout` is a part of the renderer layout; a
@@ -687,10 +649,11 @@ pub fn detect(path: &Path) -> Result<Layout> {
     if path.exists() {
         let meta = exr::meta::MetaData::read_from_file(path, false)
             .map_err(|e| format_err(path, format!("not a readable OpenEXR file: {e}")))?;
-        let rgba = meta
-            .headers
-            .iter()
-            .any(|h| h.own_attributes.other.contains_key(&utf8("ptm:layout")));
+        let rgba = meta.headers.iter().any(|h| {
+            h.own_attributes
+                .other
+                .contains_key(&encode_text("ptm:layout"))
+        });
         Ok(if rgba { Layout::Rgba } else { Layout::Channels })
     } else if part_path(path, 0).exists() {
         Ok(Layout::Rgba)
@@ -709,7 +672,7 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
     let p0 = part_path(path, 0);
     let first = read_single(&p0)?;
     let shown = |i: usize| format!("part c{i}");
-    let layout = attr_text(&first.attrs, "ptm:layout");
+    let layout = header::text(&first.attrs, "ptm:layout", &p0)?;
     if layout.as_deref() != Some(RGBA_LAYOUT) {
         return Err(format_err(
             &p0,
@@ -730,9 +693,7 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
             .map(|(k, v)| (k.clone(), v.clone()))
             .collect(),
     };
-    let basis = file.basis(&p0)?;
-    check_version(&file.attrs, basis, &p0)?;
-    link_and_uv(&file.attrs, &p0)?;
+    let basis = Header::parse(&file.attrs, &p0)?.basis;
     let parts = parts(basis);
     let mut singles = vec![first];
     for i in 1..parts.len() {
@@ -767,14 +728,14 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
             ));
         }
         for key in ["ptm:basis", "ptm:link", "ptm:uv", "ptm:version"] {
-            if attr_text(&s.attrs, key) != attr_text(&file.attrs, key) {
+            if s.attrs.get(key) != file.attrs.get(key) {
                 return Err(format_err(
                     &p,
                     format!(
-                        "{}: `{key}` is {:?} but part c0 says {:?}",
+                        "{}: `{key}` is {} but part c0 says {}",
                         shown(i),
-                        attr_text(&s.attrs, key),
-                        attr_text(&file.attrs, key)
+                        shown_attr(s.attrs.get(key)),
+                        shown_attr(file.attrs.get(key))
                     ),
                 ));
             }

@@ -1,7 +1,8 @@
 //! `ptm-format`: the occlusion PTM file and all a render pipeline needs to use one — the
 //! polynomial bases, links and (u, v) maps ([`basis`]), the PTM in memory with [`Ptm::load`],
-//! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), the
-//! renderer layout of RGB(A) parts and its lossless conversion ([`layout`]), HP PTM 1.2
+//! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), the one
+//! parser of a PTM header ([`header`]), the renderer layout of RGB(A) parts, its lossless
+//! conversion and the one decoder both layouts are read through ([`layout`]), HP PTM 1.2
 //! export ([`hp`]), the atomic file output every writer of the workspace uses ([`atomic`]), the
 //! one seeded hash every crate draws its random numbers from ([`hash`]), the 3-vector helpers
 //! ([`vec3`]) and the light sets that bakes and fits share, with the RTI `.lp` file ([`lights`]).
@@ -33,6 +34,7 @@ pub mod atomic;
 pub mod basis;
 pub mod exrio;
 pub mod hash;
+pub mod header;
 pub mod hp;
 pub mod layout;
 pub mod lights;

@@ -4,6 +4,10 @@
 //! File layout (docs/FORMAT.md): single-part scanline EXR, ZIP compressed, float32 (or half),
 //! one channel per coefficient named `ptm.<monomial>` (`ptm.u2`, `ptm.u`, `ptm.uv`, `ptm.v`,
 //! `ptm.v2`, `ptm.1` for ptm6), optional `coverage`, `err.rms` / `err.max`, header attributes `ptm:*`.
+//! This module writes it ([`Ptm::encode`]). Reading is the one decoder of both layouts:
+//! [`Ptm::load`] and [`Ptm::load_with_info`] are implemented beside `PtmFile` in `layout.rs`
+//! (the file decoded into a `PtmFile`, its header parsed by `header::Header::parse`), so this
+//! module, which that one builds on, imports neither.
 //!
 //! Loading a PTM needs this crate only:
 //! ```no_run
@@ -504,146 +508,6 @@ impl Ptm {
             }
         }
         exrio::encode_levels(path, self.width, self.height, channels, attrs)
-    }
-
-    /// Loads a PTM EXR. A file that is not a PTM, lacks a coefficient channel or names an
-    /// unknown basis is an error saying which.
-    pub fn load(path: &Path) -> Result<Ptm> {
-        Ok(Self::load_with_info(path)?.0)
-    }
-
-    /// Loads a PTM EXR and its header facts and error maps.
-    pub fn load_with_info(path: &Path) -> Result<(Ptm, PtmInfo)> {
-        let mut c = exrio::read(path)?;
-        const WHAT: &str = "PTM";
-        match c.attrs.get("ptm:version") {
-            Some(Attr::Text(v)) if v == PTM_VERSION || v == PTM_VERSION_2 => {}
-            Some(Attr::Text(v)) => {
-                return Err(c.error::<Error>(format!(
-                    "PTM version {v:?} is not supported (this version reads {PTM_VERSION:?} and {PTM_VERSION_2:?})"
-                )))
-            }
-            _ => {
-                let hint = if c.attrs.contains_key("stack:version") {
-                    " (it is a sample stack: fit it first with `ptm fit`)"
-                } else {
-                    " (no `ptm:version` attribute)"
-                };
-                return Err(c.error::<Error>(format!("not an occlusion PTM{hint}")));
-            }
-        }
-        let name = c.text("ptm:basis", WHAT)?;
-        let basis = Basis::from_name(&name).ok_or_else(|| {
-            c.error::<Error>(format!(
-                "unknown basis {name:?} (this version reads {})",
-                Basis::ALL.map(|b| b.name()).join(", ")
-            ))
-        })?;
-        if let Ok(list) = c.texts("ptm:monomials", WHAT) {
-            let want: Vec<&str> = basis.monomials().iter().map(|m| m.name).collect();
-            if list != want {
-                return Err(c.error::<Error>(format!(
-                    "monomial list {list:?} does not match basis {name} ({want:?})"
-                )));
-            }
-        }
-        let link = match c.attrs.get("ptm:link") {
-            None => Link::Identity,
-            Some(Attr::Text(name)) => Link::from_name(name).ok_or_else(|| {
-                c.error::<Error>(format!(
-                    "unknown link {name:?} in `ptm:link` (this version reads {})",
-                    Link::ALL.map(|l| l.name()).join(", ")
-                ))
-            })?,
-            Some(_) => return Err(c.error("`ptm:link` is not a string attribute")),
-        };
-        let uv = match c.attrs.get("ptm:uv") {
-            None => UvMap::Projected,
-            // Files before the attribute named its map held the projected formula in words.
-            Some(Attr::Text(name)) if name == UvMap::Projected.formula() => UvMap::Projected,
-            Some(Attr::Text(name)) => UvMap::from_name(name).ok_or_else(|| {
-                c.error::<Error>(format!(
-                    "unknown (u, v) map {name:?} in `ptm:uv` (this version reads {})",
-                    UvMap::ALL.map(|m| m.name()).join(", ")
-                ))
-            })?,
-            Some(_) => return Err(c.error("`ptm:uv` is not a string attribute")),
-        };
-        let tile = [c.f64("ptm:tileW", WHAT)?, c.f64("ptm:tileH", WHAT)?];
-        // The channels' type on disk, not `ptm:storage`: a tool that rewrote the file
-        // (`oiiotool -d half`, maketx) keeps our attributes but not necessarily their truth.
-        let disk: Vec<bool> = basis
-            .monomials()
-            .iter()
-            .filter_map(|m| c.channels.get(&channel_name(m.name)))
-            .map(|s| matches!(s, Samples::F16(_)))
-            .collect();
-        let storage = match (disk.iter().all(|&h| h), disk.iter().any(|&h| h)) {
-            (true, _) => "half",
-            (false, true) => "mixed",
-            (false, false) => "float32",
-        }
-        .to_string();
-        let mut planes = Vec::with_capacity(basis.len());
-        let mut level_planes: Vec<Vec<Vec<f32>>> = Vec::with_capacity(basis.len());
-        for m in basis.monomials() {
-            let name = channel_name(m.name);
-            planes.push(c.take_f32(&name, WHAT)?);
-            level_planes.push(c.take_levels_f32(&name));
-        }
-        let sizes = c.level_sizes.clone();
-        let mips = if level_planes.iter().all(|l| l.len() == sizes.len()) {
-            sizes
-                .iter()
-                .enumerate()
-                .map(|(i, &(width, height))| Level {
-                    width,
-                    height,
-                    planes: level_planes
-                        .iter_mut()
-                        .map(|l| std::mem::take(&mut l[i]))
-                        .collect(),
-                })
-                .collect()
-        } else {
-            return Err(c.error::<Error>(format!(
-                "coefficient channels have different numbers of MIP levels (expected {} each)",
-                sizes.len()
-            )));
-        };
-        let info = PtmInfo {
-            storage,
-            lights: c.f64("ptm:nLights", WHAT).ok().map(|x| x as usize),
-            solver: c.text("ptm:solver", WHAT).ok(),
-            rank: c.f64("ptm:rank", WHAT).ok().map(|x| x as usize),
-            cond: c.f64("ptm:cond", WHAT).ok(),
-            rms_mean: c.f64("ptm:rmsMean", WHAT).ok(),
-            err_rms: c.take_f32("err.rms", WHAT).ok(),
-            coverage: None,
-            err_max: c.take_f32("err.max", WHAT).ok(),
-        };
-        let mut coverage = c.take_f32("coverage", WHAT).ok();
-        if let Some(cov) = &mut coverage {
-            clamp_ringing(cov);
-        }
-        let ptm = Ptm {
-            basis,
-            link,
-            uv,
-            width: c.width,
-            height: c.height,
-            tile,
-            planes,
-            mips,
-            coverage,
-        };
-        ptm.validate()
-            .map_err(|e| c.error::<Error>(e.to_string()))?;
-        let info = PtmInfo {
-            coverage: ptm.coverage.clone(),
-            ..info
-        };
-        Ok((ptm, info))
     }
 }
 

@@ -21,7 +21,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyTuple};
 
 use ptm_format::basis::num_like::Float;
-use ptm_format::layout::{self, text_of, Layout, PtmFile};
+use ptm_format::exrio::decode_text;
+use ptm_format::layout::{self, Layout, PtmFile};
 use ptm_format::ptm::mip_sizes;
 use ptm_format::{Basis, Level, Link, Ptm, SaveOptions, UvMap};
 
@@ -82,8 +83,8 @@ fn layout_name(layout: Layout) -> &'static str {
 /// and vectors as tuples; anything else in words (its Rust debug form).
 fn attr_value<'py>(py: Python<'py>, v: &AttributeValue) -> PyResult<Bound<'py, PyAny>> {
     Ok(match v {
-        AttributeValue::Text(t) => text_of(t).into_pyobject(py)?.into_any(),
-        AttributeValue::TextVector(ts) => PyTuple::new(py, ts.iter().map(text_of))?.into_any(),
+        AttributeValue::Text(t) => decode_text(t).into_pyobject(py)?.into_any(),
+        AttributeValue::TextVector(ts) => PyTuple::new(py, ts.iter().map(decode_text))?.into_any(),
         AttributeValue::I32(x) => x.into_pyobject(py)?.into_any(),
         AttributeValue::F32(x) => (*x as f64).into_pyobject(py)?.into_any(),
         AttributeValue::F64(x) => x.into_pyobject(py)?.into_any(),
