@@ -1,13 +1,13 @@
 //! The renderer layout (one RGB(A) EXR per group of coefficients): lossless both ways, every
-//! coefficient where docs/FORMAT.md puts it, and bad input refused naming the file and part,
-//! with nothing half-written.
+//! coefficient where docs/FORMAT.md puts it, bad input refused naming the file and part, with
+//! nothing half-written, and the same malformed header refused in the same words by the
+//! readers of both layouts (one decoder).
 use std::path::{Path, PathBuf};
 
 use exr::prelude::*;
-use ptm_fit::FitReport;
 use ptm_format::layout::{self, part_path, parts, Layout, PtmFile, Slot};
 use ptm_format::ptm::{mip_sizes, Level};
-use ptm_format::{Basis, Link, Ptm, SaveOptions, UvMap};
+use ptm_format::{Basis, FileFacts, Link, Ptm, SaveOptions, ToFileFacts, UvMap};
 
 fn tmpdir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("ptm-layout-{name}-{}", std::process::id()));
@@ -22,9 +22,33 @@ fn plane(n: usize, j: usize, scale: f32) -> Vec<f32> {
         .collect()
 }
 
+/// What a fit would record beside the coefficients: error maps and a warning with non-ASCII text.
+struct Report {
+    rank: usize,
+    coverage: Vec<f32>,
+    rms_map: Vec<f32>,
+    max_map: Vec<f32>,
+}
+
+impl ToFileFacts for Report {
+    fn file_facts(&self) -> FileFacts<'_> {
+        FileFacts {
+            lights: 40,
+            lights_fit: 38,
+            solver: "test solver",
+            rank: self.rank,
+            cond: 12.5,
+            warnings: vec!["no light below 45° – grazing K is extrapolated".into()],
+            rms_map: &self.rms_map,
+            max_map: &self.max_map,
+            ..FileFacts::default()
+        }
+    }
+}
+
 /// A PTM with every feature on: `mips` levels, holes (coverage), error maps, a warning with
 /// non-ASCII text.
-fn sample(basis: Basis, link: Link, uv: UvMap, mips: bool) -> (Ptm, FitReport) {
+fn sample(basis: Basis, link: Link, uv: UvMap, mips: bool) -> (Ptm, Report) {
     let (w, h) = (13, 7);
     let n = w * h;
     let planes = (0..basis.len()).map(|j| plane(n, j, 1.0)).collect();
@@ -63,24 +87,16 @@ fn sample(basis: Basis, link: Link, uv: UvMap, mips: bool) -> (Ptm, FitReport) {
         mips,
         coverage: Some(coverage.clone()),
     };
-    let report = FitReport {
-        lights: 40,
-        lights_fit: 38,
-        solver: "test solver".into(),
+    let report = Report {
         rank: basis.len(),
-        cond: 12.5,
-        warnings: vec![ptm_fit::Diagnostic::Recorded(
-            "no light below 45° – grazing K is extrapolated".into(),
-        )],
         coverage,
         rms_map: (0..n).map(|t| t as f32 / 1000.0).collect(),
         max_map: (0..n).map(|t| t as f32 / 500.0).collect(),
-        ..Default::default()
     };
     (ptm, report)
 }
 
-fn opts(report: &FitReport, half: bool) -> SaveOptions<'_> {
+fn opts(report: &Report, half: bool) -> SaveOptions<'_> {
     SaveOptions {
         half,
         report: Some(report),
@@ -312,10 +328,9 @@ fn bad_rgba_sets_are_refused_naming_file_and_part() {
     // Parts of different sizes.
     let s = copy("size.ptm.exr");
     let (small, small_report) = {
-        let (mut p, mut r) = sample(Basis::Ptm11, Link::Identity, UvMap::Projected, false);
+        let (mut p, r) = sample(Basis::Ptm11, Link::Identity, UvMap::Projected, false);
         p.width = 7;
         p.height = 13;
-        r.coverage.clear();
         (p, r)
     };
     let other = dir.join("small.ptm.exr");
@@ -380,4 +395,118 @@ fn bad_rgba_sets_are_refused_naming_file_and_part() {
         .filter(|n| n.contains(".tmp"))
         .collect();
     assert!(tmps.is_empty(), "temporary files left: {tmps:?}");
+}
+
+/// A copy of the EXR `from` at `to` with header attribute `key` set to `value`, written with the
+/// exr crate alone (our writers refuse such headers).
+fn with_attr(from: &Path, to: &Path, key: &str, value: &exr::meta::attribute::AttributeValue) {
+    let img = read_all_flat_layers_from_file(from).unwrap();
+    let mut layer = img.layer_data[0].clone();
+    layer
+        .attributes
+        .other
+        .insert(Text::from(key), value.clone());
+    Image::from_layer(layer).write().to_file(to).unwrap();
+}
+
+/// The readers of both layouts are one decoder: fed the same malformed header, `Ptm::load` and
+/// `PtmFile::load` of the channel layout, and `PtmFile::load` and `layout::load` of the renderer
+/// layout, refuse it in the same words, each naming its file and the attribute. (Before, a
+/// `ptm:link` that is not text read as "identity" in the renderer layout and was refused in the
+/// channel layout.)
+#[test]
+fn both_layouts_refuse_the_same_malformed_headers_alike() {
+    use exr::meta::attribute::AttributeValue as V;
+    use ptm_format::Error;
+    let dir = tmpdir("malformed");
+    let (ptm, report) = sample(Basis::Ptm11, Link::Logistic, UvMap::Hemispherical, false);
+    let opts = SaveOptions {
+        error_map: false,
+        ..opts(&report, false)
+    };
+    let channels = dir.join("good.ptm.exr");
+    ptm.save(&channels, &opts).unwrap();
+    let rgba = dir.join("good-rgba.ptm.exr");
+    layout::save(&ptm, &rgba, &opts, Layout::Rgba).unwrap();
+    let n_parts = parts(Basis::Ptm11).len();
+    let texts = |v: &[&str]| V::TextVector(v.iter().map(|s| Text::from(*s)).collect());
+    let cases: [(&str, &str, V, &str); 5] = [
+        (
+            "link",
+            "ptm:link",
+            V::I32(1),
+            "`ptm:link` is not text (it is an EXR `int` attribute)",
+        ),
+        (
+            "uv",
+            "ptm:uv",
+            V::Text(Text::from("octahedral")),
+            "unknown (u, v) map \"octahedral\" in `ptm:uv` (this version reads projected, hemispherical)",
+        ),
+        (
+            "monomials",
+            "ptm:monomials",
+            texts(&["u", "v"]),
+            "monomial list [\"u\", \"v\"] in `ptm:monomials` does not match basis ptm11",
+        ),
+        (
+            "version",
+            "ptm:version",
+            V::Text(Text::from("occlusion-ptm/9")),
+            "PTM version \"occlusion-ptm/9\" in `ptm:version` is not supported (this version reads \"occlusion-ptm/1\" and \"occlusion-ptm/2\")",
+        ),
+        (
+            "tile",
+            "ptm:tileW",
+            V::F64(-1.5),
+            "`ptm:tileW` is -1.5: a tile side is a positive finite size",
+        ),
+    ];
+    for (name, key, value, want) in cases {
+        let single = dir.join(format!("{name}.ptm.exr"));
+        with_attr(&channels, &single, key, &value);
+        let set = dir.join(format!("{name}-rgba.ptm.exr"));
+        for k in 0..n_parts {
+            with_attr(&part_path(&rgba, k), &part_path(&set, k), key, &value);
+        }
+        let c0 = part_path(&set, 0);
+        let refusals = [
+            ("Ptm::load", &single, Ptm::load(&single).map(|_| ())),
+            ("PtmFile::load", &single, PtmFile::load(&single).map(|_| ())),
+            ("PtmFile::load rgba", &c0, PtmFile::load(&c0).map(|_| ())),
+            ("layout::load rgba", &c0, layout::load(&set).map(|_| ())),
+        ];
+        for (reader, file, r) in refusals {
+            match r {
+                Err(Error::Format { path, reason }) => {
+                    assert_eq!(
+                        Path::new(&path),
+                        file.as_path(),
+                        "{name}: {reader} names its file"
+                    );
+                    assert!(reason.starts_with(want), "{name}: {reader}: {reason}");
+                    assert!(reason.contains(key), "{name}: {reader}: {reason}");
+                }
+                other => panic!("{name}: {reader}: {other:?}"),
+            }
+        }
+    }
+    // The malformed files differ from the good ones in that attribute only: unchanged, each
+    // reads (so the refusals above are the attribute's).
+    for k in 0..n_parts {
+        with_attr(
+            &part_path(&rgba, k),
+            &part_path(&dir.join("same-rgba.ptm.exr"), k),
+            "ptm:uv",
+            &V::Text(Text::from("hemispherical")),
+        );
+    }
+    with_attr(
+        &channels,
+        &dir.join("same.ptm.exr"),
+        "ptm:uv",
+        &V::Text(Text::from("hemispherical")),
+    );
+    assert_eq!(Ptm::load(&dir.join("same.ptm.exr")).unwrap(), ptm);
+    assert_eq!(layout::load(&dir.join("same-rgba.ptm.exr")).unwrap(), ptm);
 }
