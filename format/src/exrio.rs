@@ -6,7 +6,7 @@
 //! Reading: [`read_decoded`] (a file) and [`decode_bytes`] (bytes this crate encoded) are the one
 //! decode of an EXR in the workspace: every channel with all its resolution levels and every
 //! header attribute as stored ([`Decoded`]). The PTM readers of both layouts build their
-//! `PtmFile` from it (`layout.rs`); [`read`] turns it into the portable [`Contents`] that the
+//! `PtmFile` from it (`layout.rs`); [`read()`] turns it into the portable [`Contents`] that the
 //! sample stack and the farm parts read. This layer knows EXR, not PTMs.
 //!
 //! Header text is written as UTF-8 (what OpenEXR's Python bindings decode) and read leniently:
@@ -69,7 +69,7 @@ pub fn write(
     write_levels(path, width, height, levels, attrs)
 }
 
-/// The bytes of the file [`write`] writes (`path` names it in errors only).
+/// The bytes of the file [`write()`] writes (`path` names it in errors only).
 pub fn encode(
     path: &Path,
     width: usize,
@@ -92,7 +92,7 @@ fn flat(s: Samples) -> FlatSamples {
 }
 
 /// Writes a single-part EXR whose channels carry one entry per resolution level: one level is
-/// a plain scanline file (as [`write`]); more make a tiled (64×64, ZIP) `MIPMAP_LEVELS` file with
+/// a plain scanline file (as [`write()`]); more make a tiled (64×64, ZIP) `MIPMAP_LEVELS` file with
 /// `ROUND_DOWN` sizes, levels 0, 1, … down to 1×1 — the form texture systems read.
 pub fn write_levels(
     path: &Path,
