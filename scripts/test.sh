@@ -38,6 +38,9 @@ for c in ptm-bake ptm-runtime; do
     fi
 done
 
+echo "== no import cycle between the files of any crate, no fit/src file over 700 lines" >&2
+python3 scripts/check-structure.py
+
 echo "== cargo clippy --all-targets" >&2
 cargo clippy --workspace --all-targets -- -D warnings
 

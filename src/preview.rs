@@ -7,7 +7,7 @@ use anyhow::{bail, Context};
 use ptm_format::atomic::Transaction;
 use ptm_format::exrio::{self, Samples};
 use ptm_format::Ptm;
-use ptm_runtime::scene::{Perspective, Prepared};
+use ptm_runtime::scene::{Perspective, SceneBuffers};
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
 use serde_json::{json, Value};
 
@@ -437,7 +437,7 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
 
 /// Opens whatever adapter wgpu finds and says which shader variant runs on it. Returns the
 /// GPU and the seconds opening it took.
-fn open_gpu(prepared: &Prepared) -> anyhow::Result<(Gpu, f64)> {
+fn open_gpu(prepared: &SceneBuffers) -> anyhow::Result<(Gpu, f64)> {
     let t = Instant::now();
     let gpu = Gpu::new()?;
     let device_s = t.elapsed().as_secs_f64();
@@ -452,7 +452,7 @@ fn open_gpu(prepared: &Prepared) -> anyhow::Result<(Gpu, f64)> {
 /// Tells (stderr) and records (`report`) what preparing the scene found: a downsampled caster,
 /// non-finite coefficients, the runtime's warnings, lights that add nothing or are not
 /// shadowed, and K leaving [0, 1] before clamping.
-fn diagnose(scene: &Scene, prepared: &Prepared, report: &mut Value) {
+fn diagnose(scene: &Scene, prepared: &SceneBuffers, report: &mut Value) {
     if prepared.caster_downsample > 1 {
         eprintln!(
             "ptm preview: the caster is larger than {0}²; box-downsampled by {1} (u32 box sums are \
@@ -515,7 +515,7 @@ fn render(
     args: &Args,
     gpu: &Gpu,
     scene: &Scene,
-    prepared: &Prepared,
+    prepared: &SceneBuffers,
     report: &mut Value,
 ) -> anyhow::Result<Image> {
     let Some(n) = args.turntable else {

@@ -12,8 +12,10 @@
 //!
 //! Modules: [`stack`] (the stored sample stack `samples.exr`), [`solve`] (shared-design SVD fit,
 //! streaming [`Accumulator`], per-texel solves, diagnostics), [`logistic`] (the maximum-likelihood
-//! fit of the logistic link), [`images`] (RTI PNG stacks), [`shard`] (farm parts and their
-//! merge), [`diagnostic`] (the fit's typed diagnostics). File layouts: docs/FORMAT.md.
+//! fit of the logistic link), `mip` (the MIP chain's footprints, the identity link's levels),
+//! [`simd`] (the instruction set the kernels run with, [`simd::Isa`]), [`images`] (RTI PNG
+//! stacks), [`shard`] (farm bakes: the partition, part files and their merge), [`diagnostic`]
+//! (the fit's typed diagnostics). File layouts: docs/FORMAT.md.
 
 // Index loops over terms and lights mirror the maths (cᵢ, Aᵢⱼ) and keep several arrays in step.
 #![allow(clippy::needless_range_loop)]
@@ -21,8 +23,9 @@
 pub mod diagnostic;
 pub mod images;
 pub mod logistic;
+mod mip;
 pub mod shard;
-mod simd;
+pub mod simd;
 pub mod solve;
 pub mod stack;
 
@@ -129,6 +132,19 @@ pub enum Error {
 
 /// The fit crate's result type.
 pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    /// [`Error::BadSample`] of `light`'s sample `value` at texel index `texel` of an image
+    /// `width` texels wide.
+    pub(crate) fn bad_sample(texel: usize, width: usize, light: usize, value: f32) -> Error {
+        Error::BadSample {
+            col: texel % width,
+            row: texel / width,
+            light,
+            value,
+        }
+    }
+}
 
 /// The file layer's errors become the same-named variants here, so matches on
 /// `Error::Io` / `Error::Format` / `Error::Invalid` see them whichever crate raised them.

@@ -2,7 +2,7 @@
 //! an independent f64 Newton solve, separable / constant / one-ring texels, streaming counts
 //! against the stored stack, and MIP levels against fits of the box-filtered stack.
 use ptm_fit::diagnostic::Solution;
-use ptm_fit::logistic::Kernel;
+use ptm_fit::simd::Isa;
 use ptm_fit::solve::{fit_stack, Accumulator, FitOptions};
 use ptm_fit::{Diagnostic, SampleStack};
 use ptm_format::basis::sigmoid64;
@@ -114,22 +114,22 @@ fn every_kernel_build_agrees_with_the_portable_one() {
     let stack = SampleStack::new(lights, w, h, [1.0, 1.0], k);
     for basis in Basis::ALL {
         let portable = FitOptions {
-            kernel: Some(Kernel::Portable),
+            isa: Some(Isa::Portable),
             holdout: 7,
             ..options(basis, UvMap::Projected, 1e-3)
         };
         let (want, wr) = fit_stack(&stack, &portable).unwrap();
         let mut ran = Vec::new();
-        for kernel in [Kernel::Avx2, Kernel::Avx512] {
-            if !kernel.supported() {
-                eprintln!("skipped: {} kernel (this CPU lacks it)", kernel.name());
+        for isa in [Isa::Avx2, Isa::Avx512] {
+            if !isa.supported() {
+                eprintln!("skipped: {} kernel (this CPU lacks it)", isa.name());
                 continue;
             }
-            ran.push(kernel.name());
+            ran.push(isa.name());
             let (got, gr) = fit_stack(
                 &stack,
                 &FitOptions {
-                    kernel: Some(kernel),
+                    isa: Some(isa),
                     ..portable.clone()
                 },
             )
@@ -145,7 +145,7 @@ fn every_kernel_build_agrees_with_the_portable_one() {
             assert!(
                 worst < 1e-4,
                 "{basis:?} {}: K differs by {worst}",
-                kernel.name()
+                isa.name()
             );
             let (a, b) = (wr.holdout.unwrap().mean, gr.holdout.unwrap().mean);
             assert!((a - b).abs() < 1e-5, "hold-out {a} vs {b}");

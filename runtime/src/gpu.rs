@@ -1,4 +1,4 @@
-//! Headless wgpu: device creation, buffers of a [`Prepared`] scene, the SAT compute passes,
+//! Headless wgpu: device creation, buffers of a [`SceneBuffers`] scene, the SAT compute passes,
 //! the shading render pass into an `Rgba32Float` target, and readback (rows padded to 256 B).
 //!
 //! Timings are wall-clock seconds around each submission plus a blocking wait, so they include
@@ -10,7 +10,7 @@ use wgpu::util::DeviceExt;
 
 use crate::layout::{Frame, LightGpu, SatParams};
 use crate::output::Image;
-use crate::scene::{Blur, Prepared};
+use crate::scene::{Blur, SceneBuffers};
 use crate::{shader, Error, Result};
 
 /// Seconds per pass, in execution order (e.g. `upload`, `sat_build`, `shade`, `readback`).
@@ -155,7 +155,7 @@ const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 
 impl Renderer {
     /// Builds the pipelines and buffers of `p`'s variant and uploads its data (a summed-area table, MIP chain or separable maps are built on the first render).
-    pub fn new(gpu: &Gpu, p: &Prepared) -> Result<Renderer> {
+    pub fn new(gpu: &Gpu, p: &SceneBuffers) -> Result<Renderer> {
         let v = &p.variant;
         let mut setup = Timings::default();
         let scope = gpu.device.push_error_scope(wgpu::ErrorFilter::Validation);
@@ -544,7 +544,11 @@ pub fn build_sat(
 }
 
 /// Runs the separable blur passes (`separable.wgsl`) for every light; returns the padded maps.
-pub fn separable_passes(gpu: &Gpu, p: &Prepared, opacity: &wgpu::Buffer) -> Result<wgpu::Buffer> {
+pub fn separable_passes(
+    gpu: &Gpu,
+    p: &SceneBuffers,
+    opacity: &wgpu::Buffer,
+) -> Result<wgpu::Buffer> {
     let plan = &p.separable;
     let sep = plan.params(p.frame.caster_size, p.variant.sat_channels());
     let (h, channels, lights) = (sep.size[1], sep.channels, sep.lights);
@@ -616,7 +620,7 @@ pub fn sat_table(gpu: &Gpu, opacity: &[u32], w: u32, h: u32, channels: u32) -> R
 }
 
 /// Renders a prepared scene once: setup timings, then `shade` and `readback`.
-pub fn render(gpu: &Gpu, p: &Prepared) -> Result<(Image, Timings)> {
+pub fn render(gpu: &Gpu, p: &SceneBuffers) -> Result<(Image, Timings)> {
     let r = Renderer::new(gpu, p)?;
     let mut timings = r.setup.clone();
     timings.passes.push(("shade", r.frame()?));

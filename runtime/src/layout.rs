@@ -87,7 +87,7 @@ pub struct LightGpu {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct PtmLevel {
-    /// First texel of the level in `Prepared::coeffs` (texels, not floats).
+    /// First texel of the level in `SceneBuffers::coeffs` (texels, not floats).
     pub offset: u32,
     /// Width of the level, texels.
     pub width: u32,
@@ -120,7 +120,7 @@ impl PtmLevel {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct MipLevel {
-    /// First texel of the level in `Prepared::mip`.
+    /// First texel of the level in `SceneBuffers::mip`.
     pub offset: u32,
     /// Width of the level, texels.
     pub width: u32,

@@ -1,7 +1,7 @@
 //! `ptm-runtime`: wgpu/WGSL shading of a cloth plane under spherical area lights, with penumbra-map
 //! soft shadows from a planar caster and micro-occlusion from an occlusion PTM; and its CPU twin.
 //!
-//! Data flow: a [`Scene`] (public-field config) is [`Scene::prepare`]d into [`Prepared`] — the
+//! Data flow: a [`Scene`] (public-field config) is [`Scene::prepare`]d into [`SceneBuffers`] — the
 //! uniform block, light list, texel-major PTM coefficients and caster opacity exactly as the GPU
 //! sees them ([`layout`] holds every GPU struct, field for field with its WGSL). [`gpu::render`]
 //! runs the WGSL variant assembled for that scene ([`shader`]); [`cpu::render`] is its twin in
@@ -35,7 +35,7 @@ pub mod window;
 
 pub use gpu::{Gpu, Timings};
 pub use output::Image;
-pub use scene::{Blur, Caster, Light, Prepared, Scene, Warning};
+pub use scene::{Blur, Caster, Light, Scene, SceneBuffers, Warning};
 
 /// Errors of the runtime crate. Messages name the input and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]

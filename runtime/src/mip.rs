@@ -79,7 +79,7 @@ pub fn build_ptm_chain(coeffs: &mut Vec<f32>, n: usize, w: usize, h: usize) -> V
 }
 
 /// A PTM's level-0 coverage followed by its box averages at every further level of `levels`
-/// (as `Prepared::coeffs` lays levels out: level k's texels start at `levels[k].offset`). Each
+/// (as `SceneBuffers::coeffs` lays levels out: level k's texels start at `levels[k].offset`). Each
 /// level averages blocks of the level above: 2 texels along a side that shrank (an odd last
 /// texel of a rounded-down level is dropped, as the file's levels drop it), 1 along a side that
 /// did not. Without levels: level 0 alone.

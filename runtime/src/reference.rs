@@ -10,13 +10,13 @@ use ptm_format::vec3::{cross, dot, normalize};
 use crate::cpu::shade::opacity_raw;
 use crate::layout::{Frame, LightGpu};
 use crate::output::Image;
-use crate::scene::Prepared;
+use crate::scene::SceneBuffers;
 
 /// The ground-truth image: as [`crate::cpu::render`], but the caster opacity of each (pixel,
 /// light) is the Monte Carlo mean over the spherical light ([`mc_opacity`], `samples` rays)
 /// instead of the blur method's estimate. K, albedo and the unshadowed light term are
 /// unchanged, so the difference to a method's image is its soft-shadow error alone.
-pub fn render_reference(p: &Prepared, samples: u32) -> Image {
+pub fn render_reference(p: &SceneBuffers, samples: u32) -> Image {
     let samples = samples.max(1);
     let opacity = |q: [f32; 2], l: &LightGpu| {
         let key =

@@ -143,7 +143,7 @@ impl Scene {
     }
 
     /// The light buffer as the shader reads it (what [`Scene::prepare`] puts in
-    /// [`Prepared::lights`]; a moved light needs only this, see `gpu::Renderer::set_lights`).
+    /// [`SceneBuffers::lights`]; a moved light needs only this, see `gpu::Renderer::set_lights`).
     pub fn gpu_lights(&self) -> Vec<LightGpu> {
         self.lights
             .iter()
@@ -157,7 +157,7 @@ impl Scene {
     }
 
     /// Validates and lays the scene out as the shader's buffers.
-    pub fn prepare(&self) -> Result<Prepared> {
+    pub fn prepare(&self) -> Result<SceneBuffers> {
         let [w, h] = self.size;
         if w == 0 || h == 0 {
             return Err(Error::Scene(format!("output size {w}×{h} is empty")));
@@ -380,7 +380,7 @@ impl Scene {
             link,
             uv,
         };
-        Ok(Prepared {
+        Ok(SceneBuffers {
             frame,
             lights,
             coeffs,
@@ -610,7 +610,7 @@ fn camera_basis(cam: &Perspective, aspect: f32) -> Result<[[f32; 3]; 3]> {
 
 /// A scene laid out as shader buffers; the GPU and the CPU twin both read exactly this.
 #[derive(Clone, Debug)]
-pub struct Prepared {
+pub struct SceneBuffers {
     /// The uniform block.
     pub frame: Frame,
     /// The lights as the shader reads them.

@@ -479,7 +479,7 @@ impl App {
         let state = self.state.as_ref()?;
         let p = self.cursor?;
         let [w, h] = self.session.base.size;
-        let fit = Fit::new([w, h], [state.config.width, state.config.height]);
+        let fit = Letterbox::new([w, h], [state.config.width, state.config.height]);
         Some([
             (p.x as f32 - fit.offset[0]) / fit.size[0],
             (p.y as f32 - fit.offset[1]) / fit.size[1],
@@ -569,18 +569,18 @@ impl ApplicationHandler for App {
 }
 
 /// The picture letterboxed in the window: offset and size in window pixels.
-struct Fit {
+struct Letterbox {
     offset: [f32; 2],
     size: [f32; 2],
 }
 
-impl Fit {
-    fn new(image: [u32; 2], window: [u32; 2]) -> Fit {
+impl Letterbox {
+    fn new(image: [u32; 2], window: [u32; 2]) -> Letterbox {
         let (iw, ih) = (image[0].max(1) as f32, image[1].max(1) as f32);
         let (ww, wh) = (window[0] as f32, window[1] as f32);
         let scale = (ww / iw).min(wh / ih);
         let size = [iw * scale, ih * scale];
-        Fit {
+        Letterbox {
             offset: [0.5 * (ww - size[0]), 0.5 * (wh - size[1])],
             size,
         }
@@ -752,7 +752,7 @@ impl Blit {
         window: [u32; 2],
         exposure: f32,
     ) {
-        let fit = Fit::new([image.width, image.height], window);
+        let fit = Letterbox::new([image.width, image.height], window);
         let params: [f32; 8] = [
             image.width as f32,
             image.height as f32,
@@ -799,7 +799,7 @@ mod tests {
 
     #[test]
     fn fit_letterboxes_and_keeps_aspect() {
-        let f = Fit::new([100, 50], [200, 200]);
+        let f = Letterbox::new([100, 50], [200, 200]);
         assert_eq!(f.size, [200.0, 100.0]);
         assert_eq!(f.offset, [0.0, 50.0]);
     }

@@ -1,9 +1,5 @@
-//! The triangle mesh of one swatch tile, its OBJ writer and a few measurements.
-
-use std::io::Write;
-use std::path::Path;
-
-use crate::{Error, Result};
+//! The triangle mesh of one swatch tile and a few measurements (its OBJ reader and writer,
+//! `Mesh::read_obj` and `Mesh::write_obj`, live with the OBJ format in `obj.rs`).
 
 /// A swatch: triangles in the swatch frame (z up) and the periodic tile [0, W]×[0, H] they
 /// repeat over.
@@ -66,47 +62,5 @@ impl Mesh {
         self.positions.extend_from_slice(&other.positions);
         self.triangles
             .extend(other.triangles.iter().map(|t| t.map(|i| i + base)));
-    }
-
-    /// Writes the mesh as Wavefront OBJ (`v`, then `f` with 1-based indices), atomically: to a
-    /// temporary file beside `path`, then renamed over it. The tile size goes in a leading
-    /// comment (`# tile W H`), which [`Mesh::read_obj`] reads back. Uses `ptm_format::atomic`, as
-    /// every writer of the workspace does.
-    pub fn write_obj(&self, path: &Path) -> Result<()> {
-        ptm_format::atomic::write_atomic(path, |w| self.write_obj_to(w)).map_err(|e| match e {
-            ptm_format::Error::Io { source, .. } => Error::Io {
-                path: path.to_path_buf(),
-                source,
-            },
-            other => Error::Invalid(other.to_string()),
-        })
-    }
-
-    /// The OBJ text of [`Mesh::write_obj`] into any writer.
-    pub fn write_obj_to(&self, w: &mut impl Write) -> std::io::Result<()> {
-        writeln!(w, "# ptm swatch: tile spans [0, W]x[0, H], z up")?;
-        writeln!(w, "# tile {} {}", self.tile[0], self.tile[1])?;
-        writeln!(
-            w,
-            "# {} vertices, {} triangles",
-            self.positions.len(),
-            self.triangles.len()
-        )?;
-        // `{:?}` on f32 prints the shortest string that reads back to the same f32, with an
-        // exponent for tiny values (rounding noise like 5.551115e-17 stays short).
-        for p in &self.positions {
-            writeln!(w, "v {:?} {:?} {:?}", p[0], p[1], p[2])?;
-        }
-        for t in &self.triangles {
-            writeln!(w, "f {} {} {}", t[0] + 1, t[1] + 1, t[2] + 1)?;
-        }
-        Ok(())
-    }
-
-    /// Reads an OBJ file into a mesh as written (f32, the tile from the `# tile W H` header
-    /// [`Mesh::write_obj`] writes, [0, 0] without one), with the workspace's one reader,
-    /// [`crate::obj::read_obj`].
-    pub fn read_obj(path: &Path) -> Result<Mesh> {
-        Ok(crate::obj::read_obj(path)?.into_mesh())
     }
 }

@@ -63,7 +63,7 @@ pub fn describe_direction(basis: Basis, v: &[f64]) -> String {
 /// A factored (weighted) design: right singular vectors and singular values of W½A, and the
 /// solve operator S (terms × terms) with c = S · AᵀW·k.
 #[derive(Clone, Debug)]
-pub(super) struct Factor {
+pub(crate) struct Factor {
     pub sigma: Vec<f64>,
     pub v: DMatrix<f64>,
     pub rank: usize,
@@ -275,16 +275,24 @@ pub(super) fn solver_words(opts: &FitOptions, f: &Factor, per_texel: bool) -> St
     }
 }
 
-/// Shared preparation of a distant-light fit.
-pub(super) struct Prepared {
+/// The design a distant-light fit shares between its texels, factored once: what every texel's
+/// solve reads (identity link) or starts from (logistic link), and the light set's diagnostics.
+pub(crate) struct SharedDesign {
+    /// The design matrix A (lights × terms) at each light's mapped (u, v).
     pub a: DMatrix<f64>,
+    /// Per light its weight (0 for lights below the horizon under cosine weights, and for the
+    /// held-out lights).
     pub w: Vec<f64>,
+    /// The held-out lights.
     pub held: Vec<usize>,
+    /// The f64 factorisation of W½A.
     pub factor: Factor,
+    /// What the light set's factorisation warns of.
     pub warnings: Vec<Diagnostic>,
 }
 
-pub(super) fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> {
+/// Checks the options, weighs the lights and factors the shared design.
+pub(crate) fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<SharedDesign> {
     if lights.is_empty() {
         return Err(Error::Invalid("no lights to fit".into()));
     }
@@ -311,7 +319,7 @@ pub(super) fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<Prepared> 
     let factor = Factor::from_design(&a, &w, opts.rcond, ridge);
     let warnings = diagnose(opts.basis, lights, &w, &factor, opts);
     check_strict(opts, &warnings)?;
-    Ok(Prepared {
+    Ok(SharedDesign {
         a,
         w,
         held,

@@ -3,11 +3,12 @@
 //! one kernel, written once over [`Simd`] and compiled for AVX-512F, AVX2 + FMA and portable
 //! code, that forms c = P·k and the residuals of the same tile while it is in L1).
 //!
-//! Each build is entered only after a run-time feature check ([`Kernel::supported`]); the
-//! result is deterministic on a given machine (FMA changes the last bits against portable
-//! code, which the tests below bound).
-use crate::logistic::Kernel;
-use crate::simd::{Portable, Simd};
+//! Each build is entered with the proof-of-feature token of its instruction set (see
+//! `crate::simd`), made by a run-time check; the result is deterministic on a given machine
+//! (FMA changes the last bits against portable code, which the tests below bound).
+#[cfg(target_arch = "x86_64")]
+use crate::simd::{Avx2, Avx512};
+use crate::simd::{Isa, Portable, Simd};
 
 /// g += aw·k and s += w·k² per texel (texel-major g, M per texel); masked or non-finite
 /// samples add nothing. Branch-free so the M-wide update vectorises.
@@ -20,16 +21,19 @@ pub(super) fn accumulate<const M: usize>(
     w: f64,
 ) {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-        // SAFETY: the CPU supports the features the function is compiled for.
-        return unsafe { accumulate_avx2::<M>(g, s, k, masked, aw, w) };
+    if let Some(cpu) = Avx2::detect() {
+        // SAFETY: `cpu` proves the CPU has AVX2 and FMA, the features the function is compiled
+        // for.
+        return unsafe { accumulate_avx2::<M>(cpu, g, s, k, masked, aw, w) };
     }
     accumulate_body::<M>(g, s, k, masked, aw, w)
 }
 
+/// The same loop compiled for AVX2 + FMA (which the compiler vectorises 4 f64 wide).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn accumulate_avx2<const M: usize>(
+fn accumulate_avx2<const M: usize>(
+    _cpu: Avx2,
     g: &mut [f64],
     s: &mut [f64],
     k: &[f32],
@@ -97,8 +101,8 @@ thread_local! {
 }
 
 /// One block of `len` texels from `start`, with the given build (which the CPU must support:
-/// [`Kernel::supported`]; callers pass [`Kernel::detect`]).
-pub(super) fn kernel(inp: &KernelIn, start: usize, len: usize, m: usize, build: Kernel) -> Block {
+/// [`Isa::supported`]; callers pass [`Isa::detect`]).
+pub(super) fn kernel(inp: &KernelIn, start: usize, len: usize, m: usize, build: Isa) -> Block {
     assert!(
         build.supported(),
         "the {} kernel does not run here",
@@ -115,15 +119,19 @@ pub(super) fn kernel(inp: &KernelIn, start: usize, len: usize, m: usize, build: 
     })
 }
 
-/// The build's tile kernel over a packed block.
-fn tiles<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize, build: Kernel) -> Block {
+/// The build's tile kernel over a packed block, entered with the build's token.
+fn tiles<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize, build: Isa) -> Block {
+    let lacks = "`kernel` checked that the CPU has the build's features";
     match build {
-        Kernel::Portable => tiles_body::<Portable, M>(inp, packed, len),
-        // SAFETY: `kernel` checked that the CPU has the build's features.
+        Isa::Portable => tiles_body::<Portable, M>(Portable, inp, packed, len),
+        // SAFETY (both arms): the token proves the CPU has the features the function is
+        // compiled for.
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx2 => unsafe { tiles_avx2::<M>(inp, packed, len) },
+        Isa::Avx2 => unsafe { tiles_avx2::<M>(Avx2::detect().expect(lacks), inp, packed, len) },
         #[cfg(target_arch = "x86_64")]
-        Kernel::Avx512 => unsafe { tiles_avx512::<M>(inp, packed, len) },
+        Isa::Avx512 => unsafe {
+            tiles_avx512::<M>(Avx512::detect().expect(lacks), inp, packed, len)
+        },
         #[cfg(not(target_arch = "x86_64"))]
         _ => unreachable!("x86 builds are never supported elsewhere"),
     }
@@ -131,14 +139,14 @@ fn tiles<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize, build: Kern
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn tiles_avx2<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize) -> Block {
-    tiles_body::<crate::simd::Avx2, M>(inp, packed, len)
+fn tiles_avx2<const M: usize>(cpu: Avx2, inp: &KernelIn, packed: &[f32], len: usize) -> Block {
+    tiles_body::<Avx2, M>(cpu, inp, packed, len)
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn tiles_avx512<const M: usize>(inp: &KernelIn, packed: &[f32], len: usize) -> Block {
-    tiles_body::<crate::simd::Avx512, M>(inp, packed, len)
+fn tiles_avx512<const M: usize>(cpu: Avx512, inp: &KernelIn, packed: &[f32], len: usize) -> Block {
+    tiles_body::<Avx512, M>(cpu, inp, packed, len)
 }
 
 /// Copies the block's K into tile-major order, `[tile][used light][lane]` with `lanes` texels
@@ -177,9 +185,9 @@ fn pack_lanes<const L: usize>(inp: &KernelIn, start: usize, len: usize, buf: &mu
 /// Stores the first `n` lanes of `v` at the start of `dst` (a tile may be cut by the block's
 /// end).
 #[inline(always)]
-fn put<S: Simd>(v: S::V, n: usize, dst: &mut [f32]) {
+fn put<S: Simd>(cpu: S, v: S::V, n: usize, dst: &mut [f32]) {
     let mut lanes = [0f32; MAX_LANES];
-    S::store(v, &mut lanes);
+    cpu.store(v, &mut lanes);
     dst[..n].copy_from_slice(&lanes[..n]);
 }
 
@@ -188,7 +196,12 @@ fn put<S: Simd>(v: S::V, n: usize, dst: &mut [f32]) {
 /// |residual| over the fitting lights, squared error of clamped K over the held-out ones.
 /// Plain loops only: a closure would not inherit the caller's target features.
 #[inline(always)]
-fn tiles_body<S: Simd, const M: usize>(inp: &KernelIn, packed: &[f32], len: usize) -> Block {
+fn tiles_body<S: Simd, const M: usize>(
+    cpu: S,
+    inp: &KernelIn,
+    packed: &[f32],
+    len: usize,
+) -> Block {
     let l = S::LANES;
     let mut out = Block {
         c: vec![0f32; M * BLOCK],
@@ -197,42 +210,42 @@ fn tiles_body<S: Simd, const M: usize>(inp: &KernelIn, packed: &[f32], len: usiz
         hs: vec![0f32; BLOCK],
     };
     let nu = inp.used.len();
-    let (zero, one) = (S::splat(0.0), S::splat(1.0));
+    let (zero, one) = (cpu.splat(0.0), cpu.splat(1.0));
     for (tile, kt) in packed.chunks_exact(nu * l).enumerate() {
         let b0 = tile * l;
         let mut acc = [zero; M];
         for li in 0..inp.nfit {
-            let kv = S::load(&kt[li * l..]);
+            let kv = cpu.load(&kt[li * l..]);
             let pl: &[f32; M] = inp.p[li * M..(li + 1) * M].try_into().unwrap();
             for j in 0..M {
-                acc[j] = S::fma(S::splat(pl[j]), kv, acc[j]);
+                acc[j] = cpu.fma(cpu.splat(pl[j]), kv, acc[j]);
             }
         }
         let (mut ss, mut mx, mut hs) = (zero, zero, zero);
         for li in 0..nu {
-            let kv = S::load(&kt[li * l..]);
+            let kv = cpu.load(&kt[li * l..]);
             let al: &[f32; M] = inp.a[li * M..(li + 1) * M].try_into().unwrap();
             let mut pred = zero;
             for j in 0..M {
-                pred = S::fma(S::splat(al[j]), acc[j], pred);
+                pred = cpu.fma(cpu.splat(al[j]), acc[j], pred);
             }
             if li < inp.nfit {
-                let r = S::sub(kv, pred);
-                ss = S::fma(S::mul(S::splat(inp.w[li]), r), r, ss);
+                let r = cpu.sub(kv, pred);
+                ss = cpu.fma(cpu.mul(cpu.splat(inp.w[li]), r), r, ss);
                 // Non-finite samples show up in ss; max only has to order finite values.
-                mx = S::max(S::abs(r), mx);
+                mx = cpu.max(cpu.abs(r), mx);
             } else {
-                let r = S::sub(S::min(S::max(pred, zero), one), kv);
-                hs = S::fma(r, r, hs);
+                let r = cpu.sub(cpu.min(cpu.max(pred, zero), one), kv);
+                hs = cpu.fma(r, r, hs);
             }
         }
         let n = l.min(len - b0);
         for j in 0..M {
-            put::<S>(acc[j], n, &mut out.c[j * BLOCK + b0..]);
+            put::<S>(cpu, acc[j], n, &mut out.c[j * BLOCK + b0..]);
         }
-        put::<S>(ss, n, &mut out.ss[b0..]);
-        put::<S>(mx, n, &mut out.mx[b0..]);
-        put::<S>(hs, n, &mut out.hs[b0..]);
+        put::<S>(cpu, ss, n, &mut out.ss[b0..]);
+        put::<S>(cpu, mx, n, &mut out.mx[b0..]);
+        put::<S>(cpu, hs, n, &mut out.hs[b0..]);
     }
     out
 }
@@ -274,12 +287,12 @@ mod tests {
         let mut compared = 0;
         for m in [6usize, 11] {
             let inp = input(&k, m);
-            let want = kernel(&inp, 0, len, m, Kernel::Portable);
+            let want = kernel(&inp, 0, len, m, Isa::Portable);
             assert!(want.c[..len].iter().any(|&c| c != 0.0));
             assert!(want.ss[..len].iter().all(|&s| s > 0.0));
             assert!(want.mx[..len].iter().all(|&x| x > 0.0));
             assert!(want.hs[..len].iter().any(|&h| h != 0.0));
-            for build in [Kernel::Avx2, Kernel::Avx512] {
+            for build in [Isa::Avx2, Isa::Avx512] {
                 if !build.supported() {
                     eprintln!(
                         "skipped: {} kernel, ptm{m} (this CPU lacks it)",

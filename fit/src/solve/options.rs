@@ -1,6 +1,7 @@
 //! What a fit is asked for ([`FitOptions`], [`Weight`]) and what it reports beside the PTM
 //! ([`FitReport`], [`ErrorStats`], [`LogisticStats`]).
-use crate::logistic::{self, Kernel};
+use crate::logistic;
+use crate::simd::Isa;
 use crate::{Diagnostic, Error, Result};
 use ptm_format::{Basis, Link, UvMap};
 
@@ -45,8 +46,9 @@ pub struct FitOptions {
     pub max_iterations: u32,
     /// Also fit MIP levels (each to the box-filtered K of its footprint) for the file.
     pub mips: bool,
-    /// Logistic link: force a kernel build (tests and benchmarks); `None` = the widest.
-    pub kernel: Option<Kernel>,
+    /// Logistic link: force the kernel's instruction set (tests and benchmarks); `None` = the
+    /// widest this CPU runs ([`Isa::detect`]).
+    pub isa: Option<Isa>,
     /// Singular values below `rcond · σ_max` are treated as zero (their directions undetermined).
     pub rcond: f64,
     /// Any warning about the light set becomes an error.
@@ -79,7 +81,7 @@ impl FitOptions {
             tolerance: logistic::DEFAULT_TOLERANCE,
             max_iterations: logistic::DEFAULT_MAX_ITERATIONS,
             mips: false,
-            kernel: None,
+            isa: None,
             rcond: DEFAULT_RCOND,
             strict: false,
             skip_bad: false,
@@ -213,7 +215,7 @@ pub struct LogisticStats {
     pub tolerance: f64,
     /// The iteration cap used.
     pub max_iterations: u32,
-    /// The kernel build that ran (`avx512f`, `avx2+fma`, `portable`).
+    /// The kernel build that ran (`avx512f`, `avx2+fma`, `portable`: [`Isa::name`]).
     pub kernel: &'static str,
 }
 
@@ -239,7 +241,7 @@ pub fn holdout_indices(n: usize, h: usize) -> Vec<usize> {
         .collect()
 }
 
-pub(super) fn check_strict(opts: &FitOptions, warnings: &[Diagnostic]) -> Result<()> {
+pub(crate) fn check_strict(opts: &FitOptions, warnings: &[Diagnostic]) -> Result<()> {
     if opts.strict && !warnings.is_empty() {
         return Err(Error::Strict(warnings.to_vec()));
     }

@@ -6,22 +6,16 @@ use std::time::Instant;
 use nalgebra::DMatrix;
 use rayon::prelude::*;
 
-use super::factor::{light_weights, prepare, solver_words, Factor, Prepared};
+use super::accumulator::Accumulator;
+use super::factor::{light_weights, prepare, solver_words, Factor, SharedDesign};
 use super::kernel::{kernel, Block, KernelIn, BLOCK};
 use super::options::{partial_coverage, ptm_coverage, ErrorStats, FitOptions, FitReport};
-use super::{fit_logistic, identity_mips, Accumulator};
-use crate::logistic::{Kernel, Source};
+use crate::logistic::image::fit_image;
+use crate::logistic::pool::Source;
+use crate::mip::identity_mips;
+use crate::simd::Isa;
 use crate::{Diagnostic, Error, Result, SampleStack};
 use ptm_format::{Link, Ptm};
-
-pub(super) fn bad_sample(texel: usize, width: usize, light: usize, value: f32) -> Error {
-    Error::BadSample {
-        col: texel % width,
-        row: texel / width,
-        light,
-        value,
-    }
-}
 
 /// Fits a stored stack: one f32 product C = P·K over texel blocks (parallel, deterministic),
 /// fused with the exact residual pass (weighted RMS and max over the fitting lights, RMS of
@@ -43,15 +37,10 @@ pub fn fit_stack(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitRepo
     Ok((ptm, report))
 }
 
-/// The logistic link refuses per-texel light directions (finite-distance lights): its Newton
-/// solve shares one design per fit.
-pub(super) fn refuse_per_texel_logistic() -> Error {
-    Error::LogisticNeedsDistantLights
-}
-
 fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, FitReport)> {
     if stack.uv.is_some() {
-        return Err(refuse_per_texel_logistic());
+        // Its Newton solve shares one design per fit.
+        return Err(Error::LogisticNeedsDistantLights);
     }
     let prep = prepare(&stack.lights, opts)?;
     let t0 = Instant::now();
@@ -69,7 +58,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         for (ti, &x) in k.iter().enumerate() {
             if !mask[ti] && !x.is_finite() {
                 if !opts.skip_bad {
-                    return Err(bad_sample(ti, stack.width, l, x));
+                    return Err(Error::bad_sample(ti, stack.width, l, x));
                 }
                 skipped += 1;
                 bad_texels.insert(ti);
@@ -81,7 +70,7 @@ fn fit_stack_logistic(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         k: &stack.k,
         coverage: &stack.coverage,
     };
-    let (mut ptm, mut report, _) = fit_logistic(
+    let (mut ptm, mut report, _) = fit_image(
         &src,
         &prep,
         &stack.lights,
@@ -165,7 +154,7 @@ fn fit_stack_identity(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         w: used.iter().map(|&l| wf[l]).collect(),
         used,
     };
-    let build = Kernel::detect();
+    let build = Isa::detect();
     let blocks: Vec<Block> = (0..nb)
         .into_par_iter()
         .map(|bi| {
@@ -233,7 +222,7 @@ fn fit_stack_identity(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
     for &ti in &bad_texels {
         let bad: Vec<usize> = (0..n).filter(|&l| !stack.k[l][ti].is_finite()).collect();
         if !opts.skip_bad {
-            return Err(bad_sample(ti, w, bad[0], stack.k[bad[0]][ti]));
+            return Err(Error::bad_sample(ti, w, bad[0], stack.k[bad[0]][ti]));
         }
         report.skipped_samples += bad.len();
         let (c, rms, mx, hold, rank) = refit_texel(stack, ti, &prep, opts);
@@ -295,7 +284,7 @@ fn masked(stack: &SampleStack) -> Vec<bool> {
 fn refit_texel(
     stack: &SampleStack,
     ti: usize,
-    prep: &Prepared,
+    prep: &SharedDesign,
     opts: &FitOptions,
 ) -> (Vec<f32>, f32, f32, f32, usize) {
     let m = opts.basis.len();

@@ -4,7 +4,7 @@
 //! function with its twin; a test fails when a WGSL function has none.
 //!
 //! [`render`] runs the whole pipeline the GPU runs (tables, then one `fs_main` per pixel) on the
-//! same [`Prepared`] buffers; tests compare the GPU image with it.
+//! same [`SceneBuffers`] buffers; tests compare the GPU image with it.
 
 pub mod sat;
 pub mod separable;
@@ -13,19 +13,19 @@ pub mod shade;
 use rayon::prelude::*;
 
 use crate::output::Image;
-use crate::scene::{Blur, Prepared};
+use crate::scene::{Blur, SceneBuffers};
 use shade::{pixel_world, ptm_k_unclamped, ptm_lod, OpacityFn, Twin};
 
 /// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
 /// result does not depend on the thread count).
-pub fn render(p: &Prepared) -> Image {
+pub fn render(p: &SceneBuffers) -> Image {
     render_with(p, None)
 }
 
 /// As [`render`], with the caster opacity of each (cloth point, light) taken from `opacity`
 /// instead of the blur method when given (the Monte Carlo reference,
 /// [`crate::reference::render_reference`]).
-pub fn render_with(p: &Prepared, opacity: Option<&OpacityFn<'_>>) -> Image {
+pub fn render_with(p: &SceneBuffers, opacity: Option<&OpacityFn<'_>>) -> Image {
     let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
     let [cw, ch] = p.frame.caster_size;
     let channels = p.variant.sat_channels();
@@ -76,7 +76,7 @@ pub struct KExcursion {
 
 /// K before clamping at every pixel for every light, exactly as the shader evaluates it;
 /// `None` without a PTM or without a light above the acceptor.
-pub fn k_excursion(p: &Prepared) -> Option<KExcursion> {
+pub fn k_excursion(p: &SceneBuffers) -> Option<KExcursion> {
     let basis = p.variant.basis?;
     let twin = Twin {
         p,

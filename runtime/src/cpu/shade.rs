@@ -1,12 +1,12 @@
 //! Twin of `shader/shade.wgsl`: every WGSL function under its name, same maths, same f32
-//! arithmetic, reading the same [`Prepared`] buffers (functions that read only the uniform
+//! arithmetic, reading the same [`SceneBuffers`] buffers (functions that read only the uniform
 //! block take it as `f`; those that read storage buffers are methods of [`Twin`]). Tests
 //! compare the GPU image with it (≤ 1e-3 linear radiance); `cpu::TWINS` lists the pairs.
 
 use ptm_format::{Link, UvMap};
 
 use crate::layout::{Frame, LightGpu, MipLevel, PtmLevel};
-use crate::scene::{Blur, Prepared, Variant};
+use crate::scene::{Blur, SceneBuffers, Variant};
 
 /// What replaces the blur method's caster opacity for (cloth point, light): the Monte Carlo
 /// reference ([`crate::reference`]) plugs in here.
@@ -347,7 +347,7 @@ fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4]))
 /// summed-area table, the separable maps).
 pub struct Twin<'a> {
     /// The prepared scene (`Frame`, lights, PTM, caster buffers).
-    pub p: &'a Prepared,
+    pub p: &'a SceneBuffers,
     /// Summed-area table of the caster opacity (SAT blur), as the GPU builds it.
     pub sat: &'a [u32],
     /// Separable blur: the per-light blurred maps.
