@@ -159,7 +159,7 @@ pub struct PtmPart {
     /// Logistic link: see `levels`.
     pub mips: bool,
     /// Logistic link: the MIP levels of the part's rows fitted by the part, and the pooled
-    /// counts the merge fits the deeper levels from ([`local_levels`]). Empty otherwise.
+    /// counts the merge fits the deeper levels from (`local_levels`). Empty otherwise.
     pub levels: PartLevels,
 }
 
@@ -170,7 +170,7 @@ pub struct PtmPart {
 /// (1/256 of level 0's texels, exact), and the merge joins them and fits the rest.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartLevels {
-    /// Levels 1 … S for the part's rows (sizes from [`local_levels`]).
+    /// Levels 1 … S for the part's rows (sizes from `local_levels`).
     pub levels: Vec<ptm_format::Level>,
     /// Pooled counts of level S for the part's rows, when the chain goes deeper:
     /// (covered samples per texel, occluded samples `[light][texel]`).
@@ -962,7 +962,7 @@ pub fn merge_into(paths: &[PathBuf], out: &Path) -> Result<Merged> {
 /// that one machine writes, for a caller that publishes it with other outputs (`out` names the
 /// file in errors; nothing is written). A stack merges by copying the parts' compressed chunks
 /// under the whole image's header; a PTM is decoded, concatenated, its file-level facts
-/// recomputed ([`finish_fit`]) and encoded.
+/// recomputed (`finish_fit`) and encoded.
 pub fn merge_encode(paths: &[PathBuf], out: &Path) -> Result<(Merged, Vec<u8>)> {
     let set = check_set(paths)?;
     let (_, kind) = read_meta(&set[0].0)?;

@@ -61,7 +61,7 @@ pub fn write(
     write_levels(path, width, height, levels, attrs)
 }
 
-/// The bytes of the file [`write`] writes (`path` names it in errors only).
+/// The bytes of the file [`write()`] writes (`path` names it in errors only).
 pub fn encode(
     path: &Path,
     width: usize,
@@ -84,7 +84,7 @@ fn flat(s: Samples) -> FlatSamples {
 }
 
 /// Writes a single-part EXR whose channels carry one entry per resolution level: one level is
-/// a plain scanline file (as [`write`]); more make a tiled (64×64, ZIP) `MIPMAP_LEVELS` file with
+/// a plain scanline file (as [`write()`]); more make a tiled (64×64, ZIP) `MIPMAP_LEVELS` file with
 /// `ROUND_DOWN` sizes, levels 0, 1, … down to 1×1 — the form texture systems read.
 pub fn write_levels(
     path: &Path,

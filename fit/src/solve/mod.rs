@@ -15,7 +15,7 @@
 //!
 //! Every result is computed without clamping; evaluation clamps K to [0, 1].
 //!
-//! Layout: [`options`] (what a fit is asked for and what it reports), `factor` (the f64
+//! Layout: `options` (what a fit is asked for and what it reports), `factor` (the f64
 //! factorisation of the design and the light-set diagnostics), `accumulator` (the streaming
 //! [`Accumulator`]), `refit` (stored stacks, texels with dropped samples), `kernel` (the
 //! packing and every `unsafe` SIMD kernel of the identity link), and here the two links'
