@@ -47,6 +47,12 @@ cargo clippy --workspace --all-targets -- -D warnings
 echo "== cargo clippy --features window (the preview window compiles; it runs only with a display)" >&2
 cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warnings
 
+echo "== cargo doc -D warnings (every intra-doc link resolves)" >&2
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+
+echo "== the --json key snapshots (tests/snapshots/json_keys.txt, docs/json.md; UPDATE_SNAPSHOTS=1 rewrites)" >&2
+cargo test -p ptm --bin ptm json::
+
 echo "== cargo test" >&2
 cargo test --workspace
 

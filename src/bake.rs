@@ -11,13 +11,10 @@ use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh};
 use ptm_fit::shard::PartMeta;
 use ptm_fit::{Accumulator, FitOptions, SampleStack};
 use ptm_format::atomic::{same_file, Transaction};
-use ptm_format::{Basis, LightSet, SaveOptions};
-use serde_json::{json, Value};
+use ptm_format::{Basis, Layout, LightSet, SaveOptions};
 
-// `--fit BASIS` takes the same basis argument as `ptm fit --basis`; `FitArg` is its name here.
-use crate::fit::finite;
-use crate::fit::BasisArg as FitArg;
-use crate::outputs::json_path;
+use crate::args::{choice, parse_threads, ModelArgs};
+use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -58,16 +55,16 @@ pub struct Args {
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
     /// Fit a PTM while baking (streaming; -o is then the .ptm.exr).
-    #[arg(long, value_enum)]
-    pub fit: Option<FitArg>,
+    #[arg(long, value_parser = choice::<Basis>())]
+    pub fit: Option<Basis>,
     #[command(flatten)]
-    pub model: crate::fit::ModelArgs,
+    pub model: ModelArgs,
     /// With --fit: ridge λ relative to the mean eigenvalue (see `ptm fit --regularize`).
     #[arg(long, value_name = "LAMBDA", requires = "fit")]
     pub regularize: Option<f64>,
     /// With --fit: file layout, channels or rgba (the renderer layout; see `ptm fit --layout`).
-    #[arg(long, value_name = "channels|rgba", default_value = "channels", value_parser = crate::convert::parse_layout, requires = "fit")]
-    pub layout: ptm_format::Layout,
+    #[arg(long, value_name = "channels|rgba", hide_possible_values = true, value_parser = choice::<Layout>(), default_value = "channels", requires = "fit")]
+    pub layout: Layout,
     /// Worker threads (0: one per core; at most 1024).
     #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     pub threads: usize,
@@ -83,41 +80,9 @@ pub struct Args {
     pub shard: Option<ptm_fit::shard::Shard>,
 }
 
-/// The most `--threads` a bake starts: more only costs thread start-up and memory (each
-/// thread holds Embree and rayon state), never speed.
-pub const MAX_THREADS: usize = 1024;
-
-/// `--threads N`: 0 (one per core) up to [`MAX_THREADS`].
-fn parse_threads(s: &str) -> Result<usize, String> {
-    let n: usize = s
-        .parse()
-        .map_err(|_| format!("`{s}` is not a whole number of threads"))?;
-    if n > MAX_THREADS {
-        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
-        return Err(format!(
-            "at most {MAX_THREADS} threads (this machine has {cores} cores; 0 uses one per core)"
-        ));
-    }
-    Ok(n)
-}
-
-/// `samples.exr` → `samples.lp`, `weave.ptm.exr` → `weave.lp`.
-/// Works on the name as an `OsStr`: a name that is not UTF-8 keeps its bytes.
-pub fn lp_path(out: &Path) -> PathBuf {
-    let name = Path::new(out.file_name().unwrap_or_default());
-    let strip = |p: &Path, ext: &str| match p.extension() {
-        Some(e) if e == ext => PathBuf::from(p.file_stem().unwrap_or_default()),
-        _ => p.to_path_buf(),
-    };
-    let stem = strip(&strip(name, "exr"), "ptm");
-    let mut lp = stem.into_os_string();
-    lp.push(".lp");
-    out.with_file_name(lp)
-}
-
 /// `ptm bake`: checks the input, traces the dome light by light into the fit or the stack,
-/// writes it (or a farm part) and the `.lp`; returns the JSON that `--json` prints.
-pub fn run(args: &Args) -> anyhow::Result<Value> {
+/// writes it (or a farm part) and the `.lp`; returns what `--json` prints.
+pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
     let t_all = Instant::now();
     // Everything that can refuse the input runs before any output is written; outputs that
     // are inputs are refused before any input is read.
@@ -126,7 +91,12 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let (res, rows) = resolve_rows(args)?;
     let lights = build_dome(args, [res[0], rows.len()])?;
     let part = match check_outputs(args, res, &swatch, &lights)? {
-        Output::Complete(path) => return Ok(json!({ "part": json_path(&path), "skipped": true })),
+        Output::Complete(path) => {
+            return Ok(json::Bake::Skipped(json::SkippedPart {
+                part: json::path(&path),
+                skipped: true,
+            }))
+        }
         Output::Whole => None,
         Output::Part(meta, path) => Some((meta, path)),
     };
@@ -135,9 +105,9 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, accumulator)?;
     let written = write_outputs(&swatch, &lights, kept, &part, destinations, shard_mips)?;
     print_summary(&report, &written);
-    Ok(bake_json(
+    Ok(json::Bake::Baked(Box::new(bake_json(
         args, &swatch, res, rows, &lights, &report, written, t_load, t_all,
-    ))
+    ))))
 }
 
 /// Parses `--tile`, loads and checks the swatch, and prints its warnings. Returns the swatch
@@ -176,7 +146,7 @@ fn resolve_rows(args: &Args) -> anyhow::Result<([usize; 2], Range<usize>)> {
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
     }
-    if args.shard.is_some() && args.layout != ptm_format::Layout::Channels {
+    if args.shard.is_some() && args.layout != Layout::Channels {
         bail!("--shard writes part files: merge them, then `ptm convert` to --layout rgba");
     }
     Ok((res, rows))
@@ -201,6 +171,42 @@ fn build_dome(args: &Args, mem_res: [usize; 2]) -> anyhow::Result<LightSet> {
     Ok(lights)
 }
 
+/// Every bake setting that changes the output, in words, as a farm part records it (parts of
+/// different settings never merge). Thread count and packet tracing do
+/// not (the output is bit-identical for any), nor does where the swatch file lies (its content
+/// hash is recorded separately). New output-changing flags must be added here.
+fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet) -> String {
+    let dirs: Vec<u8> = lights
+        .dirs
+        .iter()
+        .flat_map(|d| d.iter().flat_map(|c| c.to_le_bytes()))
+        .collect();
+    let names = lights.names.join("\n");
+    let light_hash = ptm_fit::shard::fingerprint([&dirs[..], names.as_bytes()]);
+    let m = &args.model;
+    let fit = match args.fit {
+        None => "stack".to_string(),
+        Some(f) => format!(
+            "{} link={} uv={} mips={} regularize={:?} tolerance={:e} max-iterations={}",
+            f.name(),
+            m.link.name(),
+            m.uv.name(),
+            !m.no_mips,
+            args.regularize,
+            m.tolerance,
+            m.max_iterations
+        ),
+    };
+    let distance = match args.light_distance {
+        None => "distant".to_string(),
+        Some(r) => format!("{r:e}"),
+    };
+    format!(
+        "res={}x{} tile={:e}x{:e} spp={} seed={} lights={} ({light_hash}) light-distance={distance} fit={fit}",
+        res[0], res[1], tile[0], tile[1], args.spp, args.seed, lights.len()
+    )
+}
+
 /// Where the bake goes.
 enum Output {
     /// `--output` itself.
@@ -222,7 +228,7 @@ fn check_outputs(
     let Some(s) = args.shard else {
         return Ok(Output::Whole);
     };
-    let meta = crate::shard::meta(args, s, res, swatch, lights)?;
+    let meta = crate::shard::meta(s, res, settings(args, res, swatch.tile, lights), swatch)?;
     let path = s.part_path(&args.output);
     if crate::shard::is_complete(&path, &meta) {
         eprintln!("ptm bake: {} is complete; skipped", path.display());
@@ -244,7 +250,7 @@ struct Destinations {
     /// The `.lp` that describes the output's lights (written, or the user's `--lights`).
     lights_file: Option<PathBuf>,
     /// The PTM's file layout (`--layout`; the renderer layout writes parts beside `output`).
-    layout: ptm_format::Layout,
+    layout: Layout,
 }
 
 /// Refuses an output that is an input (the swatch OBJ, its draft, the `--lights` file) and checks
@@ -271,8 +277,8 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
     let lp = beside.clone().filter(|p| !user_lp(p));
     // The renderer layout's parts replace the one file (not for a farm part: refused above).
     let rgba = match (args.fit, args.layout) {
-        (Some(f), ptm_format::Layout::Rgba) if args.shard.is_none() => {
-            ptm_format::layout::rgba_paths(&output, f.into())
+        (Some(f), Layout::Rgba) if args.shard.is_none() => {
+            ptm_format::layout::rgba_paths(&output, f)
         }
         _ => vec![output.clone()],
     };
@@ -431,8 +437,8 @@ fn trace(
 
 /// What was written, and the seconds the solve and the writing took.
 struct Written {
-    /// The fit's summary for the JSON (null without `--fit`).
-    fit: Value,
+    /// The fit's summary for the JSON (none without `--fit`).
+    fit: Option<json::BakeFit>,
     /// The file written (the part, for a farm shard).
     output: PathBuf,
     /// Every file of the sample stack or PTM written: `output`, or the renderer layout's parts.
@@ -488,20 +494,20 @@ fn write_outputs(
                 eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
             }
             crate::fit::print_logistic("ptm bake", &fit);
-            let mut summary = json!({
-                "basis": fit.basis.map(|b| b.name()),
-                "link": ptm.link.name(),
-                "uv": ptm.uv.name(),
-                "mip_levels": fit.mip_levels,
-                "logistic": crate::fit::logistic_json(&fit),
-                "solver": fit.solver,
-                "rank": fit.rank,
-                "condition_number": finite(fit.cond),
-                "rms_error_mean": fit.rms.mean,
-                "rms_error_p99": fit.rms.p99,
-                "warnings": crate::errors::fit_warnings(&fit.warnings),
-            });
-            crate::fit::stage_seconds(&mut summary, &fit.seconds);
+            let summary = json::BakeFit {
+                basis: fit.basis.map(|b| b.name()),
+                link: ptm.link.name(),
+                uv: ptm.uv.name(),
+                mip_levels: fit.mip_levels,
+                logistic: json::Logistic::of(&fit),
+                solver: fit.solver.clone(),
+                rank: fit.rank,
+                condition_number: json::finite(fit.cond),
+                rms_error_mean: fit.rms.mean,
+                rms_error_p99: fit.rms.p99,
+                warnings: crate::errors::fit_warnings(&fit.warnings),
+                stages: json::Stages(fit.seconds.clone()),
+            };
             match part {
                 // The part takes the fit itself: no copy of its planes.
                 Some((meta, path)) => crate::shard::write_ptm(
@@ -530,7 +536,7 @@ fn write_outputs(
                     files = encoded.into_iter().map(|(p, _)| p).collect();
                 }
             }
-            summary
+            Some(summary)
         }
         Samples::Stack(planes) => {
             let stack = SampleStack {
@@ -551,7 +557,7 @@ fn write_outputs(
                     tx.stage_bytes(&output, &bytes).with_context(writing)?;
                 }
             }
-            Value::Null
+            None
         }
     };
     if part.is_none() {
@@ -600,7 +606,7 @@ fn print_summary(report: &BakeReport, written: &Written) {
     }
 }
 
-/// The JSON that `--json` prints.
+/// The object `--json` prints.
 #[allow(clippy::too_many_arguments)]
 fn bake_json(
     args: &Args,
@@ -612,54 +618,54 @@ fn bake_json(
     written: Written,
     t_load: f64,
     t_all: Instant,
-) -> Value {
+) -> json::Baked {
     let rays = report.primary_rays + report.shadow_rays;
     let t_trace = report.seconds_primary + report.seconds_shadow;
-    json!({
-        "swatch": swatch.origin,
-        "output": json_path(&written.output),
-        "files": written.files.iter().map(|p| json_path(p)).collect::<Vec<_>>(),
-        "shard": args.shard.map(|s| s.to_string()),
-        "rows": [rows.start, rows.end],
-        "lights_file": written.lights_file.as_deref().map(json_path),
-        "triangles": swatch.triangles.len(),
-        "degenerate_triangles": swatch.degenerate,
-        "tile": swatch.tile,
-        "seam_mismatch": swatch.seams.map(|s| s.mismatch.map(finite)),
-        "warnings": swatch.warnings().iter().map(ToString::to_string).collect::<Vec<_>>(),
-        "width": res[0],
-        "height": res[1],
-        "spp": args.spp,
-        "seed": args.seed,
-        "lights": lights.len(),
-        "light_distance": args.light_distance,
-        "rays": {
-            "primary": report.primary_rays,
-            "shadow": report.shadow_rays,
-            "shadow_skipped": report.shadow_rays_skipped,
+    json::Baked {
+        swatch: swatch.origin.clone(),
+        output: json::path(&written.output),
+        files: json::paths(&written.files),
+        shard: args.shard.map(|s| s.to_string()),
+        rows: [rows.start, rows.end],
+        lights_file: written.lights_file.as_deref().map(json::path),
+        triangles: swatch.triangles.len(),
+        degenerate_triangles: swatch.degenerate,
+        tile: swatch.tile,
+        seam_mismatch: swatch.seams.map(|s| s.mismatch.and_then(json::finite)),
+        warnings: swatch.warnings().iter().map(ToString::to_string).collect(),
+        width: res[0],
+        height: res[1],
+        spp: args.spp,
+        seed: args.seed,
+        lights: lights.len(),
+        light_distance: args.light_distance,
+        rays: json::Rays {
+            primary: report.primary_rays,
+            shadow: report.shadow_rays,
+            shadow_skipped: report.shadow_rays_skipped,
         },
-        "mrays_per_s": rays as f64 / 1e6 / t_trace.max(1e-9),
-        "rings": report.rings,
-        "copies": report.copies,
-        "uncovered_texels": report.uncovered_texels,
-        "below_horizon": report.below_horizon,
-        "capped": report.capped,
-        "fit": written.fit,
-        "seconds": t_all.elapsed().as_secs_f64(),
-        "seconds_load": t_load,
-        "seconds_scene": report.seconds_scene,
-        "seconds_primary": report.seconds_primary,
-        "seconds_shadow": report.seconds_shadow,
-        "seconds_fit": written.t_fit,
-        "seconds_write": written.t_write,
-    })
+        mrays_per_s: rays as f64 / 1e6 / t_trace.max(1e-9),
+        rings: report.rings.clone(),
+        copies: report.copies.clone(),
+        uncovered_texels: report.uncovered_texels,
+        below_horizon: report.below_horizon.clone(),
+        capped: report.capped.clone(),
+        fit: written.fit,
+        seconds: t_all.elapsed().as_secs_f64(),
+        seconds_load: t_load,
+        seconds_scene: report.seconds_scene,
+        seconds_primary: report.seconds_primary,
+        seconds_shadow: report.seconds_shadow,
+        seconds_fit: written.t_fit,
+        seconds_write: written.t_write,
+    }
 }
 
 /// The options of the streaming fit `--fit f` asks for.
-fn fit_options(args: &Args, f: FitArg) -> FitOptions {
+fn fit_options(args: &Args, f: Basis) -> FitOptions {
     let mut opts = FitOptions {
         regularize: args.regularize,
-        ..FitOptions::new(Basis::from(f))
+        ..FitOptions::new(f)
     };
     args.model.apply(&mut opts);
     opts
@@ -672,14 +678,12 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
         return Ok(());
     };
     // In f64: absurd requests must be measured, not overflow.
-    let texels = res[0] as f64 * res[1] as f64;
     let baker = ptm_bake::baker_bytes(res, args.spp);
     let dome = lights as f64 * 64.0;
     let (sink, what) = match args.fit {
         // What the accumulator will hold (its sums, or the logistic link's counts).
         Some(f) => {
-            let link: ptm_format::Link = args.model.link.into();
-            let counts = Accumulator::count_bytes(link, args.spp) as f64;
+            let counts = Accumulator::count_bytes(args.model.link, args.spp) as f64;
             let bytes = Accumulator::memory_bytes(
                 res[0].saturating_mul(res[1]),
                 lights,
@@ -696,19 +700,11 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
                 },
             )
         }
-        // K per light (handed to the EXR writer, not copied); for point lights also (u, v) per
-        // light and its split into u and v channels.
-        None => {
-            let per = if args.light_distance.is_some() {
-                20.0
-            } else {
-                4.0
-            };
-            (
-                texels * lights as f64 * per,
-                "the sample stack (K of every light, written as samples.exr)",
-            )
-        }
+        // K per light (handed to the EXR writer, not copied); for point lights also (u, v).
+        None => (
+            SampleStack::memory_bytes(res[0], res[1], lights, args.light_distance.is_some()),
+            "the sample stack (K of every light, written as samples.exr)",
+        ),
     };
     let need = baker + dome + sink;
     if need > 0.9 * available as f64 {

@@ -24,7 +24,8 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use clap::Parser;
 use ptm_fit::shard::Shard;
-use serde_json::{json, Value};
+
+use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -169,7 +170,9 @@ fn part_paths(job: &Job) -> Vec<PathBuf> {
         .collect()
 }
 
-pub fn run(args: &Args) -> anyhow::Result<Value> {
+/// `ptm batch`: reads and checks the manifest, then bakes it here or writes the Slurm job;
+/// returns what `--json` prints.
+pub fn run(args: &Args) -> anyhow::Result<json::Batch> {
     let jobs = read_manifest(&args.manifest)?;
     let dir = args
         .manifest
@@ -178,13 +181,13 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
         .unwrap_or(Path::new("."));
     let dir = std::fs::canonicalize(dir).with_context(|| format!("{}", dir.display()))?;
     match &args.slurm {
-        Some(out) => write_slurm(args, &jobs, &dir, out),
-        None => run_here(&jobs, &dir),
+        Some(out) => write_slurm(args, &jobs, &dir, out).map(json::Batch::Slurm),
+        None => run_here(&jobs, &dir).map(json::Batch::Here),
     }
 }
 
 /// Bakes every shard of every job here, then merges each job (complete parts are kept).
-fn run_here(jobs: &[Job], dir: &Path) -> anyhow::Result<Value> {
+fn run_here(jobs: &[Job], dir: &Path) -> anyhow::Result<json::BatchHere> {
     let t0 = Instant::now();
     std::env::set_current_dir(dir).with_context(|| format!("entering {}", dir.display()))?;
     let mut done = Vec::new();
@@ -214,12 +217,19 @@ fn run_here(jobs: &[Job], dir: &Path) -> anyhow::Result<Value> {
         crate::merge::run(&merge).with_context(|| format!("merging bake {n}"))?;
         done.push(dir.join(&job.output));
     }
-    let outputs: Vec<_> = done.iter().map(|p| crate::outputs::json_path(p)).collect();
-    Ok(json!({ "outputs": outputs, "seconds": t0.elapsed().as_secs_f64() }))
+    Ok(json::BatchHere {
+        outputs: json::paths(&done),
+        seconds: t0.elapsed().as_secs_f64(),
+    })
 }
 
 /// Writes the Slurm job files and prints the command that submits them.
-fn write_slurm(args: &Args, jobs: &[Job], dir: &Path, out: &Path) -> anyhow::Result<Value> {
+fn write_slurm(
+    args: &Args,
+    jobs: &[Job],
+    dir: &Path,
+    out: &Path,
+) -> anyhow::Result<json::BatchSlurm> {
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
     let out = std::fs::canonicalize(out)?;
     let exe = std::env::current_exe().context("locating the ptm binary")?;
@@ -311,10 +321,10 @@ fn write_slurm(args: &Args, jobs: &[Job], dir: &Path, out: &Path) -> anyhow::Res
         "ptm batch: {} bakes, {n_tasks} shard tasks; submit with:\n  {cmd}",
         jobs.len()
     );
-    Ok(json!({
-        "bakes": jobs.len(),
-        "tasks": n_tasks,
-        "dir": crate::outputs::json_path(&out),
-        "submit": cmd,
-    }))
+    Ok(json::BatchSlurm {
+        bakes: jobs.len(),
+        tasks: n_tasks,
+        dir: json::path(&out),
+        submit: cmd,
+    })
 }

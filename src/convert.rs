@@ -5,17 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use ptm_format::layout::{Layout, PtmFile};
-use serde_json::{json, Value};
 
-/// `--layout channels|rgba`.
-pub fn parse_layout(s: &str) -> Result<Layout, String> {
-    Layout::from_name(s).ok_or_else(|| {
-        format!(
-            "unknown layout {s:?} (one of {})",
-            Layout::ALL.map(|l| l.name()).join(", ")
-        )
-    })
-}
+use crate::args::choice;
+use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -27,11 +19,13 @@ pub struct Args {
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
     /// Layout to write: channels or rgba (default: the one the input is not in).
-    #[arg(long, value_name = "channels|rgba", value_parser = parse_layout)]
+    #[arg(long, value_name = "channels|rgba", hide_possible_values = true, value_parser = choice::<Layout>())]
     pub layout: Option<Layout>,
 }
 
-pub fn run(args: &Args) -> anyhow::Result<Value> {
+/// `ptm convert`: reads the PTM, encodes it in the other layout, refuses an output that is one
+/// of the input's files, and publishes; returns what `--json` prints.
+pub fn run(args: &Args) -> anyhow::Result<json::Convert> {
     let (file, from) =
         PtmFile::load(&args.input).with_context(|| format!("reading {}", args.input.display()))?;
     let to = args.layout.unwrap_or(match from {
@@ -58,13 +52,13 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     for p in &written {
         eprintln!("ptm convert: wrote {}", p.display());
     }
-    Ok(json!({
-        "input": crate::outputs::json_path(&args.input),
-        "from": from.name(),
-        "to": to.name(),
-        "files": written.iter().map(|p| crate::outputs::json_path(p)).collect::<Vec<_>>(),
-        "width": file.width,
-        "height": file.height,
-        "maps": file.maps.keys().collect::<Vec<_>>(),
-    }))
+    Ok(json::Convert {
+        input: json::path(&args.input),
+        from: from.name(),
+        to: to.name(),
+        files: json::paths(&written),
+        width: file.width,
+        height: file.height,
+        maps: file.maps.keys().cloned().collect(),
+    })
 }

@@ -4,11 +4,13 @@
 //! stdout and exit codes. With `--json` a subcommand prints exactly one JSON object on stdout;
 //! human-readable progress and messages always go to stderr.
 
+mod args;
 mod bake;
 mod batch;
 mod convert;
 mod errors;
 mod fit;
+mod json;
 mod merge;
 mod outputs;
 mod preview;
@@ -73,15 +75,16 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => return usage_error(e, json),
     };
+    // Each subcommand returns its `--json` type (src/json.rs).
     let result = match &cli.command {
-        Command::Bake(a) => bake::run(a),
-        Command::Fit(a) => fit::run(a),
-        Command::Preview(a) => preview::run(a),
-        Command::Swatch(a) => swatch::run(a),
-        Command::Report(a) => report::run(a),
-        Command::Merge(a) => merge::run(a),
-        Command::Batch(a) => batch::run(a),
-        Command::Convert(a) => convert::run(a),
+        Command::Bake(a) => bake::run(a).and_then(|r| json::to_value(&r)),
+        Command::Fit(a) => fit::run(a).and_then(|r| json::to_value(&r)),
+        Command::Preview(a) => preview::run(a).and_then(|r| json::to_value(&r)),
+        Command::Swatch(a) => swatch::run(a).and_then(|r| json::to_value(&r)),
+        Command::Report(a) => report::run(a).and_then(|r| json::to_value(&r)),
+        Command::Merge(a) => merge::run(a).and_then(|r| json::to_value(&r)),
+        Command::Batch(a) => batch::run(a).and_then(|r| json::to_value(&r)),
+        Command::Convert(a) => convert::run(a).and_then(|r| json::to_value(&r)),
     };
     match result {
         Ok(report) => {
@@ -95,12 +98,7 @@ fn main() -> ExitCode {
             eprintln!("ptm: error: {message}");
             if cli.json {
                 let input = error_input(&e).or_else(|| cli.command.input());
-                println!(
-                    "{}",
-                    serde_json::json!({
-                        "error": { "message": message, "kind": error_kind(&e), "input": input }
-                    })
-                );
+                print_failure(message, error_kind(&e), input);
             }
             ExitCode::FAILURE
         }
@@ -137,13 +135,25 @@ fn usage_error(e: clap::Error, json: bool) -> ExitCode {
             Some(ContextValue::Strings(v)) => Some(v.join(" ")),
             _ => None,
         });
-        println!(
-            "{}",
-            serde_json::json!({ "error": { "message": message, "kind": "usage", "input": input } })
-        );
+        print_failure(message, "usage", input);
     }
     let _ = e.print();
     ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
+}
+
+/// Prints the one `error` object of a failed `--json` run on stdout.
+fn print_failure(message: String, kind: &'static str, input: Option<String>) {
+    let failure = json::Failure {
+        error: json::ErrorInfo {
+            message,
+            kind,
+            input,
+        },
+    };
+    match json::to_value(&failure) {
+        Ok(v) => println!("{v}"),
+        Err(e) => eprintln!("ptm: error: the error object: {e}"),
+    }
 }
 
 /// What failed, in one word for `--json`: `io` (an OS error reading or writing a file), `gpu`

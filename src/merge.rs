@@ -7,8 +7,7 @@ use anyhow::{bail, Context};
 use ptm_fit::shard;
 use ptm_format::atomic::Transaction;
 
-use crate::outputs::json_path;
-use serde_json::{json, Value};
+use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -40,7 +39,9 @@ pub fn part_files(args: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-pub fn run(args: &Args) -> anyhow::Result<Value> {
+/// `ptm merge`: checks the parts and both destinations, merges, and publishes the output and
+/// its `.lp` together; returns what `--json` prints.
+pub fn run(args: &Args) -> anyhow::Result<json::Merge> {
     let t0 = Instant::now();
     let files = part_files(&args.parts)?;
     // No .lp beside a device (-o /dev/null).
@@ -79,19 +80,19 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
             .map(|p| format!(" and {}", p.display()))
             .unwrap_or_default()
     );
-    Ok(json!({
-        "output": json_path(&args.output),
-        "lights_file": lp.as_deref().map(json_path),
-        "kind": kind,
-        "parts": files.iter().map(|p| json_path(p)).collect::<Vec<_>>(),
-        "width": width,
-        "height": height,
-        "lights": lights.len(),
-        "bytes_in": bytes,
-        "bytes_out": out_bytes,
-        "mb_per_s": bytes as f64 / 1e6 / total.max(1e-9),
-        "seconds": total,
-        "seconds_merge": total - t_write,
-        "seconds_write": t_write,
-    }))
+    Ok(json::Merge {
+        output: json::path(&args.output),
+        lights_file: lp.as_deref().map(json::path),
+        kind: kind.clone(),
+        parts: json::paths(&files),
+        width,
+        height,
+        lights: lights.len(),
+        bytes_in: bytes,
+        bytes_out: out_bytes,
+        mb_per_s: bytes as f64 / 1e6 / total.max(1e-9),
+        seconds: total,
+        seconds_merge: total - t_write,
+        seconds_write: t_write,
+    })
 }

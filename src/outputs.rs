@@ -1,12 +1,11 @@
 //! What every subcommand checks about its outputs before any work — none may be one of its
 //! inputs (the same file after resolving links), a light file is written beside an output only
-//! where that makes a file of its own — and how a path appears in messages and `--json` (as
-//! text, lossily: a file name need not be UTF-8).
+//! where that makes a file of its own — and how paths appear in messages (`--json` gives them
+//! as `crate::json::path` does).
 use std::path::{Path, PathBuf};
 
 use anyhow::bail;
 use ptm_format::atomic::same_file;
-use serde_json::Value;
 
 /// Refuses an output that is one of the inputs: `inputs` are (what it is, its path), e.g.
 /// `("swatch", "pw.obj")`.
@@ -34,12 +33,21 @@ pub fn is_special(path: &Path) -> bool {
 /// `weave.lp`), or none when `out` is a device or FIFO (`-o /dev/null` creates no
 /// `/dev/null.lp`).
 pub fn lp_beside(out: &Path) -> Option<PathBuf> {
-    (!is_special(out)).then(|| crate::bake::lp_path(out))
+    (!is_special(out)).then(|| lp_path(out))
 }
 
-/// A path for `--json`: its text, with bytes that are not UTF-8 replaced (never a panic).
-pub fn json_path(p: &Path) -> Value {
-    Value::String(p.to_string_lossy().into_owned())
+/// `samples.exr` → `samples.lp`, `weave.ptm.exr` → `weave.lp`.
+/// Works on the name as an `OsStr`: a name that is not UTF-8 keeps its bytes.
+pub fn lp_path(out: &Path) -> PathBuf {
+    let name = Path::new(out.file_name().unwrap_or_default());
+    let strip = |p: &Path, ext: &str| match p.extension() {
+        Some(e) if e == ext => PathBuf::from(p.file_stem().unwrap_or_default()),
+        _ => p.to_path_buf(),
+    };
+    let stem = strip(&strip(name, "exr"), "ptm");
+    let mut lp = stem.into_os_string();
+    lp.push(".lp");
+    out.with_file_name(lp)
 }
 
 /// An error context naming the file an error is about, which `--json` reports as the error's

@@ -9,30 +9,9 @@ use ptm_format::exrio::{self, Samples};
 use ptm_format::Ptm;
 use ptm_runtime::scene::{Perspective, SceneBuffers};
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
-use serde_json::{json, Value};
 
-#[derive(clap::ValueEnum, Clone, Copy, Debug)]
-pub enum BlurArg {
-    /// Reference: a grid of samples over the penumbra disk (cost grows with the radius²).
-    Explicit,
-    /// Summed-area table of u32 opacity counts, built on the GPU (constant cost).
-    Sat,
-    /// Trilinear lookup in the caster's MIP chain (constant cost, coarser kernel).
-    Mip,
-    /// Per-light horizontal then vertical running-sum box passes over the caster.
-    Separable,
-}
-
-impl From<BlurArg> for Blur {
-    fn from(b: BlurArg) -> Blur {
-        match b {
-            BlurArg::Explicit => Blur::Explicit,
-            BlurArg::Sat => Blur::Sat,
-            BlurArg::Mip => Blur::Mip,
-            BlurArg::Separable => Blur::Separable,
-        }
-    }
-}
+use crate::args::choice;
+use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -93,8 +72,8 @@ pub struct Args {
     #[arg(long)]
     pub colored_shadow: bool,
     /// How the caster opacity is averaged over the penumbra kernel.
-    #[arg(long, value_enum, default_value = "sat")]
-    pub blur: BlurArg,
+    #[arg(long, value_parser = choice::<Blur>(), default_value = "sat")]
+    pub blur: Blur,
     /// Exposure of the PNG in stops (linear × 2^E before sRGB encoding).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
@@ -270,7 +249,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
         });
     }
     scene.colored_shadow = args.colored_shadow;
-    scene.blur = args.blur.into();
+    scene.blur = args.blur;
     if let Some(eye) = args.camera {
         if !(eye.iter().all(|c| c.is_finite()) && eye[2] > 0.0) {
             bail!(
@@ -318,18 +297,8 @@ fn check_image_size(path: &Path, flag: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Seconds per render pass, by pass name.
-fn timings_json(t: &ptm_runtime::Timings) -> Value {
-    Value::Object(
-        t.passes
-            .iter()
-            .map(|(name, s)| (name.to_string(), json!(s)))
-            .collect(),
-    )
-}
-
 #[cfg(feature = "window")]
-fn run_window(args: &Args) -> anyhow::Result<Value> {
+fn run_window(args: &Args) -> anyhow::Result<json::Preview> {
     use ptm_runtime::window::{self, WindowOptions};
     let scene = build_scene(args)?;
     // The window prepares every frame; the opening view's warnings are told once, here.
@@ -343,21 +312,21 @@ fn run_window(args: &Args) -> anyhow::Result<Value> {
             exit_after_frames: args.window_frames,
         },
     )?;
-    Ok(json!({
-        "adapter": report.adapter,
-        "surface_format": report.surface_format,
-        "frames": report.frames,
-        "renders": report.renders,
-        "seconds_last_render": report.last_render_s,
-        "blur": report.blur,
-        "ptm_on": report.ptm_on,
-        "light": report.light,
-        "mean_rgb": report.mean_rgb,
+    Ok(json::Preview::Window(json::Window {
+        adapter: report.adapter,
+        surface_format: report.surface_format,
+        frames: report.frames,
+        renders: report.renders,
+        seconds_last_render: report.last_render_s,
+        blur: report.blur,
+        ptm_on: report.ptm_on,
+        light: report.light,
+        mean_rgb: report.mean_rgb,
     }))
 }
 
 #[cfg(not(feature = "window"))]
-fn run_window(_: &Args) -> anyhow::Result<Value> {
+fn run_window(_: &Args) -> anyhow::Result<json::Preview> {
     bail!(
         "this ptm was built without the preview window: rebuild with --features window \
          (cargo build --features window), or leave out --window and give -o out.png"
@@ -365,9 +334,9 @@ fn run_window(_: &Args) -> anyhow::Result<Value> {
 }
 
 /// `ptm preview`: builds and prepares the scene, opens the GPU, says what preparing found,
-/// renders (and compares the blur methods), writes the images; returns the JSON that `--json`
-/// prints. With `--window`, shows the scene interactively instead.
-pub fn run(args: &Args) -> anyhow::Result<Value> {
+/// renders (and compares the blur methods), writes the images; returns what `--json` prints.
+/// With `--window`, shows the scene interactively instead.
+pub fn run(args: &Args) -> anyhow::Result<json::Preview> {
     check_exposure(args)?;
     if args.window {
         return run_window(args);
@@ -379,23 +348,24 @@ pub fn run(args: &Args) -> anyhow::Result<Value> {
     let scene = build_scene(args)?;
     let prepared = scene.prepare()?;
     let (gpu, device_s) = open_gpu(&prepared)?;
-    let mut report = json!({
-        "adapter": gpu.describe(),
-        "variant": prepared.variant.name(),
-        "size": [args.size.0, args.size.1],
-        "view": scene.view,
-        "lights": scene.lights.len(),
-        "blur": scene.caster.as_ref().map(|_| scene.blur.name()),
-        "seconds_device": device_s,
-    });
+    let mut report = json::Render {
+        adapter: gpu.describe(),
+        variant: prepared.variant.name(),
+        size: [args.size.0, args.size.1],
+        view: scene.view,
+        lights: scene.lights.len(),
+        blur: scene.caster.as_ref().map(|_| scene.blur.name()),
+        seconds_device: device_s,
+        ..Default::default()
+    };
     diagnose(&scene, &prepared, &mut report);
     let image = render(args, &gpu, &scene, &prepared, &mut report)?;
     if args.compare_blur {
         compare_blur(args, &gpu, &scene, &mut report)?;
     }
     write_outputs(args, output, tx, &image, &mut report)?;
-    report["seconds"] = json!(start.elapsed().as_secs_f64());
-    Ok(report)
+    report.seconds = start.elapsed().as_secs_f64();
+    Ok(json::Preview::Render(Box::new(report)))
 }
 
 /// The largest side of `--size` (wgpu's guaranteed texture limit on desktop GPUs).
@@ -452,7 +422,7 @@ fn open_gpu(prepared: &SceneBuffers) -> anyhow::Result<(Gpu, f64)> {
 /// Tells (stderr) and records (`report`) what preparing the scene found: a downsampled caster,
 /// non-finite coefficients, the runtime's warnings, lights that add nothing or are not
 /// shadowed, and K leaving [0, 1] before clamping.
-fn diagnose(scene: &Scene, prepared: &SceneBuffers, report: &mut Value) {
+fn diagnose(scene: &Scene, prepared: &SceneBuffers, report: &mut json::Render) {
     if prepared.caster_downsample > 1 {
         eprintln!(
             "ptm preview: the caster is larger than {0}²; box-downsampled by {1} (u32 box sums are \
@@ -461,22 +431,18 @@ fn diagnose(scene: &Scene, prepared: &SceneBuffers, report: &mut Value) {
             prepared.caster_downsample
         );
     }
-    report["caster_downsample"] = json!(prepared.caster_downsample);
+    report.caster_downsample = prepared.caster_downsample;
     if prepared.nonfinite_coeffs > 0 {
         eprintln!(
             "ptm preview: {} PTM coefficients are NaN or infinite; rendered as 0 (K = 0 there)",
             prepared.nonfinite_coeffs
         );
     }
-    report["nonfinite_coeffs"] = json!(prepared.nonfinite_coeffs);
+    report.nonfinite_coeffs = prepared.nonfinite_coeffs;
     for w in &prepared.warnings {
         eprintln!("ptm preview: {w}");
     }
-    report["warnings"] = json!(prepared
-        .warnings
-        .iter()
-        .map(|w| w.to_string())
-        .collect::<Vec<_>>());
+    report.warnings = prepared.warnings.iter().map(|w| w.to_string()).collect();
     for (i, l) in scene.lights.iter().enumerate() {
         if l.position[2] <= 0.0 {
             eprintln!(
@@ -502,10 +468,7 @@ fn diagnose(scene: &Scene, prepared: &SceneBuffers, report: &mut Value) {
                 k.max
             );
         }
-        report["k_unclamped"] = json!({
-            "min": k.min, "max": k.max, "clamped_fraction": k.clamped_fraction,
-            "evaluations": k.evaluations,
-        });
+        report.k_unclamped = Some((&k).into());
     }
 }
 
@@ -516,11 +479,11 @@ fn render(
     gpu: &Gpu,
     scene: &Scene,
     prepared: &SceneBuffers,
-    report: &mut Value,
+    report: &mut json::Render,
 ) -> anyhow::Result<Image> {
     let Some(n) = args.turntable else {
         let (img, t) = gpu::render(gpu, prepared)?;
-        report["seconds_passes"] = timings_json(&t);
+        report.seconds_passes = Some(json::Passes(t.passes));
         return Ok(img);
     };
     if n == 0 {
@@ -531,29 +494,32 @@ fn render(
     for k in 0..n {
         let turned = scene.with_lights_turned(std::f32::consts::TAU * k as f32 / n as f32);
         let (img, t) = gpu::render(gpu, &turned.prepare()?)?;
-        per_frame.push(timings_json(&t));
+        per_frame.push(json::Passes(t.passes));
         frames.push(img);
     }
     let columns = (n as f64).sqrt().ceil() as usize;
-    report["turntable"] = json!({ "frames": n, "columns": columns, "seconds_passes": per_frame });
+    report.turntable = Some(json::Turntable {
+        frames: n,
+        columns,
+        seconds_passes: per_frame,
+    });
     Ok(Image::contact_sheet(&frames, columns).expect("frames share one size"))
 }
 
 /// `--compare-blur`: every blur method against the Monte Carlo soft shadow, as a table on
 /// stderr and rows in `report`.
-fn compare_blur(args: &Args, gpu: &Gpu, scene: &Scene, report: &mut Value) -> anyhow::Result<()> {
+fn compare_blur(
+    args: &Args,
+    gpu: &Gpu,
+    scene: &Scene,
+    report: &mut json::Render,
+) -> anyhow::Result<()> {
     if scene.caster.is_none() {
         bail!("--compare-blur needs a caster (--caster image.png)");
     }
     let rows = compare::compare_blur(gpu, scene, args.mc_samples)?;
     eprintln!("{}", compare::table(&rows));
-    report["compare_blur"] = json!(rows
-        .iter()
-        .map(|r| json!({
-            "method": r.method, "max_abs_error": r.max_abs_error,
-            "mean_abs_error": r.mean_abs_error, "seconds_shade": r.shade_s, "seconds_setup": r.setup_s,
-        }))
-        .collect::<Vec<_>>());
+    report.compare_blur = Some(rows.iter().map(Into::into).collect());
     Ok(())
 }
 
@@ -582,7 +548,7 @@ fn write_outputs(
     output: &Path,
     mut tx: Transaction,
     image: &Image,
-    report: &mut Value,
+    report: &mut json::Render,
 ) -> anyhow::Result<()> {
     let png = png_bytes(image.width, image.height, image.to_srgb8(args.exposure))
         .with_context(|| crate::outputs::Named::new("writing", output))?;
@@ -604,10 +570,10 @@ fn write_outputs(
     }
     tx.commit()?;
     eprintln!("ptm preview: wrote {}", output.display());
-    report["png"] = crate::outputs::json_path(output);
+    report.png = json::path(output);
     if let Some(exr) = &args.exr {
         eprintln!("ptm preview: wrote {}", exr.display());
-        report["exr"] = crate::outputs::json_path(exr);
+        report.exr = Some(json::path(exr));
     }
     Ok(())
 }

@@ -13,9 +13,8 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use ptm_format::atomic::Transaction;
 use ptm_report::{g3, Options, Report};
-use serde_json::json;
 
-use crate::outputs::json_path;
+use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -44,8 +43,8 @@ fn load_average() -> String {
 }
 
 /// `ptm report`: runs the study, then writes its figures, CSVs and `report.md` into `--out`;
-/// returns the JSON that `--json` prints.
-pub fn run(args: &Args) -> Result<serde_json::Value> {
+/// returns what `--json` prints.
+pub fn run(args: &Args) -> Result<json::Report> {
     let started = Instant::now();
     let load_at_start = load_average();
     std::fs::create_dir_all(&args.out)
@@ -95,17 +94,26 @@ pub fn run(args: &Args) -> Result<serde_json::Value> {
         md_path.display(),
         started.elapsed().as_secs_f64()
     );
-    Ok(json!({
-        "report": json_path(&md_path),
-        "plot": json_path(&plot_path),
-        "contact_sheet": json_path(&sheet_path),
-        "csv": csv_paths.iter().map(|p| json_path(p)).collect::<Vec<_>>(),
-        "seconds": started.elapsed().as_secs_f64(),
-        "swatches": report.swatches.iter().map(|s| {
-            let best = s.best();
-            json!({ "swatch": s.name, "settings": s.outcomes.len(), "best_rms": best.errors.rms, "best": best.setting.label() })
-        }).collect::<Vec<_>>(),
-    }))
+    Ok(json::Report {
+        report: json::path(&md_path),
+        plot: json::path(&plot_path),
+        contact_sheet: json::path(&sheet_path),
+        csv: json::paths(&csv_paths),
+        seconds: started.elapsed().as_secs_f64(),
+        swatches: report
+            .swatches
+            .iter()
+            .map(|s| {
+                let best = s.best();
+                json::ReportSwatch {
+                    swatch: s.name.clone(),
+                    settings: s.outcomes.len(),
+                    best_rms: best.errors.rms,
+                    best: best.setting.label(),
+                }
+            })
+            .collect(),
+    })
 }
 
 /// `report.md` without its closing line: the prose around every table.

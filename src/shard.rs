@@ -1,6 +1,6 @@
-//! `ptm bake --shard I/N`: what identifies a farm bake (its settings in words, the swatch's
-//! content hash, the tool version) and the part file a shard writes instead of the output.
-//! The partition, the part format and the merge live in `ptm_fit::shard`.
+//! `ptm bake --shard I/N`: what identifies a farm bake (its settings in words, which `ptm bake`
+//! states, the swatch's content hash, the tool version) and the part file a shard writes
+//! instead of the output. The partition, the part format and the merge live in `ptm_fit::shard`.
 use std::path::Path;
 
 use ptm_bake::PreparedMesh;
@@ -8,46 +8,9 @@ use ptm_fit::shard::{self, PartLevels, PartMeta, PtmPart, Shard};
 use ptm_fit::{FitReport, SampleStack};
 use ptm_format::{LightSet, Ptm};
 
-use crate::bake::Args;
-
 /// Writer and version recorded in every part; parts of different versions never merge.
 pub fn software() -> String {
     format!("ptm {}", env!("CARGO_PKG_VERSION"))
-}
-
-/// Every bake setting that changes the output, in words. Thread count and packet tracing do
-/// not (the output is bit-identical for any), nor does where the swatch file lies (its content
-/// hash is recorded separately). New output-changing flags must be added here.
-pub fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet) -> String {
-    let dirs: Vec<u8> = lights
-        .dirs
-        .iter()
-        .flat_map(|d| d.iter().flat_map(|c| c.to_le_bytes()))
-        .collect();
-    let names = lights.names.join("\n");
-    let light_hash = shard::fingerprint([&dirs[..], names.as_bytes()]);
-    let m = &args.model;
-    let fit = match args.fit {
-        None => "stack".to_string(),
-        Some(f) => format!(
-            "{} link={} uv={} mips={} regularize={:?} tolerance={:e} max-iterations={}",
-            format!("{f:?}").to_lowercase(),
-            ptm_format::Link::from(m.link).name(),
-            ptm_format::UvMap::from(m.uv).name(),
-            !m.no_mips,
-            args.regularize,
-            m.tolerance,
-            m.max_iterations
-        ),
-    };
-    let distance = match args.light_distance {
-        None => "distant".to_string(),
-        Some(r) => format!("{r:e}"),
-    };
-    format!(
-        "res={}x{} tile={:e}x{:e} spp={} seed={} lights={} ({light_hash}) light-distance={distance} fit={fit}",
-        res[0], res[1], tile[0], tile[1], args.spp, args.seed, lights.len()
-    )
 }
 
 /// Content hash of the swatch as baked: positions, triangles and tile.
@@ -66,20 +29,20 @@ pub fn swatch_hash(swatch: &PreparedMesh) -> String {
     shard::fingerprint([&pos[..], &tri[..], &tile[..]])
 }
 
-/// The identity of shard `s` of the bake `args` describes.
+/// The identity of shard `s` of a bake of `res` texels with `settings` (in words: what
+/// changes the output) of `swatch`.
 pub fn meta(
-    args: &Args,
     s: Shard,
     res: [usize; 2],
+    settings: String,
     swatch: &PreparedMesh,
-    lights: &LightSet,
 ) -> anyhow::Result<PartMeta> {
     Ok(PartMeta {
         shard: s,
         rows: s.rows(res[1])?,
         width: res[0],
         height: res[1],
-        settings: settings(args, res, swatch.tile, lights),
+        settings,
         swatch: swatch_hash(swatch),
         software: software(),
     })

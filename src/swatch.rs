@@ -3,7 +3,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use serde_json::json;
+
+use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -45,7 +46,8 @@ pub fn spec_files(spec: &str) -> Vec<PathBuf> {
         .collect()
 }
 
-pub fn run(args: &Args) -> anyhow::Result<serde_json::Value> {
+/// `ptm swatch`: generates the swatch and writes its OBJ; returns what `--json` prints.
+pub fn run(args: &Args) -> anyhow::Result<json::Swatch> {
     let spec = spec(args);
     let start = std::time::Instant::now();
     let drafts = spec_files(&spec);
@@ -73,17 +75,21 @@ pub fn run(args: &Args) -> anyhow::Result<serde_json::Value> {
         },
         args.output.display()
     );
-    Ok(json!({
-        "swatch": swatch.name,
-        "spec": spec,
-        "output": crate::outputs::json_path(&args.output),
-        "triangles": mesh.triangles.len(),
-        "vertices": mesh.positions.len(),
-        "yarns": swatch.cloth.yarns.len(),
-        "tile": mesh.tile,
-        "bounds": { "min": lo, "max": hi },
-        "volume_per_tile": mesh.signed_volume(),
-        "min_yarn_gap": swatch.clearance.gap.is_finite().then_some(swatch.clearance.gap),
-        "seconds": start.elapsed().as_secs_f64(),
-    }))
+    Ok(json::Swatch {
+        swatch: swatch.name.clone(),
+        spec,
+        output: json::path(&args.output),
+        triangles: mesh.triangles.len(),
+        vertices: mesh.positions.len(),
+        yarns: swatch.cloth.yarns.len(),
+        tile: mesh.tile,
+        bounds: json::Bounds { min: lo, max: hi },
+        volume_per_tile: mesh.signed_volume(),
+        min_yarn_gap: swatch
+            .clearance
+            .gap
+            .is_finite()
+            .then_some(swatch.clearance.gap),
+        seconds: start.elapsed().as_secs_f64(),
+    })
 }

@@ -1,37 +1,19 @@
 //! Integration tests of `ptm bake`: outputs and their `.lp`, streaming `--fit` against a fit of
 //! the stored stack, identical bytes for any thread count, and refusals that write nothing.
-use std::path::Path;
-use std::process::Command;
+mod common;
 
+use common::{ptm, Run, BOX_OBJ};
 use ptm_fit::SampleStack;
 use ptm_format::{LightSet, Ptm};
-
-fn ptm(args: &[&str], dir: &Path) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ptm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("running ptm");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// A floor with a box on it, as an OBJ with quads (triangulated on load), 1×1 tile.
-const BOX_OBJ: &str = "\
-v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
-v 0.3 0.3 0.2\nv 0.7 0.3 0.2\nv 0.7 0.7 0.2\nv 0.3 0.7 0.2\n\
-v 0.3 0.3 0\nv 0.7 0.3 0\nv 0.7 0.7 0\nv 0.3 0.7 0\n\
-f 1 2 3 4\nf 5 6 7 8\nf 9 10 6 5\nf 10 11 7 6\nf 11 12 8 7\nf 12 9 5 8\n";
 
 #[test]
 fn bake_writes_stack_and_lp_and_json() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("box.obj"), BOX_OBJ).unwrap();
-    let (ok, stdout, stderr) = ptm(
-        &[
+    let Run {
+        ok, stdout, stderr, ..
+    } = ptm(
+        [
             "--json",
             "bake",
             "--swatch",
@@ -88,7 +70,7 @@ fn streaming_fit_matches_fitting_the_stack_and_threads_give_identical_samples() 
     ];
     let run = |extra: &[&str]| {
         let args: Vec<&str> = common.iter().chain(extra).copied().collect();
-        let (ok, _, stderr) = ptm(&args, dir.path());
+        let Run { ok, stderr, .. } = ptm(&args, dir.path());
         assert!(ok, "{stderr}");
     };
     run(&["--threads", "1", "-o", "one.exr"]);
@@ -112,8 +94,8 @@ fn streaming_fit_matches_fitting_the_stack_and_threads_give_identical_samples() 
     assert_eq!(one.lights, two.lights);
     run(&["--fit", "ptm6", "-o", "stream.ptm.exr"]);
     assert!(dir.path().join("stream.lp").exists());
-    let (ok, _, stderr) = ptm(
-        &["fit", "one.exr", "--basis", "ptm6", "-o", "stored.ptm.exr"],
+    let Run { ok, stderr, .. } = ptm(
+        ["fit", "one.exr", "--basis", "ptm6", "-o", "stored.ptm.exr"],
         dir.path(),
     );
     assert!(ok, "{stderr}");
@@ -231,7 +213,7 @@ fn bad_inputs_are_refused_and_nothing_is_written() {
         }
         all.extend(&args);
         all.extend(["-o", "out.exr"]);
-        let (ok, _, stderr) = ptm(&all, dir.path());
+        let Run { ok, stderr, .. } = ptm(&all, dir.path());
         assert!(!ok, "{args:?} should fail");
         assert!(
             stderr.contains(names) && stderr.contains(says),
@@ -249,8 +231,10 @@ fn bad_inputs_are_refused_and_nothing_is_written() {
 fn bake_fit_writes_the_renderer_layout_and_convert_round_trips_it() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let (ok, _, err) = ptm(
-        &[
+    let Run {
+        ok, stderr: err, ..
+    } = ptm(
+        [
             "bake",
             "--res",
             "16",
@@ -274,12 +258,19 @@ fn bake_fit_writes_the_renderer_layout_and_convert_round_trips_it() {
         assert!(d.join(format!("w.ptm.c{k}.exr")).exists());
     }
     assert!(!d.join("w.ptm.exr").exists());
-    let (ok, out, err) = ptm(&["convert", "w.ptm.exr", "-o", "c.ptm.exr", "--json"], d);
+    let Run {
+        ok,
+        stdout: out,
+        stderr: err,
+        ..
+    } = ptm(["convert", "w.ptm.exr", "-o", "c.ptm.exr", "--json"], d);
     assert!(ok, "{err}");
     assert!(out.contains("\"to\":\"channels\""), "{out}");
     let direct = ptm_format::layout::load(&d.join("w.ptm.c0.exr")).unwrap();
     assert_eq!(Ptm::load(&d.join("c.ptm.exr")).unwrap(), direct);
-    let (ok, _, err) = ptm(&["convert", "c.ptm.exr", "-o", "r.ptm.exr"], d);
+    let Run {
+        ok, stderr: err, ..
+    } = ptm(["convert", "c.ptm.exr", "-o", "r.ptm.exr"], d);
     assert!(ok, "{err}");
     for k in 0..3 {
         let a = std::fs::read(d.join(format!("w.ptm.c{k}.exr"))).unwrap();
@@ -288,7 +279,9 @@ fn bake_fit_writes_the_renderer_layout_and_convert_round_trips_it() {
     }
     // A missing part is an error naming it; nothing is written.
     std::fs::remove_file(d.join("w.ptm.c2.exr")).unwrap();
-    let (ok, _, err) = ptm(&["convert", "w.ptm.c0.exr", "-o", "x.ptm.exr"], d);
+    let Run {
+        ok, stderr: err, ..
+    } = ptm(["convert", "w.ptm.c0.exr", "-o", "x.ptm.exr"], d);
     assert!(!ok);
     assert!(
         err.contains("w.ptm.c2.exr") && err.contains("part c2"),

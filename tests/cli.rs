@@ -1,22 +1,18 @@
 //! What every subcommand shares: `--json` prints one `error` object on any failure (argument
 //! errors included) with the exit code unchanged, OS errors are said once, and no output may be
 //! an input or another output.
-use std::path::Path;
-use std::process::{Command, Output};
+mod common;
 
-fn ptm(args: &[&str], dir: &Path) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ptm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("running ptm")
-}
+use std::path::Path;
+use std::process::Command;
+
+use common::{ptm, Run, BOX_OBJ};
 
 /// The one JSON object a failed `--json` run printed on stdout, and its exit code.
 fn json_error(args: &[&str], dir: &Path) -> (serde_json::Value, i32) {
     let out = ptm(args, dir);
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(!out.status.success(), "{args:?} should fail");
+    let stdout = out.stdout;
+    assert!(!out.ok, "{args:?} should fail");
     assert_eq!(
         stdout.lines().count(),
         1,
@@ -25,7 +21,7 @@ fn json_error(args: &[&str], dir: &Path) -> (serde_json::Value, i32) {
     let v: serde_json::Value = serde_json::from_str(&stdout).expect("stdout is JSON");
     assert!(v["error"]["message"].is_string(), "{args:?}: {v}");
     assert!(v["error"]["kind"].is_string(), "{args:?}: {v}");
-    (v["error"].clone(), out.status.code().unwrap())
+    (v["error"].clone(), out.code.unwrap())
 }
 
 #[test]
@@ -65,8 +61,8 @@ fn json_errors_are_one_object_with_the_exit_code_unchanged() {
     );
     assert_eq!(e["input"], "gone.ptm.exr", "{e}");
     // Help is not an error.
-    let out = ptm(&["--json", "fit", "--help"], d);
-    assert!(out.status.success());
+    let out = ptm(["--json", "fit", "--help"], d);
+    assert!(out.ok);
 }
 
 #[test]
@@ -81,8 +77,8 @@ fn the_os_error_is_said_once() {
         &["swatch", "twill", "-o", "nodir/o.obj"],
     ] {
         let out = ptm(args, dir.path());
-        let stderr = String::from_utf8_lossy(&out.stderr);
-        assert!(!out.status.success(), "{args:?}");
+        let stderr = out.stderr;
+        assert!(!out.ok, "{args:?}");
         assert_eq!(
             stderr.matches("No such file or directory").count(),
             1,
@@ -91,27 +87,21 @@ fn the_os_error_is_said_once() {
     }
 }
 
-/// A floor with a box on it (1×1 tile).
-const BOX_OBJ: &str = "\
-v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n\
-v 0.3 0.3 0.2\nv 0.7 0.3 0.2\nv 0.7 0.7 0.2\nv 0.3 0.7 0.2\n\
-v 0.3 0.3 0\nv 0.7 0.3 0\nv 0.7 0.7 0\nv 0.3 0.7 0\n\
-f 1 2 3 4\nf 5 6 7 8\nf 9 10 6 5\nf 10 11 7 6\nf 11 12 8 7\nf 12 9 5 8\n";
-
 /// A light file as a user writes it: directions not of unit length, short names.
 const CAP_LP: &str = "4\na 1 0 1\nb 0 1 1\nc -1 0 1\nd 0 -1 2\n";
 
 const BAKE: [&str; 5] = ["bake", "--res", "4", "--spp", "1"];
 
-fn bake(extra: &[&str], dir: &Path) -> Output {
+fn bake(extra: &[&str], dir: &Path) -> Run {
     let mut args = BAKE.to_vec();
     args.extend(extra);
     ptm(&args, dir)
 }
 
-fn refused(out: &Output, says: &str) -> String {
-    let stderr = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(!out.status.success(), "should fail: {stderr}");
+/// Asserts that the run failed saying `says`; its stderr.
+fn refused(out: &Run, says: &str) -> String {
+    let stderr = out.stderr.clone();
+    assert!(!out.ok, "should fail: {stderr}");
     assert!(stderr.contains(says), "expected {says:?}: {stderr}");
     stderr
 }
@@ -149,23 +139,23 @@ fn no_output_may_be_an_input() {
     refused(&o, "is the light file cap.lp");
     let o = bake(&["--swatch", "builtin:draft?path=t.wif", "-o", "t.wif"], d);
     refused(&o, "is the swatch draft t.wif");
-    let o = ptm(&["swatch", "draft?path=t.wif", "-o", "t.wif"], d);
+    let o = ptm(["swatch", "draft?path=t.wif", "-o", "t.wif"], d);
     refused(&o, "is the draft t.wif");
-    let o = ptm(&["preview", "--ptm", "p.ptm.exr", "-o", "p.ptm.exr"], d);
+    let o = ptm(["preview", "--ptm", "p.ptm.exr", "-o", "p.ptm.exr"], d);
     refused(&o, "is the PTM p.ptm.exr");
-    let o = ptm(&["preview", "--caster", "pw.obj", "-o", "pw.obj"], d);
+    let o = ptm(["preview", "--caster", "pw.obj", "-o", "pw.obj"], d);
     refused(&o, "is the caster");
-    let o = ptm(&["preview", "-o", "x.png", "--exr", "x.png"], d);
+    let o = ptm(["preview", "-o", "x.png", "--exr", "x.png"], d);
     refused(&o, "same file");
     let o = ptm(
-        &[
+        [
             "fit", "--images", "*.png", "--lights", "cap.lp", "-o", "cap.lp",
         ],
         d,
     );
     refused(&o, "is the light file cap.lp");
     let o = ptm(
-        &[
+        [
             "fit", "--images", "*.obj", "--lights", "cap.lp", "-o", "pw.obj",
         ],
         d,
@@ -175,7 +165,7 @@ fn no_output_may_be_an_input() {
     let manifest = "[[bake]]\nswatch = \"builtin:plain-weave\"\nres = 16\noutput = \"o.exr\"\n";
     std::fs::create_dir(d.join("job")).unwrap();
     std::fs::write(d.join("job/tasks.txt"), manifest).unwrap();
-    let o = ptm(&["batch", "job/tasks.txt", "--slurm", "job"], d);
+    let o = ptm(["batch", "job/tasks.txt", "--slurm", "job"], d);
     refused(&o, "is the manifest");
     assert_eq!(
         std::fs::read_to_string(d.join("job/tasks.txt")).unwrap(),
@@ -193,9 +183,9 @@ fn no_output_may_be_an_input() {
         ],
         d,
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.ok, "{}", o.stderr);
     assert_eq!(std::fs::read_to_string(d.join("cap.lp")).unwrap(), CAP_LP);
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let j: serde_json::Value = serde_json::from_str(&o.stdout).unwrap();
     assert_eq!(j["lights_file"], "cap.lp");
     let stack = ptm_fit::SampleStack::read(&d.join("cap.exr")).unwrap();
     let user = ptm_format::LightSet::read_lp(&d.join("cap.lp")).unwrap();
@@ -213,7 +203,7 @@ fn a_failed_output_publishes_none() {
     assert!(!d.join("out.exr").exists());
     // The EXR's directory does not exist: the PNG is not written either (checked before the
     // scene is built, so this needs no GPU).
-    let o = ptm(&["preview", "-o", "x.png", "--exr", "nodir/x.exr"], d);
+    let o = ptm(["preview", "-o", "x.png", "--exr", "nodir/x.exr"], d);
     refused(&o, "nodir");
     assert!(!d.join("x.png").exists());
     // Nothing else was left behind (no temporary files).
@@ -224,9 +214,9 @@ fn a_failed_output_publishes_none() {
     assert_eq!(names.len(), 1, "{names:?}");
     // ptm merge: the .lp beside the merged file is a directory, so the merge does not run.
     let o = bake(&["--dirs", "4", "--shard", "0/1", "-o", "s.exr"], d);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.ok, "{}", o.stderr);
     std::fs::create_dir(d.join("m.lp")).unwrap();
-    let o = ptm(&["merge", "s.part-0000-of-0001.exr", "-o", "m.exr"], d);
+    let o = ptm(["merge", "s.part-0000-of-0001.exr", "-o", "m.exr"], d);
     refused(&o, "m.lp");
     assert!(!d.join("m.exr").exists());
 }
@@ -248,26 +238,26 @@ fn a_device_output_is_written_through_with_nothing_beside_it() {
     let lp = null.with_file_name("null.lp");
     let null_arg = null.to_str().unwrap();
     let o = bake(&["--dirs", "4", "-o", null_arg], dir.path());
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.ok, "{}", o.stderr);
     let o = bake(
         &["--dirs", "4", "--fit", "ptm6", "-o", null_arg],
         dir.path(),
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = ptm(&["swatch", "twill", "-o", null_arg], dir.path());
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.ok, "{}", o.stderr);
+    let o = ptm(["swatch", "twill", "-o", null_arg], dir.path());
+    assert!(o.ok, "{}", o.stderr);
     // A farm part merged into the device: no .lp beside it either.
     let work = tempfile::tempdir().unwrap();
     let o = bake(
         &["--dirs", "4", "--shard", "0/1", "-o", "s.exr"],
         work.path(),
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.ok, "{}", o.stderr);
     let o = ptm(
-        &["merge", "s.part-0000-of-0001.exr", "-o", null_arg],
+        ["merge", "s.part-0000-of-0001.exr", "-o", null_arg],
         work.path(),
     );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.ok, "{}", o.stderr);
     let meta = std::fs::metadata(&null).unwrap();
     assert!(meta.file_type().is_char_device(), "{null:?} was replaced");
     assert!(!lp.exists(), "bake created {lp:?}");
@@ -284,32 +274,26 @@ fn output_names_need_not_be_utf8() {
     use std::os::unix::ffi::OsStrExt;
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let run = |args: &[&OsStr]| {
-        Command::new(env!("CARGO_BIN_EXE_ptm"))
-            .args(args)
-            .current_dir(d)
-            .output()
-            .unwrap()
-    };
+    let run = |args: &[&OsStr]| ptm(args, d);
     let name = |s: &[u8]| OsStr::from_bytes(s).to_owned();
     let obj = name(b"w\xff.obj");
     let stack = name(b"s\xff.exr");
     let fitted = name(b"f\xff.ptm.exr");
     let os = |s: &'static str| OsStr::new(s);
     let o = run(&[os("--json"), os("swatch"), os("twill"), os("-o"), &obj]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(o.ok, "{}", o.stderr);
     let mut bake: Vec<&OsStr> = ["--json", "bake", "--res", "4", "--spp", "1", "--dirs", "8"]
         .into_iter()
         .map(os)
         .collect();
     bake.extend([os("-o"), &stack]);
     let o = run(&bake);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(o.ok, "{}", o.stderr);
+    let j: serde_json::Value = serde_json::from_str(&o.stdout).unwrap();
     assert_eq!(j["output"], "s\u{fffd}.exr");
     let o = run(&[os("--json"), os("fit"), &stack, os("-o"), &fitted]);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(o.ok, "{}", o.stderr);
+    let j: serde_json::Value = serde_json::from_str(&o.stdout).unwrap();
     assert_eq!(j["output"], "f\u{fffd}.ptm.exr");
     for f in [&obj, &stack, &name(b"s\xff.lp"), &fitted] {
         assert!(d.join(f).is_file(), "{f:?} missing");
@@ -378,12 +362,8 @@ fn timings_are_seconds_everywhere() {
         ],
     ] {
         let o = ptm(args, d);
-        assert!(
-            o.status.success(),
-            "{args:?}: {}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert!(o.ok, "{args:?}: {}", o.stderr);
+        let j: serde_json::Value = serde_json::from_str(&o.stdout).unwrap();
         assert!(j["seconds"].as_f64().unwrap() >= 0.0, "{args:?}: {j}");
         reports.push(j);
     }
@@ -453,19 +433,19 @@ fn counts_that_would_allocate_without_bound_are_refused_with_the_limit() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     std::fs::write(d.join("big.png"), png_header(16384, 16384)).unwrap();
-    let o = ptm(&["preview", "--caster", "big.png", "-o", "x.png"], d);
+    let o = ptm(["preview", "--caster", "big.png", "-o", "x.png"], d);
     let e = refused(&o, "big.png");
     assert!(
         e.contains("16384×16384") && e.contains("512 MiB") && e.contains("downscale"),
         "{e}"
     );
     let o = bake(&["--threads", "100000", "-o", "x.exr"], d);
-    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(o.code, Some(2));
     refused(&o, "at most 1024 threads");
-    let o = ptm(&["preview", "--size", "100000,100000", "-o", "x.png"], d);
+    let o = ptm(["preview", "--size", "100000,100000", "-o", "x.png"], d);
     refused(&o, "1 to 16384 pixels");
     let o = ptm(
-        &[
+        [
             "preview",
             "--size",
             "4096,4096",
@@ -516,7 +496,7 @@ fn a_killed_writers_temporary_is_swept_by_the_next_write() {
     // first gets another try.
     let mut left = Vec::new();
     for _ in 0..5 {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_ptm"))
+        let mut child = common::command()
             .args(["fit", "s.exr", "-o", "out/s.ptm.exr", "--link", "identity"])
             .current_dir(d.path())
             .stdout(std::process::Stdio::null())
@@ -544,8 +524,8 @@ fn a_killed_writers_temporary_is_swept_by_the_next_write() {
     );
 
     // Any command that writes into the directory sweeps the dead writer's temporary.
-    let o = ptm(&["swatch", "plain-weave", "-o", "out/w.obj"], d.path());
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = ptm(["swatch", "plain-weave", "-o", "out/w.obj"], d.path());
+    assert!(o.ok, "{}", o.stderr);
     assert_eq!(temps(&out), Vec::<String>::new(), "left {left:?}");
 }
 
@@ -557,18 +537,18 @@ fn the_renderer_layout_reports_its_parts() {
     let bake = [
         "bake", "--res", "16", "--dirs", "8", "--spp", "1", "--fit", "ptm6", "--layout", "rgba",
     ];
-    let o = ptm(&[&bake[..], &["-o", "w.ptm.exr"]].concat(), d.path());
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
+    let o = ptm([&bake[..], &["-o", "w.ptm.exr"]].concat(), d.path());
+    let err = o.stderr;
+    assert!(o.ok, "{err}");
     assert!(
         err.contains("wrote w.ptm.c0.exr, w.ptm.c1.exr and w.lp"),
         "{err}"
     );
     let o = ptm(
-        &[&bake[..], &["--json", "-o", "j.ptm.exr"]].concat(),
+        [&bake[..], &["--json", "-o", "j.ptm.exr"]].concat(),
         d.path(),
     );
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&o.stdout).unwrap();
     assert_eq!(
         v["files"],
         serde_json::json!(["j.ptm.c0.exr", "j.ptm.c1.exr"])

@@ -1,28 +1,13 @@
 //! The command words the libraries' typed errors and diagnostics for the command line: the
 //! library states the fact (and names no flag), `ptm` adds the flag and the fix.
-use std::path::Path;
-use std::process::Command;
+mod common;
 
+use std::path::Path;
+
+use common::{dome, p, ptm};
 use ptm_fit::SampleStack;
 use ptm_format::exrio::Attr;
 use ptm_format::LightSet;
-
-fn ptm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ptm"))
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
-}
-
-// The fit crate's test helpers (Fibonacci dome, seeded generator), shared by path.
-#[path = "../fit/tests/common/mod.rs"]
-mod common;
-
-/// Fibonacci hemisphere above 5° elevation.
-fn dome(n: usize) -> LightSet {
-    common::fibonacci(n, 5.0)
-}
 
 fn stack(lights: &LightSet, w: usize, h: usize) -> SampleStack {
     let k = (0..lights.len())
@@ -33,15 +18,10 @@ fn stack(lights: &LightSet, w: usize, h: usize) -> SampleStack {
 
 /// Runs `ptm fit` with `args` after the input and output; its exit status and stderr.
 fn fit(samples: &Path, out: &Path, args: &[&str]) -> (bool, String) {
-    let o = ptm()
-        .args(["fit", p(samples), "-o", p(out), "--link", "identity"])
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.success(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
+    let mut all = vec!["fit", p(samples), "-o", p(out), "--link", "identity"];
+    all.extend(args);
+    let o = ptm(&all, Path::new("."));
+    (o.ok, o.stderr)
 }
 
 #[test]
@@ -70,13 +50,18 @@ fn fit_errors_name_the_flag_that_fixes_them() {
         "{err}"
     );
     // Dropped, the diagnostic says by which flag, in the JSON too.
-    let o = ptm()
-        .args(["--json", "fit", p(&samples), "-o", p(&out)])
-        .args(["--link", "identity", "--skip-bad"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let j = common::json(
+        [
+            "fit",
+            p(&samples),
+            "-o",
+            p(&out),
+            "--link",
+            "identity",
+            "--skip-bad",
+        ],
+        dir.path(),
+    );
     let w = j["warnings"].as_array().unwrap();
     assert_eq!(
         w[0],

@@ -2,33 +2,9 @@
 //! byte for byte the one-machine file (stack, ptm6, ptm11; N = 1, 3, 4; a swatch with holes),
 //! logistic ptm6 and ptm11 with and without MIP levels; refusals of bad shards and bad part sets name the files, and `ptm batch` runs a manifest
 //! and writes a Slurm job.
-use std::path::Path;
-use std::process::Command;
+mod common;
 
-fn ptm(args: &[&str], dir: &Path) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_ptm"))
-        .args(args)
-        .current_dir(dir)
-        .output()
-        .expect("running ptm");
-    (
-        out.status.success(),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-fn ok(args: &[&str], dir: &Path) -> String {
-    let (ok, out, err) = ptm(args, dir);
-    assert!(ok, "ptm {args:?} failed: {err}");
-    out
-}
-
-fn refused(args: &[&str], dir: &Path) -> String {
-    let (ok, _, err) = ptm(args, dir);
-    assert!(!ok, "ptm {args:?} should fail");
-    err
-}
+use common::{ok, ptm, refused, Run};
 
 /// Bakes `bake` whole and as N shards for each N, merges, and compares the bytes of the output
 /// and of the `.lp`. Returns the whole file's bytes.
@@ -36,7 +12,7 @@ fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) -> Vec<u8> {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let whole = format!("whole-{out}");
-    ok(&[&["bake"], bake, &["-o", &whole]].concat(), d);
+    ok([&["bake"], bake, &["-o", &whole]].concat(), d);
     let want = std::fs::read(d.join(&whole)).unwrap();
     let lp = |f: &str| {
         f.strip_suffix(".exr")
@@ -52,7 +28,7 @@ fn sharded_equals_whole(bake: &[&str], out: &str, counts: &[usize]) -> Vec<u8> {
         for i in 0..n {
             let s = format!("{i}/{n}");
             let j = ok(
-                &[&["--json", "bake"], bake, &["-o", &name, "--shard", &s]].concat(),
+                [&["--json", "bake"], bake, &["-o", &name, "--shard", &s]].concat(),
                 d,
             );
             let j: serde_json::Value = serde_json::from_str(&j).unwrap();
@@ -219,18 +195,18 @@ fn bad_shards_are_refused_clearly() {
         ("2", "no `/`"),
     ] {
         let e = refused(
-            &["bake", "--res", "16", "-o", "s.exr", "--shard", bad],
+            ["bake", "--res", "16", "-o", "s.exr", "--shard", bad],
             dir.path(),
         );
         assert!(e.contains(says), "--shard {bad}: {e}");
     }
     let e = refused(
-        &["bake", "--res", "40", "-o", "s.exr", "--shard", "0/4"],
+        ["bake", "--res", "40", "-o", "s.exr", "--shard", "0/4"],
         dir.path(),
     );
     assert!(e.contains("at most 3 shards"), "{e}");
     let e = refused(
-        &[
+        [
             "bake",
             "--res",
             "32",
@@ -260,24 +236,24 @@ fn merge_refuses_incomplete_mixed_and_damaged_sets() {
     let bake = ["bake", "--res", "48", "--dirs", "6", "--spp", "1"];
     for i in 0..3 {
         ok(
-            &[&bake[..], &["-o", "a.exr", "--shard", &format!("{i}/3")]].concat(),
+            [&bake[..], &["-o", "a.exr", "--shard", &format!("{i}/3")]].concat(),
             d,
         );
     }
     ok(
-        &[&bake[..], &["--seed", "9", "-o", "b.exr", "--shard", "1/3"]].concat(),
+        [&bake[..], &["--seed", "9", "-o", "b.exr", "--shard", "1/3"]].concat(),
         d,
     );
     let p = |s: &str| format!("a.part-000{s}-of-0003.exr");
-    let e = refused(&["merge", &p("0"), &p("2"), "-o", "m.exr"], d);
+    let e = refused(["merge", &p("0"), &p("2"), "-o", "m.exr"], d);
     assert!(e.contains("missing shard(s) 1/3"), "{e}");
     let e = refused(
-        &["merge", &p("0"), &p("1"), &p("1"), &p("2"), "-o", "m.exr"],
+        ["merge", &p("0"), &p("1"), &p("1"), &p("2"), "-o", "m.exr"],
         d,
     );
     assert!(e.contains("shard 1/3 given twice"), "{e}");
     let e = refused(
-        &[
+        [
             "merge",
             &p("0"),
             "b.part-0001-of-0003.exr",
@@ -297,24 +273,24 @@ fn merge_refuses_incomplete_mixed_and_damaged_sets() {
     let mut forged = bytes.clone();
     forged[at + 8] = b'9';
     std::fs::write(d.join("forged.exr"), &forged).unwrap();
-    let e = refused(&["merge", &p("0"), "forged.exr", &p("2"), "-o", "m.exr"], d);
+    let e = refused(["merge", &p("0"), "forged.exr", &p("2"), "-o", "m.exr"], d);
     assert!(
         e.contains("forged.exr") && e.contains("checksum mismatch"),
         "{e}"
     );
     // A truncated part (a task killed while copying, a full disk) is named.
     std::fs::write(d.join("cut.exr"), &bytes[..bytes.len() / 2]).unwrap();
-    let e = refused(&["merge", &p("0"), "cut.exr", &p("2"), "-o", "m.exr"], d);
+    let e = refused(["merge", &p("0"), "cut.exr", &p("2"), "-o", "m.exr"], d);
     assert!(e.contains("cut.exr"), "{e}");
     assert!(!d.join("m.exr").exists(), "nothing written");
     // The complete set merges, from the directory too.
     std::fs::remove_file(d.join("b.part-0001-of-0003.exr")).unwrap();
     std::fs::remove_file(d.join("forged.exr")).unwrap();
     std::fs::remove_file(d.join("cut.exr")).unwrap();
-    ok(&["merge", ".", "-o", "m.exr"], d);
+    ok(["merge", ".", "-o", "m.exr"], d);
     // The output and its .lp are published together or not at all.
     std::fs::create_dir(d.join("n.lp")).unwrap();
-    let e = refused(&["merge", ".", "-o", "n.exr"], d);
+    let e = refused(["merge", ".", "-o", "n.exr"], d);
     assert!(e.contains("n.lp"), "{e}");
     assert!(!d.join("n.exr").exists(), "no output without its .lp");
 }
@@ -326,13 +302,13 @@ fn complete_parts_are_skipped_and_damaged_ones_rebaked() {
     let bake = [
         "--json", "bake", "--res", "32", "--dirs", "6", "-o", "a.exr", "--shard", "1/2",
     ];
-    ok(&bake, d);
-    let j: serde_json::Value = serde_json::from_str(&ok(&bake, d)).unwrap();
+    ok(bake, d);
+    let j: serde_json::Value = serde_json::from_str(&ok(bake, d)).unwrap();
     assert_eq!(j["skipped"], true);
     let part = d.join("a.part-0001-of-0002.exr");
     let good = std::fs::read(&part).unwrap();
     std::fs::write(&part, &good[..good.len() - 100]).unwrap();
-    let j: serde_json::Value = serde_json::from_str(&ok(&bake, d)).unwrap();
+    let j: serde_json::Value = serde_json::from_str(&ok(bake, d)).unwrap();
     assert!(j["skipped"].is_null(), "a damaged part is baked again");
     assert_eq!(std::fs::read(&part).unwrap(), good);
 }
@@ -348,9 +324,9 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
          [[bake]]\nswatch = \"builtin:jersey\"\nfit = \"ptm6\"\nlink = \"identity\"\noutput = \"out/b.ptm.exr\"\nshards = 2\n",
     )
     .unwrap();
-    ok(&["batch", "jobs.toml"], d);
+    ok(["batch", "jobs.toml"], d);
     ok(
-        &[
+        [
             "bake", "--res", "48", "--dirs", "8", "--spp", "2", "-o", "a.exr",
         ],
         d,
@@ -360,8 +336,8 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
         std::fs::read(d.join("a.exr")).unwrap()
     );
     assert!(d.join("out/b.ptm.exr").exists());
-    let (_, _, err) = ptm(
-        &["batch", "jobs.toml", "--slurm", "job", "--throttle", "2"],
+    let Run { stderr: err, .. } = ptm(
+        ["batch", "jobs.toml", "--slurm", "job", "--throttle", "2"],
         d,
     );
     assert!(err.contains("submit.sh"), "{err}");
@@ -382,7 +358,7 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
         "[[bake]]\noutput = \"x.exr\"\nresolution = 4\n",
     )
     .unwrap();
-    let e = refused(&["batch", "bad.toml"], d);
+    let e = refused(["batch", "bad.toml"], d);
     assert!(
         e.contains("bad.toml: bake 0") && e.contains("--resolution"),
         "{e}"

@@ -1,26 +1,15 @@
 //! Integration tests of `ptm fit`: the command on stored stacks, its JSON, its errors, and the
 //! HP PTM export read back by an independent reader written here from the format description.
-use std::path::Path;
-use std::process::Command;
+mod common;
 
+use std::path::Path;
+
+use common::{dome, p, ptm};
 use ptm_fit::SampleStack;
 use ptm_format::{Basis, LightSet, Ptm};
 
-fn ptm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ptm"))
-}
-
 fn tmpdir() -> tempfile::TempDir {
     tempfile::tempdir().unwrap()
-}
-
-// The fit crate's test helpers (Fibonacci dome, seeded generator), shared by path.
-#[path = "../fit/tests/common/mod.rs"]
-mod common;
-
-/// Fibonacci hemisphere above 5° elevation.
-fn dome(n: usize) -> LightSet {
-    common::fibonacci(n, 5.0)
 }
 
 /// Smooth occlusion-like K: an exact ptm6 polynomial whose coefficients vary across the tile,
@@ -64,23 +53,13 @@ fn stack(lights: &LightSet, w: usize, h: usize, noise: bool) -> (SampleStack, Ve
 /// logistic link has its own tests (tests/logistic.rs, fit/tests/logistic.rs).
 const PLAIN: [&str; 4] = ["--link", "identity", "--uv", "projected"];
 
+/// `ptm --json args…` (with [`PLAIN`] after a `fit`): the one JSON object it printed.
 fn run_json(args: &[&str]) -> serde_json::Value {
-    let mut cmd = ptm();
-    cmd.args(args);
+    let mut args = args.to_vec();
     if args.first() == Some(&"fit") {
-        cmd.args(PLAIN);
+        args.extend(PLAIN);
     }
-    let out = cmd.arg("--json").output().unwrap();
-    assert!(
-        out.status.success(),
-        "ptm {args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).expect("one JSON object on stdout")
-}
-
-fn p(path: &Path) -> &str {
-    path.to_str().unwrap()
+    common::json(&args, Path::new("."))
 }
 
 #[test]
@@ -145,12 +124,12 @@ fn fit_command_errors_name_the_problem() {
     let dir = tmpdir();
     let foreign = dir.path().join("notes.exr");
     std::fs::write(&foreign, "not an exr").unwrap();
-    let out = ptm()
-        .args(["fit", p(&foreign), "-o", p(&dir.path().join("o.exr"))])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = ptm(
+        ["fit", p(&foreign), "-o", p(&dir.path().join("o.exr"))],
+        dir.path(),
+    );
+    assert!(!out.ok);
+    let err = out.stderr;
     assert!(
         err.contains("notes.exr") && err.contains("OpenEXR"),
         "{err}"
@@ -161,13 +140,13 @@ fn fit_command_errors_name_the_problem() {
     s.coverage = vec![0.0; 16];
     let masked = dir.path().join("masked.exr");
     s.write(&masked).unwrap();
-    let out = ptm()
-        .args(["fit", p(&masked), "-o", p(&dir.path().join("m.ptm.exr"))])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = ptm(
+        ["fit", p(&masked), "-o", p(&dir.path().join("m.ptm.exr"))],
+        dir.path(),
+    );
+    let err = out.stderr;
     assert!(
-        !out.status.success() && err.contains("every one of its 4×4 texels is masked"),
+        !out.ok && err.contains("every one of its 4×4 texels is masked"),
         "{err}"
     );
     assert!(!dir.path().join("m.ptm.exr").exists());
@@ -185,12 +164,9 @@ fn fit_command_errors_name_the_problem() {
     assert_eq!(j["rank"], 5);
     let w = j["warnings"].to_string();
     assert!(w.contains("ring") && w.contains("u2 + v2"), "{w}");
-    let out = ptm()
-        .args(["fit", p(&samples), "-o", p(&o), "--strict"])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--strict"));
+    let out = ptm(["fit", p(&samples), "-o", p(&o), "--strict"], dir.path());
+    assert!(!out.ok);
+    assert!(out.stderr.contains("--strict"));
 }
 
 /// `ptm fit` checks every output before the work and publishes all or none: an `--export-hp`
@@ -205,13 +181,16 @@ fn fit_command_outputs_are_one_transaction() {
     let o = dir.path().join("w.ptm.exr");
     std::fs::write(&o, "previous output").unwrap();
     let missing = dir.path().join("nodir/w.ptm");
-    let out = ptm()
-        .args(["fit", p(&samples), "-o", p(&o), "--export-hp", p(&missing)])
-        .args(PLAIN)
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let out = ptm(
+        [
+            &["fit", p(&samples), "-o", p(&o), "--export-hp", p(&missing)][..],
+            &PLAIN,
+        ]
+        .concat(),
+        dir.path(),
+    );
+    assert!(!out.ok);
+    let err = out.stderr;
     assert!(err.contains("nodir"), "{err}");
     assert_eq!(std::fs::read(&o).unwrap(), b"previous output");
     let mut names: Vec<_> = std::fs::read_dir(dir.path())
@@ -222,15 +201,13 @@ fn fit_command_outputs_are_one_transaction() {
     assert_eq!(names, ["s.exr", "w.ptm.exr"], "no temporary file left");
     // The same file twice, or the input as output, is refused before any work.
     for (out_path, hp) in [(&samples, None), (&o, Some(&o))] {
-        let mut cmd = ptm();
-        cmd.args(["fit", p(&samples), "-o", p(out_path)])
-            .args(PLAIN);
+        let mut args = [&["fit", p(&samples), "-o", p(out_path)][..], &PLAIN].concat();
         if let Some(hp) = hp {
-            cmd.args(["--export-hp", p(hp)]);
+            args.extend(["--export-hp", p(hp)]);
         }
-        let out = cmd.output().unwrap();
-        assert!(!out.status.success());
-        let err = String::from_utf8_lossy(&out.stderr);
+        let out = ptm(&args, dir.path());
+        assert!(!out.ok);
+        let err = out.stderr;
         assert!(
             err.contains("same file") || err.contains("is the input"),
             "{err}"
@@ -332,20 +309,21 @@ fn hp_export_reads_back_with_an_independent_reader() {
         "read-back error {worst} > stated {qmax}"
     );
     // A ptm11 fit cannot be exported, and says why.
-    let out = ptm()
-        .args([
+    let out = ptm(
+        [
             "fit",
             p(&samples),
             "-o",
             p(&dir.path().join("c.exr")),
             "--basis",
             "ptm11",
-        ])
-        .args(["--export-hp", p(&dir.path().join("c.ptm"))])
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--basis ptm6"));
+            "--export-hp",
+            p(&dir.path().join("c.ptm")),
+        ],
+        dir.path(),
+    );
+    assert!(!out.ok);
+    assert!(out.stderr.contains("--basis ptm6"));
 }
 
 /// Independent f64 least squares for one texel: normal equations solved by Gaussian
@@ -382,8 +360,8 @@ fn lstsq_f64(rows: &[[f64; 6]], k: &[f64]) -> [f64; 6] {
 fn real_bake_fit_agrees_with_an_independent_f64_solve() {
     let dir = tmpdir();
     let samples = dir.path().join("samples.exr");
-    let out = ptm()
-        .args([
+    let out = ptm(
+        [
             "bake",
             "--swatch",
             "builtin:plain-weave",
@@ -391,15 +369,14 @@ fn real_bake_fit_agrees_with_an_independent_f64_solve() {
             "12",
             "--dirs",
             "24",
-        ])
-        .args(["--spp", "2", "-o", p(&samples)])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "bake failed: {}",
-        String::from_utf8_lossy(&out.stderr)
+            "--spp",
+            "2",
+            "-o",
+            p(&samples),
+        ],
+        dir.path(),
     );
+    assert!(out.ok, "bake failed: {}", out.stderr);
     let fitted = dir.path().join("w.ptm.exr");
     let j = run_json(&["fit", p(&samples), "-o", p(&fitted)]);
     assert_eq!(j["rank"], 6);

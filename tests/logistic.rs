@@ -1,21 +1,20 @@
 //! The logistic link on real bakes of the built-in weave: agreement with an independent f64
 //! Newton solve written here, and the held-out accuracy it buys over the identity link.
+mod common;
+
 use std::path::Path;
-use std::process::Command;
+
+use common::{p, ptm};
 
 use ptm_fit::solve::{fit_stack, FitOptions};
 use ptm_fit::SampleStack;
 use ptm_format::basis::sigmoid64;
 use ptm_format::{Basis, Link, Ptm, UvMap};
 
-fn ptm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ptm"))
-}
-
 fn bake(dir: &Path, res: &str, dirs: &str, spp: &str) -> SampleStack {
     let samples = dir.join("samples.exr");
-    let out = ptm()
-        .args([
+    let out = ptm(
+        [
             "bake",
             "--swatch",
             "builtin:plain-weave",
@@ -23,15 +22,14 @@ fn bake(dir: &Path, res: &str, dirs: &str, spp: &str) -> SampleStack {
             res,
             "--dirs",
             dirs,
-        ])
-        .args(["--spp", spp, "-o", samples.to_str().unwrap()])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "bake failed: {}",
-        String::from_utf8_lossy(&out.stderr)
+            "--spp",
+            spp,
+            "-o",
+            p(&samples),
+        ],
+        dir,
     );
+    assert!(out.ok, "bake failed: {}", out.stderr);
     SampleStack::read(&samples).unwrap()
 }
 
@@ -198,16 +196,12 @@ fn logistic_link_cuts_held_out_error_on_the_weave() {
 fn bake_fit_writes_the_default_model_and_the_plain_ptm_on_request() {
     let dir = tempfile::tempdir().unwrap();
     let run = |extra: &[&str], out: &str| {
-        let o = ptm()
-            .args([
-                "bake", "--res", "16", "--dirs", "32", "--spp", "4", "--fit", "ptm6",
-            ])
-            .args(extra)
-            .args(["-o", dir.path().join(out).to_str().unwrap(), "--json"])
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let mut args = vec![
+            "bake", "--res", "16", "--dirs", "32", "--spp", "4", "--fit", "ptm6",
+        ];
+        args.extend(extra);
+        args.extend(["-o", out]);
+        let j = common::json(&args, dir.path());
         (Ptm::load(&dir.path().join(out)).unwrap(), j)
     };
     let (p, j) = run(&[], "d.ptm.exr");

@@ -1,14 +1,12 @@
 //! Integration tests of `ptm preview`: a PTM file written by ptm-fit rendered on the GPU
 //! (lavapipe in CI), the JSON report, turntable sheets, the blur comparison, and errors.
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
+use std::path::{Path, PathBuf};
+
+use common::{p, ptm};
 use ptm_format::{Basis, Ptm, SaveOptions};
 use serde_json::Value;
-
-fn ptm() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ptm"))
-}
 
 /// A 16×16 ptm6 whose K varies with the light's u (so the image depends on the PTM).
 fn write_ptm(dir: &Path) -> PathBuf {
@@ -50,19 +48,9 @@ fn write_caster(dir: &Path) -> PathBuf {
     path
 }
 
+/// `ptm --json preview args…`: the one JSON object it printed.
 fn run_json(args: &[&str]) -> Value {
-    let out = ptm()
-        .arg("--json")
-        .arg("preview")
-        .args(args)
-        .output()
-        .unwrap();
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        out.status.success(),
-        "ptm preview {args:?} failed:\n{stderr}"
-    );
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("stdout is not JSON: {e}"))
+    common::json([&["preview"][..], args].concat(), Path::new("."))
 }
 
 fn png_size(path: &Path) -> (usize, usize) {
@@ -171,21 +159,16 @@ fn compare_blur_reports_every_method_against_monte_carlo() {
 #[test]
 fn preview_errors_name_the_problem() {
     let dir = tempfile::tempdir().unwrap();
-    let out = ptm()
-        .args(["preview", "-o"])
-        .arg(dir.path().join("x.png"))
-        .arg("--compare-blur")
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--compare-blur needs a caster"));
-    let out = ptm()
-        .args(["preview", "--ptm", "/nonexistent.ptm.exr", "-o"])
-        .arg(dir.path().join("x.png"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("nonexistent.ptm.exr"));
+    let png = dir.path().join("x.png");
+    let out = ptm(["preview", "-o", p(&png), "--compare-blur"], dir.path());
+    assert!(!out.ok);
+    assert!(out.stderr.contains("--compare-blur needs a caster"));
+    let out = ptm(
+        ["preview", "--ptm", "/nonexistent.ptm.exr", "-o", p(&png)],
+        dir.path(),
+    );
+    assert!(!out.ok);
+    assert!(out.stderr.contains("nonexistent.ptm.exr"));
     // Values that would render an all-black image are refused, naming the value.
     for (args, says) in [
         (["--albedo=nan,0.5,0.5"], "--albedo [NaN, 0.5, 0.5]"),
@@ -195,18 +178,9 @@ fn preview_errors_name_the_problem() {
             "--camera [0.5, 0.5, -2.0]: the eye must be",
         ),
     ] {
-        let out = ptm()
-            .arg("preview")
-            .args(args)
-            .arg("-o")
-            .arg(dir.path().join("x.png"))
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&out.stderr);
-        assert!(
-            !out.status.success() && err.contains(says),
-            "{args:?}: {err}"
-        );
+        let out = ptm(["preview", args[0], "-o", p(&png)], dir.path());
+        let err = out.stderr;
+        assert!(!out.ok && err.contains(says), "{args:?}: {err}");
         assert!(!dir.path().join("x.png").exists());
     }
 }

@@ -1,7 +1,7 @@
 //! `ptm report --quick`'s study (`ptm_report::run`, as in CI) runs end to end, its typed results
 //! say what the stability cases must show, and its tables carry the CSV columns the command
 //! writes.
-use std::process::Command;
+mod common;
 
 use ptm_fit::diagnostic::Solution;
 use ptm_fit::Diagnostic;
@@ -320,17 +320,10 @@ fn quick_study_measures_what_the_stability_cases_must_show() {
 #[test]
 fn quick_report_command_writes_every_table_and_the_plots() {
     let dir = tempfile::tempdir().unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_ptm"))
-        .args(["--json", "report", "--quick", "-o"])
-        .arg(dir.path())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let json = common::json(
+        ["report", "--quick", "-o", common::p(dir.path())],
+        dir.path(),
     );
-    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["swatches"].as_array().unwrap().len(), 3);
     for png in ["error_vs_time.png", "contact_sheet.png"] {
         let bytes = std::fs::read(dir.path().join(png)).unwrap();

@@ -88,7 +88,7 @@ pub struct PtmPart {
     /// Logistic link: see `levels`.
     pub mips: bool,
     /// Logistic link: the MIP levels of the part's rows fitted by the part, and the pooled
-    /// counts the merge fits the deeper levels from ([`local_levels`]). Empty otherwise.
+    /// counts the merge fits the deeper levels from (`local_levels`). Empty otherwise.
     pub levels: PartLevels,
 }
 

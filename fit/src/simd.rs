@@ -1,13 +1,13 @@
 //! The instruction sets the fit's hot kernels run with ([`Isa`]: the choice, as options and
-//! reports name it), and a minimal vector abstraction over f32 lanes ([`Simd`]), so that each
+//! reports name it), and a minimal vector abstraction over f32 lanes (`Simd`), so that each
 //! kernel is written once and compiled for AVX-512F (16 lanes), AVX2 + FMA (8) and portable code
 //! (8 lanes of plain arrays). The identity link's stored-stack refit (`solve/kernel.rs`) and the
 //! logistic Newton kernel (`logistic/block.rs`) both take their build from here.
 //!
 //! Safety: the x86 implementations call intrinsics of their feature set, which is undefined
-//! behaviour on a CPU without it. The type system holds that rule. [`Simd`] is an `unsafe trait`
+//! behaviour on a CPU without it. The type system holds that rule. `Simd` is an `unsafe trait`
 //! whose implementors are proof-of-feature tokens: every method takes `self`, and a value of
-//! [`Avx2`] or [`Avx512`] is made only by its `detect`, which checks the CPU at run time (the
+//! `Avx2` or `Avx512` is made only by its `detect`, which checks the CPU at run time (the
 //! field that would let other code build one is private to this module). So safe code can call
 //! a method only with a token in hand, and a token in hand means the CPU has the features. The
 //! kernels are compiled inside `#[target_feature(enable = …)]` functions (so the intrinsics

@@ -65,6 +65,16 @@ impl SampleStack {
         }
     }
 
+    /// Bytes the K planes of a `width × height` stack of `lights` lights take while it is
+    /// written: an f32 per texel and light, and with per-texel directions (`per_texel_uv`,
+    /// finite-distance lights) also its (u, v) pair and the encoder's split of those into u and
+    /// v channels (8 + 8 more). The coverage plane is the baker's. In f64, so that absurd
+    /// requests are measured rather than overflow.
+    pub fn memory_bytes(width: usize, height: usize, lights: usize, per_texel_uv: bool) -> f64 {
+        let per = if per_texel_uv { 20.0 } else { 4.0 };
+        width as f64 * height as f64 * lights as f64 * per
+    }
+
     /// Texel count.
     pub fn texels(&self) -> usize {
         self.width * self.height

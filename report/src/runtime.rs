@@ -2,9 +2,8 @@
 //! ground truth beside its frame time, and the extreme cases of the penumbra map (R → 0,
 //! d_ca → 0, d_lc → 0, a huge light, an 8192² caster through the summed-area table), each
 //! measured against its analytic answer and against the CPU twin.
-use ptm_format::{Basis, Ptm};
 use ptm_runtime::penumbra::{caster_radius, half_plane_fraction};
-use ptm_runtime::synthetic::{half_plane, leaves};
+use ptm_runtime::synthetic::{self, cloth, half_plane, leaves, STRIP_PIXELS};
 use ptm_runtime::{compare, cpu, gpu, Blur, Gpu, Light, Scene};
 
 use crate::{Error, Result};
@@ -94,27 +93,6 @@ fn light(position: [f32; 3], radius: f32) -> Light {
     }
 }
 
-/// A smooth ptm11 whose K stays mostly inside [0, 1]: the cloth the shadow falls on.
-fn cloth(n: usize) -> Ptm {
-    let planes = (0..11)
-        .map(|k| {
-            (0..n * n)
-                .map(|t| {
-                    let (x, y) = ((t % n) as f32 / n as f32, (t / n) as f32 / n as f32);
-                    let wave =
-                        (std::f32::consts::TAU * x).sin() * (std::f32::consts::TAU * y).cos();
-                    if k == 10 {
-                        0.3 + 0.2 * wave
-                    } else {
-                        0.05 * wave * (k as f32 - 5.0) / 5.0
-                    }
-                })
-                .collect()
-        })
-        .collect();
-    Ptm::new(Basis::Ptm11, n, n, [0.5, 0.5], planes)
-}
-
 /// Every blur method against the Monte Carlo soft shadow, for a small and a large light.
 pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
     let (side, mc) = if quick { (96, 96) } else { (384, 512) };
@@ -137,14 +115,11 @@ pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
     Ok(rows)
 }
 
-const STRIP: u32 = 256;
-
-/// A 2 × 0.04 strip of white cloth, no PTM, under one light.
+/// The half-plane profiles' strip under light `l`, blurred with `blur`, at albedo 0.8 (what its
+/// tables have always been rendered at; opacity is a ratio of two renders, so albedo cancels).
 fn strip(l: Light, blur: Blur) -> Scene {
-    let mut s = Scene::over_ptm(cloth(2), 1, [STRIP, 4]);
-    s.ptm = None;
-    s.view = [-1.0, -0.02, 1.0, 0.02];
-    s.lights = vec![l];
+    let mut s = synthetic::strip(l);
+    s.albedo = [0.8; 3];
     s.blur = blur;
     s
 }
@@ -263,12 +238,12 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
         let w = caster_radius(r, d_lc, d_ca);
         // Where the ray from cloth point x to the light centre meets the caster plane.
         let caster_x = |x: f64| lx + (x - lx) * d_lc / lz;
-        let xs: Vec<f64> = (0..STRIP)
-            .map(|i| -1.0 + 2.0 * (i as f64 + 0.5) / STRIP as f64)
+        let xs: Vec<f64> = (0..STRIP_PIXELS)
+            .map(|i| -1.0 + 2.0 * (i as f64 + 0.5) / STRIP_PIXELS as f64)
             .collect();
-        let measured: Vec<f64> = (0..STRIP as usize)
+        let measured: Vec<f64> = (0..STRIP_PIXELS as usize)
             .map(|i| {
-                let k = STRIP as usize + i;
+                let k = STRIP_PIXELS as usize + i;
                 1.0 - (lit.pixels[k][0] / free.pixels[k][0]) as f64
             })
             .collect();

@@ -239,7 +239,7 @@ const FITS: [(Link, UvMap); 2] = [
     (Link::Logistic, UvMap::Hemispherical),
 ];
 
-/// The light layouts of the issue, fitted with both bases and both of [`FITS`] on a real bake.
+/// The light layouts of the issue, fitted with both bases and both of `FITS` on a real bake.
 pub fn layouts(swatch: &PreparedMesh, truth: &Truth, spp: u32) -> Result<Vec<LayoutRow>> {
     let mut near_ring = dome::rings("30x16")?;
     for (i, d) in near_ring.dirs.iter_mut().enumerate() {

@@ -9,21 +9,14 @@
 
 use std::time::Instant;
 
-use ptm_format::hash::splitmix64 as hash;
-use ptm_format::{Basis, Ptm};
+use ptm_format::Basis;
 use ptm_runtime::gpu::Renderer;
 use ptm_runtime::synthetic::leaves as caster;
 use ptm_runtime::{Blur, Gpu, Light, Scene};
 
-fn ptm11(n: usize) -> Ptm {
-    let planes = (0..11)
-        .map(|k| {
-            (0..n * n)
-                .map(|t| ((hash((k * n * n + t) as u64) >> 40) as f32 / 16_777_216.0 - 0.5) * 0.4)
-                .collect()
-        })
-        .collect();
-    Ptm::new(Basis::Ptm11, n, n, [1.0, 1.0], planes)
+/// A random `n`² ptm11 (the shade time does not depend on its values).
+fn ptm11(n: usize) -> ptm_format::Ptm {
+    ptm_runtime::synthetic::random_ptm(Basis::Ptm11, n, n, 0)
 }
 
 fn median(mut v: Vec<f64>) -> f64 {

@@ -8,7 +8,7 @@
 //! Rust (one module per WGSL file, same function names, same maths) and what the tests compare
 //! the GPU with. [`caster`] prepares the caster's opacity, [`mip`] and [`separable`] the blur
 //! methods' inputs; [`penumbra`] holds the blur-radius geometry and the analytic profile,
-//! [`reference`] the Monte Carlo ground truth.
+//! [`reference`](mod@reference) the Monte Carlo ground truth.
 //!
 //! Imports run one way: `layout` ← `caster`, `mip`, `separable` ← `scene` ← `shader`, `cpu`,
 //! `gpu` ← `reference`, `window`.

@@ -1,10 +1,176 @@
-//! Deterministic synthetic inputs for benchmarks, reports and tests: a leafy caster whose discs
-//! of varying alpha give soft shadows with edges at every scale, and the half-plane edge of the
-//! analytic penumbra profiles.
+//! Deterministic synthetic inputs for benchmarks, reports and tests, the one place they are
+//! built: PTMs (random coefficients, with a hole, a smooth cloth, a texel checkerboard, a
+//! constant K), casters (random RGBA, a leafy one whose discs of varying alpha give soft shadows
+//! with edges at every scale, the half-plane edge of the analytic penumbra profiles) and the
+//! `strip` scene those profiles are measured on. Every value is a hash of its index and a seed,
+//! so a test, the benchmark and the report see the same inputs on every machine.
 
-use crate::scene::Caster;
+use crate::scene::{Blur, Caster, Light, Scene};
 
 use ptm_format::hash::splitmix64 as hash;
+use ptm_format::{Basis, Link, Ptm, UvMap};
+
+/// Uniform in [lo, hi) from a key (24 bits of its hash).
+fn rand(key: u64, lo: f32, hi: f32) -> f32 {
+    lo + (hi - lo) * ((hash(key) >> 40) as f32 / (1u64 << 24) as f32)
+}
+
+/// A `width × height` PTM of `basis` with random coefficients keyed by `seed`: constant terms in
+/// [−0.2, 0.9), the others in [−0.8, 0.8), so K leaves [0, 1] in places (clamping is
+/// exercised). Identity link, projected (u, v), tile 1 × 1, no MIP levels or coverage.
+pub fn random_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
+    let n = basis.len();
+    let planes = (0..n)
+        .map(|k| {
+            (0..width * height)
+                .map(|t| {
+                    let key = seed * 1_000_003 + (k * 65_537 + t) as u64;
+                    if basis.monomials()[k].pu + basis.monomials()[k].pv == 0 {
+                        rand(key, -0.2, 0.9)
+                    } else {
+                        rand(key, -0.8, 0.8)
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    Ptm {
+        basis,
+        width,
+        height,
+        link: Link::Identity,
+        uv: UvMap::Projected,
+        mips: Vec::new(),
+        coverage: None,
+        tile: [1.0, 1.0],
+        planes,
+    }
+}
+
+/// [`random_ptm`] with a hole: coverage 0 (and coefficients 0, as the fit writes holes) on the
+/// texels of columns 4..8, rows 3..6, ½ on the ring of texels around it, 1 elsewhere. The PTM
+/// must be at least 10×8 texels.
+pub fn holed_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
+    let mut ptm = random_ptm(basis, width, height, seed);
+    let mut coverage = vec![1.0f32; width * height];
+    for (t, c) in coverage.iter_mut().enumerate() {
+        let (x, y) = (t % width, t / width);
+        if (4..8).contains(&x) && (3..6).contains(&y) {
+            *c = 0.0;
+            for p in &mut ptm.planes {
+                p[t] = 0.0;
+            }
+        } else if (3..9).contains(&x) && (2..7).contains(&y) {
+            *c = 0.5;
+        }
+    }
+    ptm.coverage = Some(coverage);
+    ptm
+}
+
+/// A smooth `n`² ptm11 over a ½ × ½ tile whose K stays mostly inside [0, 1]: one period of
+/// sin(2πx)·cos(2πy) in every coefficient, the cloth a soft shadow falls on.
+pub fn cloth(n: usize) -> Ptm {
+    let planes = (0..11)
+        .map(|k| {
+            (0..n * n)
+                .map(|t| {
+                    let (x, y) = ((t % n) as f32 / n as f32, (t / n) as f32 / n as f32);
+                    let wave =
+                        (std::f32::consts::TAU * x).sin() * (std::f32::consts::TAU * y).cos();
+                    if k == 10 {
+                        0.3 + 0.2 * wave
+                    } else {
+                        0.05 * wave * (k as f32 - 5.0) / 5.0
+                    }
+                })
+                .collect()
+        })
+        .collect();
+    Ptm::new(Basis::Ptm11, n, n, [0.5, 0.5], planes)
+}
+
+/// An `n`² ptm6 whose constant term is a texel checkerboard of K = 0 and 1 (no light
+/// dependence): every 2×2 average is exactly ½, so a MIP chain's levels are known exactly.
+/// Tile 1 × 1.
+pub fn checker(n: usize) -> Ptm {
+    let mut planes = vec![vec![0.0f32; n * n]; 6];
+    for (t, c) in planes[5].iter_mut().enumerate() {
+        *c = ((t % n + t / n) % 2) as f32;
+    }
+    Ptm {
+        basis: Basis::Ptm6,
+        width: n,
+        height: n,
+        link: Link::Identity,
+        uv: UvMap::Projected,
+        mips: Vec::new(),
+        coverage: None,
+        tile: [1.0, 1.0],
+        planes,
+    }
+}
+
+/// A 2 × 2 ptm6 of constant K = `k` (any value: outside [0, 1] it tests clamping) over a ½ × ½
+/// tile.
+pub fn constant(k: f32) -> Ptm {
+    let mut planes = vec![vec![0.0f32; 4]; 6];
+    planes[5] = vec![k; 4];
+    Ptm {
+        basis: Basis::Ptm6,
+        width: 2,
+        height: 2,
+        link: Link::Identity,
+        uv: UvMap::Projected,
+        mips: Vec::new(),
+        coverage: None,
+        tile: [0.5, 0.5],
+        planes,
+    }
+}
+
+/// A `w`×`h` caster of random 8-bit RGBA keyed by `seed`, with fully transparent and opaque
+/// blobs, over the world rectangle `rect` at height `elevation`, untilted.
+pub fn random_caster(w: usize, h: usize, rect: [f32; 4], elevation: f32, seed: u64) -> Caster {
+    let rgba = (0..w * h)
+        .map(|t| {
+            let r = hash(seed ^ (t as u64 * 0x1234_5677));
+            let (i, j) = ((t % w) as f32 / w as f32, (t / w) as f32 / h as f32);
+            let blob = ((i * 6.0).sin() * (j * 5.0).cos() * 2.0).clamp(0.0, 1.0);
+            let a = (blob * 255.0) as u8 | ((r & 0x3F) as u8);
+            [(r >> 8) as u8, (r >> 16) as u8, (r >> 24) as u8, a]
+        })
+        .collect();
+    Caster {
+        width: w,
+        height: h,
+        rgba,
+        rect,
+        elevation,
+        tilt_deg: 0.0,
+    }
+}
+
+/// Pixels along the [`strip`] (its image is `STRIP_PIXELS` × 4).
+pub const STRIP_PIXELS: u32 = 256;
+
+/// A 2 × 0.04 strip of white cloth along X (the view [−1, 1] × [−0.02, 0.02], `STRIP_PIXELS` × 4
+/// pixels), no PTM, no caster, under one `light`, blurred with `sat`: where the half-plane
+/// penumbra profiles are measured (pixel i is at x = −1 + 2(i + ½)/`STRIP_PIXELS`).
+pub fn strip(light: Light) -> Scene {
+    Scene {
+        size: [STRIP_PIXELS, 4],
+        view: [-1.0, -0.02, 1.0, 0.02],
+        ptm: None,
+        albedo: [1.0; 3],
+        albedo_texture: None,
+        lights: vec![light],
+        caster: None,
+        colored_shadow: false,
+        blur: Blur::Sat,
+        perspective: None,
+    }
+}
 
 /// A leafy `n`² caster (n ≥ 12): 60 green discs of radius n/40 to n/40 + n/12 texels and alpha
 /// 128–255 on transparent, over the world rectangle `rect` at height `elevation`, untilted.

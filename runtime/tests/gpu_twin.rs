@@ -5,6 +5,7 @@ mod common;
 
 use common::*;
 use ptm_format::Basis;
+use ptm_runtime::synthetic::checker;
 use ptm_runtime::{cpu, gpu, Blur, Scene};
 
 fn scene(basis: Option<Basis>, size: [u32; 2]) -> Scene {
@@ -133,32 +134,12 @@ fn no_lights_render_black() {
     assert!(img.pixels.iter().all(|px| px[..3] == [0.0; 3]));
 }
 
-/// A 64² ptm6 whose constant term is a texel checkerboard of K = 0 and 1 (no light dependence).
-fn checker_ptm() -> ptm_format::Ptm {
-    let n = 64;
-    let mut planes = vec![vec![0.0f32; n * n]; 6];
-    for (t, c) in planes[5].iter_mut().enumerate() {
-        *c = ((t % n + t / n) % 2) as f32;
-    }
-    ptm_format::Ptm {
-        basis: Basis::Ptm6,
-        width: n,
-        height: n,
-        link: ptm_format::Link::Identity,
-        uv: ptm_format::UvMap::Projected,
-        mips: Vec::new(),
-        coverage: None,
-        tile: [1.0, 1.0],
-        planes,
-    }
-}
-
 #[test]
 fn minified_ptm_is_mip_mapped_and_averages_k() {
     // 8 tiles of 64 texels across 64 pixels: 8 texels per pixel, level 3, where every texel
     // averages an 8×8 block of the checkerboard: K = 0.5 exactly, so (1 − K) halves every pixel.
     // Without the chain each pixel would sample one texel: 0 or 1, an aliased pattern.
-    let mut s = Scene::over_ptm(checker_ptm(), 8, [64, 64]);
+    let mut s = Scene::over_ptm(checker(64), 8, [64, 64]);
     s.lights = vec![light([4.0, 4.0, 50.0], 0.0, 2500.0)];
     let p = s.prepare().unwrap();
     assert!(p.variant.ptm_mip);
@@ -173,7 +154,7 @@ fn minified_ptm_is_mip_mapped_and_averages_k() {
         assert!((a[0] / b[0] - 0.5).abs() < 1e-4, "{} vs {}", a[0], b[0]);
     }
     // One texel per pixel or fewer: no chain, no binding.
-    let s1 = Scene::over_ptm(checker_ptm(), 1, [64, 64]);
+    let s1 = Scene::over_ptm(checker(64), 1, [64, 64]);
     let p1 = s1.prepare().unwrap();
     assert!(!p1.variant.ptm_mip && p1.ptm_levels.is_empty());
 }
@@ -246,7 +227,7 @@ fn gpu_matches_twin_for_every_link_and_uv_map() {
 /// with stored levels of p = ln(1/3) (K = 1/4) that averaged coefficients (p = 0, K = 1/2)
 /// would not give.
 fn logistic_checker(stored: bool) -> ptm_format::Ptm {
-    let mut ptm = checker_ptm();
+    let mut ptm = checker(64);
     ptm.link = ptm_format::Link::Logistic;
     for c in &mut ptm.planes[5] {
         *c = 40.0 * *c - 20.0;
@@ -273,7 +254,7 @@ fn minified_logistic_ptm_renders_from_its_stored_levels() {
     // 8 tiles across 64 px: level 3 everywhere. Stored levels: K = 1/4, (1 − K) = 3/4 of the
     // unoccluded image; the derived chain (no stored levels) gives σ(0) = 1/2 and a warning.
     use ptm_runtime::scene::Warning;
-    let mut free = Scene::over_ptm(checker_ptm(), 8, [64, 64]);
+    let mut free = Scene::over_ptm(checker(64), 8, [64, 64]);
     free.lights = vec![light([4.0, 4.0, 50.0], 0.0, 2500.0)];
     free.ptm = None;
     let (open, _) = gpu::render(&gpu(), &free.prepare().unwrap()).unwrap();
@@ -312,7 +293,7 @@ fn minified_logistic_ptm_renders_from_its_stored_levels() {
     }
     // An identity file without levels gets no warning (minified_ptm_is_mip_mapped_and_averages_k).
     let mut s = free.clone();
-    s.ptm = Some(checker_ptm());
+    s.ptm = Some(checker(64));
     assert!(s.prepare().unwrap().warnings.is_empty());
 }
 

@@ -6,28 +6,13 @@
 mod common;
 
 use common::*;
-use ptm_format::{Basis, Ptm};
 use ptm_runtime::penumbra::{acceptor_radius, caster_radius, half_plane_fraction};
 use ptm_runtime::reference::{mc_opacity, render_reference};
+use ptm_runtime::synthetic::{constant, strip, STRIP_PIXELS};
 use ptm_runtime::{cpu, gpu, Blur, Caster, Image, Scene};
 
-const W: u32 = 256;
-
-/// A 2 × 0.04 strip of cloth, no PTM, white, under one light.
-fn strip(light: ptm_runtime::Light) -> Scene {
-    Scene {
-        size: [W, 4],
-        view: [-1.0, -0.02, 1.0, 0.02],
-        ptm: None,
-        albedo: [1.0; 3],
-        albedo_texture: None,
-        lights: vec![light],
-        caster: None,
-        colored_shadow: false,
-        blur: Blur::Sat,
-        perspective: None,
-    }
-}
+/// Pixels along the strip.
+const W: u32 = STRIP_PIXELS;
 
 /// Opaque for x < 0, clear for x > 0: 512 × 512 texels over [−4, 4]², at height h.
 fn half_plane(h: f32) -> Caster {
@@ -227,29 +212,13 @@ fn casters_beyond_4096_are_downsampled_and_still_render() {
     assert!(profile[0] > 0.999 && profile[W as usize - 1] < 1e-3);
 }
 
-fn constant_ptm(k: f32) -> Ptm {
-    let mut planes = vec![vec![0.0f32; 4]; 6];
-    planes[5] = vec![k; 4];
-    Ptm {
-        basis: Basis::Ptm6,
-        width: 2,
-        height: 2,
-        link: ptm_format::Link::Identity,
-        uv: ptm_format::UvMap::Projected,
-        mips: Vec::new(),
-        coverage: None,
-        tile: [0.5, 0.5],
-        planes,
-    }
-}
-
 #[test]
 fn k_outside_unit_interval_is_clamped_and_reported() {
     let mut s = strip(light([0.0, 0.0, 2.0], 0.1, 4.0));
     let g = gpu();
     let render = |s: &Scene| -> Image { gpu::render(&g, &s.prepare().unwrap()).unwrap().0 };
     let free = render(&s);
-    s.ptm = Some(constant_ptm(1.5));
+    s.ptm = Some(constant(1.5));
     let dark = render(&s);
     assert!(
         dark.pixels.iter().all(|p| p[..3] == [0.0; 3]),
@@ -261,13 +230,13 @@ fn k_outside_unit_interval_is_clamped_and_reported() {
         "{k:?}"
     );
     assert_eq!(k.clamped_fraction, 1.0);
-    s.ptm = Some(constant_ptm(-0.5));
+    s.ptm = Some(constant(-0.5));
     let bright = render(&s);
     assert!(
         bright.max_abs_diff(&free).unwrap() < 1e-6,
         "K = −0.5 must clamp to 0, not brighten"
     );
-    s.ptm = Some(constant_ptm(0.25));
+    s.ptm = Some(constant(0.25));
     let k = cpu::k_excursion(&s.prepare().unwrap()).unwrap();
     assert_eq!(k.clamped_fraction, 0.0);
     let quarter = render(&s);
@@ -297,7 +266,7 @@ fn coloured_shadow_transmits_the_pane_colour() {
 #[test]
 fn nan_coefficients_are_zeroed_and_counted() {
     let mut s = strip(light([0.0, 0.0, 2.0], 0.1, 4.0));
-    let mut ptm = constant_ptm(0.5);
+    let mut ptm = constant(0.5);
     ptm.planes[5][1] = f32::NAN;
     ptm.planes[2][3] = f32::INFINITY;
     s.ptm = Some(ptm);

@@ -2,8 +2,8 @@
 //!
 //! WIF (Weaving Information File 1.1, R. Nielsen 1997) is INI-like: `[SECTION]` headers,
 //! `key=value` lines, `;` comments, all indices 1-based. We read `[WEAVING]` (Shafts, Treadles,
-//! Rising Shed), `[WARP]`/`[WEFT]` Threads, `[THREADING]` (end = shaft[,shaft]), `[TIEUP]`
-//! (treadle = shafts) with `[TREADLING]` (pick = treadle[,treadle]) or `[LIFTPLAN]`
+//! Rising Shed), `[WARP]`/`[WEFT]` Threads, `[THREADING]` (end = shaft\[,shaft\]), `[TIEUP]`
+//! (treadle = shafts) with `[TREADLING]` (pick = treadle\[,treadle\]) or `[LIFTPLAN]`
 //! (pick = shafts). End e (1-based) becomes warp e − 1 at x = (e − ½)·spacing and pick p weft
 //! p − 1 at y = (p − ½)·spacing; warp e is over pick p when one of its shafts is lifted on that
 //! pick (inverted for a sinking shed, `Rising Shed=no`). Unthreaded ends and empty picks are

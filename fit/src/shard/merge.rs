@@ -164,7 +164,7 @@ pub fn merge_into(paths: &[PathBuf], out: &Path) -> Result<Merged> {
 /// that one machine writes, for a caller that publishes it with other outputs (`out` names the
 /// file in errors; nothing is written). A stack merges by copying the parts' compressed chunks
 /// under the whole image's header; a PTM is decoded, concatenated, its file-level facts
-/// recomputed ([`finish_fit`]) and encoded.
+/// recomputed (`finish_fit`) and encoded.
 pub fn merge_encode(paths: &[PathBuf], out: &Path) -> Result<(Merged, Vec<u8>)> {
     let set = check_set(paths)?;
     let (_, kind) = read_meta(&set[0].0)?;

@@ -1,6 +1,6 @@
 //! The partition of a bake into shards: blocks of whole image rows, starting at multiples of
 //! [`ROW_BLOCK`], split as evenly as whole blocks allow; and what that means for the MIP chain
-//! of a logistic fit ([`local_levels`], [`PartLevels`]): the levels a shard fits itself, and the
+//! of a logistic fit (`local_levels`, [`PartLevels`]): the levels a shard fits itself, and the
 //! pooled counts it hands the merge for the rest. The solver (a part's fit) and the part file
 //! and merge code (`shard.rs`, `shard/merge.rs`) all take the partition from here.
 use std::fmt;
@@ -97,7 +97,7 @@ impl Shard {
 /// (1/256 of level 0's texels, exact), and the merge joins them and fits the rest.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PartLevels {
-    /// Levels 1 … S for the part's rows (sizes from [`local_levels`]).
+    /// Levels 1 … S for the part's rows (sizes from `local_levels`).
     pub levels: Vec<ptm_format::Level>,
     /// Pooled counts of level S for the part's rows, when the chain goes deeper:
     /// (covered samples per texel, occluded samples `[light][texel]`).

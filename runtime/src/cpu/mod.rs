@@ -1,6 +1,6 @@
 //! The CPU twin of the shaders, one module per WGSL file with the WGSL functions' names
 //! (vello's `cpu/` beside `shaders/`): [`shade`] for `shader/shade.wgsl`, [`sat`] for
-//! `shader/sat.wgsl`, [`separable`] for `shader/separable.wgsl`. [`TWINS`] pairs every WGSL
+//! `shader/sat.wgsl`, [`separable`] for `shader/separable.wgsl`. [`twins`] pairs every WGSL
 //! function with its twin; a test fails when a WGSL function has none.
 //!
 //! [`render`] runs the whole pipeline the GPU runs (tables, then one `fs_main` per pixel) on the

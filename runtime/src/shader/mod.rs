@@ -49,7 +49,7 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     d
 }
 
-/// The WGSL expression Σ c[i]·u^a·v^b in basis order, e.g. `c[0] * (u * u) + c[1] * (u) + …`.
+/// The WGSL expression Σ c\[i\]·u^a·v^b in basis order, e.g. `c[0] * (u * u) + c[1] * (u) + …`.
 pub fn ptm_eval_expr(basis: Basis) -> String {
     let terms: Vec<String> = basis
         .monomials()
