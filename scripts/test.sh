@@ -77,10 +77,10 @@ rw_work=$(mktemp -d)
     | grep -v '^rewritten: ok'
 rm -rf "$rw_work"
 
-echo "== the README's OSL shader group against the OSL shaders it names (integrations/osl)" >&2
+echo "== the OSL shader group of docs/pipeline.md against the OSL shaders it names (integrations/osl)" >&2
 .deps/py/bin/python integrations/osl/test_readme_example.py
 
-echo "== the Python module ptm (python/, maturin) against Ptm::eval, round trips, errors, the README example (tests/clients)" >&2
+echo "== the Python module ptm (python/, maturin) against Ptm::eval, round trips, errors, the docs/pipeline.md example (tests/clients)" >&2
 # A release build: the test times eval and a pipeline gets this build; it adds about 1 min.
 t_module=$SECONDS
 rm -rf target/wheels/ptm

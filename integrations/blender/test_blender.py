@@ -263,7 +263,7 @@ def main():
     # be visibly wrong (else this test could not tell a flipped image from a right one).
     bad.update({f"{k} mtlx-osl-noflip (expected > 0.05)": v for k, v in flipped.items() if not v > 0.05})
     # The README's Blender example, run as written (a scene with an active plane and a "Sun").
-    readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "README.md")).read()
+    readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "pipeline.md")).read()
     block = readme.split("<!-- readme-blender -->\n```python\n", 1)[1].split("```", 1)[0]
     sc, plane, sun = scene_setup()
     sun.name = "Sun"
@@ -272,7 +272,7 @@ def main():
                     os.path.join(WORK, "w.ptm.exr"), "--layout", "rgba"], check=True, capture_output=True)
     cwd = os.getcwd()
     os.chdir(WORK)
-    exec(compile(block, "README.md (Blender example)", "exec"), {})
+    exec(compile(block, "docs/pipeline.md (Blender example)", "exec"), {})
     os.chdir(cwd)
     assert plane.data.materials and plane.data.materials[0].node_tree, "README example made no material"
     print("blender: README example builds its material")

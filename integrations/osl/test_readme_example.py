@@ -1,4 +1,4 @@
-"""The README's OSL example (the shader group after `<!-- readme-osl -->`, in OSL's serialized
+"""The OSL example of docs/pipeline.md (the shader group after `<!-- readme-osl -->`, in OSL's serialized
 group syntax) against the shaders it names: every `shader NAME LAYER` is
 integrations/osl/NAME.osl, every `param TYPE NAME VALUE... ;` before it is an input of that
 shader with that type and as many values as the type has, every `connect a.X b.Y` joins an
@@ -12,7 +12,7 @@ import re
 import sys
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-README = os.path.join(HERE, "..", "..", "README.md")
+README = os.path.join(HERE, "..", "..", "docs", "pipeline.md")
 WIDTH = {"int": 1, "float": 1, "string": 1, "vector": 3, "point": 3, "normal": 3, "color": 3}
 
 
@@ -38,10 +38,10 @@ def signature(path):
 
 
 def readme_group(readme=README):
-    """The README's shader group, checked against the shaders' signatures: a list of layers
+    """The shader group of docs/pipeline.md, checked against the shaders' signatures: a list of layers
     (shader, layer, {param: (type, [values])}) and of connections (src, out, dst, in)."""
     text = open(readme).read()
-    assert "<!-- readme-osl -->\n```\n" in text, "README has no <!-- readme-osl --> block"
+    assert "<!-- readme-osl -->\n```\n" in text, "docs/pipeline.md has no <!-- readme-osl --> block"
     block = text.split("<!-- readme-osl -->\n```\n", 1)[1].split("```", 1)[0]
     layers, connections, pending = [], [], {}
     sigs = {}
@@ -50,10 +50,10 @@ def readme_group(readme=README):
             continue
         if stmt[0] == "param":  # param TYPE NAME VALUE... ; applies to the next shader
             ty, pname, values = stmt[1], stmt[2], stmt[3:]
-            assert ty in WIDTH, f"README OSL example: unknown type {ty}"
-            assert len(values) == WIDTH[ty], f"README: {pname} ({ty}) needs {WIDTH[ty]} values: {values}"
+            assert ty in WIDTH, f"docs/pipeline.md OSL example: unknown type {ty}"
+            assert len(values) == WIDTH[ty], f"docs/pipeline.md: {pname} ({ty}) needs {WIDTH[ty]} values: {values}"
             if ty == "string":
-                assert values[0].startswith('"') and values[0].endswith('"'), f"README: {pname} unquoted"
+                assert values[0].startswith('"') and values[0].endswith('"'), f"docs/pipeline.md: {pname} unquoted"
                 values = [values[0][1:-1]]
             else:
                 values = [(int if ty == "int" else float)(v) for v in values]
@@ -61,25 +61,25 @@ def readme_group(readme=README):
         elif stmt[0] == "shader":
             name, layer = stmt[1], stmt[2]
             path = os.path.join(HERE, name + ".osl")
-            assert os.path.exists(path), f"README OSL example: {name}.osl does not exist"
+            assert os.path.exists(path), f"docs/pipeline.md OSL example: {name}.osl does not exist"
             sig = signature(path)
             for pname, (ty, _) in pending.items():
-                assert pname in sig, f"README OSL example: {name} has no parameter {pname}"
-                assert sig[pname] == (ty, False), f"README: {name}.{pname} is {sig[pname]}, not input {ty}"
+                assert pname in sig, f"docs/pipeline.md OSL example: {name} has no parameter {pname}"
+                assert sig[pname] == (ty, False), f"docs/pipeline.md: {name}.{pname} is {sig[pname]}, not input {ty}"
             layers.append((name, layer, pending))
             sigs[layer], pending = sig, {}
         elif stmt[0] == "connect":
             (sl, sp), (dl, dp) = (w.split(".") for w in stmt[1:3])
-            assert sl in sigs and dl in sigs, f"README: connect names an unknown layer: {stmt}"
-            assert list(sigs).index(sl) < list(sigs).index(dl), f"README: {stmt} runs backwards"
+            assert sl in sigs and dl in sigs, f"docs/pipeline.md: connect names an unknown layer: {stmt}"
+            assert list(sigs).index(sl) < list(sigs).index(dl), f"docs/pipeline.md: {stmt} runs backwards"
             src, dst = sigs[sl].get(sp), sigs[dl].get(dp)
-            assert src and src[1], f"README: {sl}.{sp} is not an output"
-            assert dst and not dst[1], f"README: {dl}.{dp} is not an input"
-            assert src[0] == dst[0], f"README: {stmt} joins {src[0]} to {dst[0]}"
+            assert src and src[1], f"docs/pipeline.md: {sl}.{sp} is not an output"
+            assert dst and not dst[1], f"docs/pipeline.md: {dl}.{dp} is not an input"
+            assert src[0] == dst[0], f"docs/pipeline.md: {stmt} joins {src[0]} to {dst[0]}"
             connections.append((sl, sp, dl, dp))
         else:
-            sys.exit(f"README OSL example: cannot read {' '.join(stmt)!r}")
-    assert not pending, f"README OSL example: params {list(pending)} apply to no shader"
+            sys.exit(f"docs/pipeline.md OSL example: cannot read {' '.join(stmt)!r}")
+    assert not pending, f"docs/pipeline.md OSL example: params {list(pending)} apply to no shader"
     return layers, connections
 
 

@@ -274,15 +274,15 @@ expect_error(ValueError, "MIP levels", lambda: ptm.Ptm("ptm6", np.zeros((6, 4, 4
 expect_error(ValueError, "(N, 3)", lambda: p.eval_dir([0.0, 1.0]), "eval_dir of a 2-vector")
 expect_error(ValueError, "lights", lambda: p.eval([0.1, 0.2], [0.1, 0.2, 0.3]), "eval of u, v of different lengths")
 
-# The README's Python example, run as written on a renderer-layout PTM named w.ptm.
-readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "README.md")).read()
+# The Python example of docs/pipeline.md, run as written on a renderer-layout PTM named w.ptm.
+readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "pipeline.md")).read()
 block = readme.split("<!-- readme-python-module -->\n```python\n", 1)[1].split("```", 1)[0]
 run("convert", "ptm11-logistic-hemispherical.ptm.exr", "-o", "w.ptm.exr", "--layout", "rgba")
 cwd = os.getcwd()
 os.chdir(WORK)
 scope = {}
 try:
-    exec(compile(block, "README.md (Python module example)", "exec"), scope)
+    exec(compile(block, "docs/pipeline.md (Python module example)", "exec"), scope)
 except Exception as e:  # noqa: BLE001
     check(False, f"README Python module example runs ({type(e).__name__}: {e})")
 os.chdir(cwd)

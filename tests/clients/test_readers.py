@@ -125,14 +125,14 @@ for _, args, out in kinds:
     worst = max(worst, compare_eval(rg.replace(".exr", ".c0.exr"), coeffs, basis, link, uv, spec.width, spec.height))
     if out == "warn.ptm.exr":
         check(any("°" in w for w in header.get("ptm:warnings", [])), f"{out}: warnings read back as UTF-8 text")
-# The README's Python example, run as written on a renderer-layout PTM named w.ptm.
-readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "README.md")).read()
+# The Python example of docs/pipeline.md, run as written on a renderer-layout PTM named w.ptm.
+readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "pipeline.md")).read()
 block = readme.split("<!-- readme-python -->\n```python\n", 1)[1].split("```", 1)[0]
 ptm("convert", "half.ptm.exr", "-o", "w.ptm.exr", "--layout", "rgba")
 cwd = os.getcwd()
 os.chdir(WORK)
 scope = {}
-exec(compile(block, "README.md (Python example)", "exec"), scope)
+exec(compile(block, "docs/pipeline.md (Python example)", "exec"), scope)
 os.chdir(cwd)
 check(scope["r"].size == 24 * 24, "README Python example reads a coefficient plane")
 try:
