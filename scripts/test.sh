@@ -3,34 +3,56 @@
 # dependency-boundary check, then every test of the workspace (GPU tests on lavapipe).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+# Each step says how long it took, and the end lists them all: where a slow CI run spent its time.
+t_step=$SECONDS
+step_name=""
+step_times=""
+step() {
+    if [ -n "$step_name" ]; then
+        step_times+="$(printf '%6d s  %s' $((SECONDS - t_step)) "$step_name")"$'\n'
+    fi
+    step_name=$1
+    t_step=$SECONDS
+    echo "== $1" >&2
+}
+summary() {
+    local rc=$?
+    step_times+="$(printf '%6d s  %s' $((SECONDS - t_step)) "$step_name")"$'\n'
+    echo "== time per step (rc $rc, $SECONDS s in all)" >&2
+    printf '%s' "$step_times" >&2
+}
+trap summary EXIT
+
+step "setup (scripts/setup.sh)"
 bash scripts/setup.sh
 export CARGO_TERM_COLOR=${CARGO_TERM_COLOR:-never}
 # Mesa's implicit Vulkan layer VK_LAYER_MESA_device_select probes Wayland; without a session
 # libwayland prints an error per GPU test. Nothing to select headless (the ptm binary does the same).
 export NODEVICE_SELECT=${NODEVICE_SELECT:-1}
 
-echo "== cargo fmt --check" >&2
+step "cargo fmt --check"
 cargo fmt --all -- --check
 
-echo "== ptm-fit depends on neither Embree nor wgpu" >&2
+step "ptm-fit depends on neither Embree nor wgpu"
 if cargo tree -p ptm-fit -e normal --prefix none | grep -E '^(embree4-sys|wgpu|wgpu-core|wgpu-hal|naga) ' ; then
     echo "ptm-fit must not depend on Embree or wgpu (see ARCHITECTURE.md)" >&2
     exit 1
 fi
 
-echo "== ptm-format (what a render pipeline takes) depends on no solver, thread pool, image codec, Embree or wgpu" >&2
+step "ptm-format (what a render pipeline takes) depends on no solver, thread pool, image codec, Embree or wgpu"
 if cargo tree -p ptm-format -e normal --prefix none | grep -E '^(nalgebra|rayon|rayon-core|image|glob|embree4-sys|wgpu|wgpu-core|wgpu-hal|naga) ' ; then
     echo "ptm-format must depend on none of nalgebra, rayon, image, glob, embree4-sys, wgpu, naga (see ARCHITECTURE.md)" >&2
     exit 1
 fi
 
-echo "== ptm-python (the Python module) takes ptm-format, not the fitter" >&2
+step "ptm-python (the Python module) takes ptm-format, not the fitter"
 if cargo tree -p ptm-python -e normal --prefix none | grep -E '^(ptm-fit|nalgebra|rayon|rayon-core|image|glob|embree4-sys|wgpu) ' ; then
     echo "ptm-python must depend on ptm-format, not on ptm-fit, nalgebra, rayon, image, glob, embree4-sys or wgpu (see ARCHITECTURE.md)" >&2
     exit 1
 fi
 
-echo "== ptm-bake and ptm-runtime take the file layer (ptm-format), not the fitter" >&2
+step "ptm-bake and ptm-runtime take the file layer (ptm-format), not the fitter"
 for c in ptm-bake ptm-runtime; do
     if cargo tree -p "$c" -e normal --prefix none | grep -E '^ptm-fit ' ; then
         echo "$c must not depend on ptm-fit: it never fits; take ptm-format (see ARCHITECTURE.md)" >&2
@@ -38,49 +60,49 @@ for c in ptm-bake ptm-runtime; do
     fi
 done
 
-echo "== no import cycle between the files of any crate, no fit/src file over 700 lines" >&2
+step "no import cycle between the files of any crate, no fit/src file over 700 lines"
 python3 scripts/check-structure.py
 
-echo "== cargo clippy --all-targets" >&2
+step "cargo clippy --all-targets"
 cargo clippy --workspace --all-targets -- -D warnings
 
-echo "== cargo clippy --features window (the preview window compiles; it runs only with a display)" >&2
+step "cargo clippy --features window (the preview window compiles; it runs only with a display)"
 cargo clippy -p ptm -p ptm-runtime --features window --all-targets -- -D warnings
 
-echo "== cargo doc -D warnings (every intra-doc link resolves)" >&2
+step "cargo doc -D warnings (every intra-doc link resolves)"
 RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
 
-echo "== the --json key snapshots (tests/snapshots/json_keys.txt, docs/json.md; UPDATE_SNAPSHOTS=1 rewrites)" >&2
+step "the --json key snapshots (tests/snapshots/json_keys.txt, docs/json.md; UPDATE_SNAPSHOTS=1 rewrites)"
 cargo test -p ptm --bin ptm json::
 
-echo "== cargo test" >&2
+step "cargo test"
 cargo test --workspace
 
 # The preview window's tests need a display: a virtual X server (Xvfb, installed by setup.sh)
 # with lavapipe presenting to it. PTM_REQUIRE_DISPLAY=1 turns their "SKIPPED <name>" (no
 # display) into a failure, so they cannot pass here without running.
-echo "== cargo test --features window (preview window under Xvfb)" >&2
+step "cargo test --features window (preview window under Xvfb)"
 PTM_REQUIRE_DISPLAY=1 xvfb-run -a -s "-screen 0 1024x768x24" \
     cargo test -p ptm-runtime --features window --lib -- window::
 
-echo "== mutation fuzzing of the readers, 2000 mutants each (scripts/fuzz.sh N for more)" >&2
+step "mutation fuzzing of the readers, 2000 mutants each (scripts/fuzz.sh N for more)"
 bash scripts/fuzz.sh 2000
 
-echo "== every file we write opened by Python OpenEXR and OpenImageIO, compared with our reader (tests/clients)" >&2
+step "every file we write opened by Python OpenEXR and OpenImageIO, compared with our reader (tests/clients)"
 rd_work=$(mktemp -d)
 .deps/py/bin/python tests/clients/test_readers.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$rd_work"
 rm -rf "$rd_work"
 
-echo "== PTMs rewritten by oiiotool, maketx and Python OpenEXR keep loading, with their K (tests/clients)" >&2
+step "PTMs rewritten by oiiotool, maketx and Python OpenEXR keep loading, with their K (tests/clients)"
 rw_work=$(mktemp -d)
 .deps/py/bin/python tests/clients/test_rewritten.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$rw_work" \
     | grep -v '^rewritten: ok'
 rm -rf "$rw_work"
 
-echo "== the OSL shader group of docs/pipeline.md against the OSL shaders it names (integrations/osl)" >&2
+step "the OSL shader group of docs/pipeline.md against the OSL shaders it names (integrations/osl)"
 .deps/py/bin/python integrations/osl/test_readme_example.py
 
-echo "== the Python module ptm (python/, maturin) against Ptm::eval, round trips, errors, the docs/pipeline.md example (tests/clients)" >&2
+step "the Python module ptm (python/, maturin) against Ptm::eval, round trips, errors, the docs/pipeline.md example (tests/clients)"
 # A release build: the test times eval and a pipeline gets this build; it adds about 1 min.
 t_module=$SECONDS
 rm -rf target/wheels/ptm
@@ -91,15 +113,15 @@ py_work=$(mktemp -d)
 .deps/py/bin/python tests/clients/test_python_module.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$py_work"
 rm -rf "$py_work"
 
-echo "== MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL; its K in numpy against Ptm::eval (integrations/materialx)" >&2
+step "MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL; its K in numpy against Ptm::eval (integrations/materialx)"
 mx_work=$(mktemp -d)
 .deps/py/bin/python integrations/materialx/test_materialx.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$mx_work"
 rm -rf "$mx_work"
 
 if [ "${PTM_TEST_CLIENTS:-0}" = 1 ]; then
-    echo "== Blender (PyPI bpy, Cycles CPU): OSL and node-group K against Ptm::eval (scripts/test-clients.sh)" >&2
+    step "Blender (PyPI bpy, Cycles CPU): OSL and node-group K against Ptm::eval (scripts/test-clients.sh)"
     bash scripts/test-clients.sh
 fi
 
-echo "== farm bake on a real single-node Slurm (scripts/test-slurm.sh)" >&2
+step "farm bake on a real single-node Slurm (scripts/test-slurm.sh)"
 bash scripts/test-slurm.sh
