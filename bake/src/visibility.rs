@@ -31,7 +31,7 @@ pub struct BakeConfig {
     /// `Some(R)`: point lights on a hemisphere of radius R (mesh units) centred at
     /// (W/2, H/2, 0) instead of distant lights.
     pub light_distance: Option<f64>,
-    /// Trace shadow rays in `rtcOccluded16` packets (true) or one by one (same result).
+    /// Trace shadow rays in packets of the native width (true) or one by one (same result).
     pub packets: bool,
     /// Worker threads (0: one per core).
     pub threads: usize,
