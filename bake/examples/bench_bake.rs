@@ -1,247 +1,441 @@
-//! Benchmark: our bake against a minimal loop straight on Embree, in one process, on the same
-//! scene and the same rays (primary `rtcIntersect1` per footprint sample, then per light the
-//! same `rtcOccluded16` packets over 4×4 texel blocks, no bookkeeping). Prints both
-//! throughputs and their ratio (target ≥ 0.9).
+//! Benchmark: the baker against a bare Embree loop, in one process, on the same scene, dome and
+//! sample positions. The bare loop is what the issue describes: one `rtcIntersect1` per
+//! footprint sample, then per light one coherent packet per 16 samples (a 4×4 texel block),
+//! every covered sample traced (no facing test), `tfar` = ∞, rayon over blocks, FTZ/DAZ on.
+//! It traces against the baker's own per-light scenes of copies (so both count the same
+//! shadows) and keeps its samples as structures of arrays, ready for packets: no bookkeeping.
 //!
-//! `cargo run --release -p ptm-bake --example bench_bake [-- SWATCH RES LIGHTS SPP REPEATS]`
+//! Loops (`--loops=a,b,…`, each run alternates their order; default `ours,bare,bare16`):
+//! - `ours`: `Baker::new` + `Baker::trace` at the CPU's native packet width; wall time from
+//!   the device and scene builds to the last K plane (the bare loops reuse those scenes free).
+//! - `oursN` (N = 1, 4, 8, 16): the baker with N lanes per Embree call.
+//! - `bare`: the bare loop at the native packet width; `bare16` / `bare8` / `bare4`: at that
+//!   width (`bare16` is the issue's C loop: `rtcOccluded16`, one by one inside Embree on a CPU
+//!   without AVX-512); `bareclip`: native width with `tfar` at the baker's clamp plane;
+//!   `barefair`: that, and no ray for samples facing away (n·l ≤ 0): the baker's rays.
+//!
+//! Prints per run and loop the wall and CPU seconds of the primary and shadow passes and the
+//! shadow rays per second (rays actually traced), then medians over the runs of each ratio
+//! against the first bare loop, taken within each run (min–max), and the load average.
+//!
+//! `cargo run --release -p ptm-bake --example bench_bake -- [SWATCH RES LIGHTS SPP MIN_ELEV REPEATS] [--loops=…] [--threads=N]`
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
-use ptm_bake::embree::{self, Scene, Valid16};
+use ptm_bake::embree::{self, Packet, Scene, Valid};
 use ptm_bake::{dome, sample_xy, BakeConfig, Baker, PreparedMesh};
 use rayon::prelude::*;
 
+/// One loop's figures in one run.
+#[derive(Clone, Copy, Default)]
+struct Timing {
+    /// Wall seconds: whole bake, primary pass, shadow pass.
+    whole: f64,
+    primary: f64,
+    shadow: f64,
+    /// Process CPU seconds of the shadow pass (all threads).
+    cpu_shadow: f64,
+    /// Shadow rays traced, occluded among them, and samples counted occluded in all.
+    traced: u64,
+    occluded: u64,
+    counted: u64,
+}
+
+impl Timing {
+    fn rays_per_s(&self) -> f64 {
+        self.traced as f64 / self.shadow
+    }
+}
+
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let arg = |i: usize, d: &str| args.get(i).cloned().unwrap_or_else(|| d.to_string());
-    let spec = arg(0, "builtin:plain-weave?segments=48&along=144");
+    let all: Vec<String> = std::env::args().skip(1).collect();
+    let (flags, args): (Vec<&String>, Vec<&String>) = all.iter().partition(|a| a.starts_with("--"));
+    let flag = |name: &str| {
+        flags
+            .iter()
+            .find_map(|f| f.strip_prefix(&format!("--{name}=")).map(str::to_string))
+    };
+    let arg = |i: usize, d: &str| args.get(i).map_or(d.to_string(), |s| s.to_string());
+    let spec = arg(0, "builtin:plain-weave?segments=32&along=96");
     let res: usize = arg(1, "256").parse()?;
     let n_lights: usize = arg(2, "64").parse()?;
     let spp: usize = arg(3, "4").parse()?;
-    let repeats: usize = arg(4, "6").parse()?;
+    let min_elev: f64 = arg(4, "10").parse()?;
+    let repeats: usize = arg(5, "5").parse()?;
+    let loops: Vec<String> = flag("loops")
+        .unwrap_or_else(|| "ours,bare,bare16".into())
+        .split(',')
+        .map(str::to_string)
+        .collect();
+    let threads: usize = flag("threads").map_or(Ok(0), |t| t.parse())?;
 
     let swatch = PreparedMesh::load(&spec, None)?;
-    let lights = dome::fibonacci(n_lights, 5.0)?;
+    let lights = dome::fibonacci(n_lights, min_elev)?;
     let cfg = BakeConfig {
         res: [res, res],
         spp: spp as u32,
         seed: 0,
         light_distance: None,
         packets: true,
-        threads: 0,
+        threads,
     };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .start_handler(|_| embree::set_ftz_daz())
+        .build()?;
+    // The bare loops' scenes: the baker's per-light scenes of copies, built once, untimed.
+    let mut scenes_owner = Baker::new(&swatch, &cfg)?;
+    for &l in &lights.dirs {
+        scenes_owner.prepare_direction(l)?;
+    }
+    let native = scenes_owner.packet_width();
     println!(
-        "scene: {spec}: {} triangles, tile {:?}, {res}² texels, {n_lights} lights, spp {spp}, {} threads",
+        "cpu: {}; {} threads; Embree native packet width {native}",
+        cpu_name(),
+        pool.current_num_threads()
+    );
+    println!(
+        "scene: {spec}: {} triangles, tile {:?}, {res}² texels, {n_lights} Fibonacci lights above {min_elev}°, spp {spp}; loops {}",
         swatch.triangles.len(),
         swatch.tile,
-        rayon::current_num_threads()
+        loops.join(", ")
     );
+    let scenes: Vec<&Scene> = lights
+        .dirs
+        .iter()
+        .map(|&l| scenes_owner.direction_scene(l).expect("prepared"))
+        .collect();
+    let bare = Bare {
+        baker: &scenes_owner,
+        scenes: &scenes,
+        dirs: &lights.dirs,
+        res,
+        spp,
+        pool: &pool,
+    };
 
-    let mut cpu_ratios = Vec::new();
-    let mut best_ours = f64::INFINITY;
-    let mut best_raw = f64::INFINITY;
-    let mut ours_rays = 0;
-    let mut raw_rays = 0;
-    let mut ours_occluded = 0.0;
-    let mut raw_occluded = 0;
+    let mut runs: Vec<Vec<Timing>> = Vec::new();
+    let load0 = loadavg();
     for rep in 0..repeats {
-        // Ours: scene build excluded (the raw loop reuses our scenes), primary + shadow timed.
-        let mut baker = Baker::new(&swatch, &cfg)?;
-        let covered: Vec<f64> = baker
-            .coverage()
-            .iter()
-            .map(|&c| c as f64 * spp as f64)
-            .collect();
-        // Raw: the same scenes, sample positions and shadow rays, straight on Embree. Runs
-        // alternate which loop goes first, so neither profits from a warmer cache or a quieter
-        // machine by position.
-        let raw_run = |baker: &mut Baker| -> Result<(f64, f64, f64, u64, u64), ptm_bake::Error> {
-            for &l in &lights.dirs {
-                baker.prepare_direction(l)?;
-            }
-            let scenes: Vec<&Scene> = lights
-                .dirs
-                .iter()
-                .map(|&l| baker.direction_scene(l).expect("prepared"))
-                .collect();
-            Ok(raw_loop(baker, &scenes, &lights.dirs, res, spp))
-        };
-        let raw_first = rep % 2 == 1;
-        let early = if raw_first {
-            Some(raw_run(&mut baker)?)
-        } else {
-            None
-        };
-        let mut sum = 0.0f64;
-        let cpu0 = cpu_seconds();
-        let report = baker.trace(&lights, &mut |_, k, _| {
-            // Occluded samples = K × covered samples per texel (rounded once at the end).
-            sum += k
-                .iter()
-                .zip(&covered)
-                .map(|(&v, &c)| v as f64 * c)
-                .sum::<f64>();
-            Ok(())
-        })?;
-        let cpu_ours = cpu_seconds() - cpu0;
-        let (t_raw, t_raw_primary, cpu_raw, rays, occluded) = match early {
-            Some(r) => r,
-            None => raw_run(&mut baker)?,
-        };
-        let skipped = report.shadow_rays_skipped;
-        let t_ours = report.seconds_primary + report.seconds_shadow;
-        ours_rays = report.primary_rays + report.shadow_rays;
-        ours_occluded = sum.round();
-        best_ours = best_ours.min(t_ours);
-        raw_rays = rays;
-        // Samples facing away from the light count as occluded in ours but are not traced.
-        raw_occluded = occluded + skipped;
-        best_raw = best_raw.min(t_raw);
-        // Shadow rays per CPU second, ours over raw.
-        cpu_ratios.push(
-            (report.shadow_rays as f64 / cpu_ours)
-                / ((raw_rays - (res * res * spp) as u64) as f64 / cpu_raw),
+        let mut row = vec![Timing::default(); loops.len()];
+        // Rotate the order, so that no loop profits from a warmer cache or a quieter machine
+        // by its position.
+        for k in 0..loops.len() {
+            let i = (k + rep) % loops.len();
+            let name = loops[i].as_str();
+            row[i] = if let Some(w) = name.strip_prefix("ours") {
+                let width = if w.is_empty() { None } else { Some(w.parse()?) };
+                ours(&swatch, &lights, &cfg, width)?
+            } else if let Some(w) = name.strip_prefix("bare") {
+                match w {
+                    "" => bare.run(native, false, false),
+                    "clip" => bare.run(native, true, false),
+                    "fair" => bare.run(native, true, true),
+                    w => bare.run(w.parse()?, false, false),
+                }
+            } else {
+                return Err(format!("unknown loop {name}").into());
+            };
+        }
+        print!("run {rep}:");
+        for (name, t) in loops.iter().zip(&row) {
+            print!(
+                " | {name} {:.3} s (primary {:.3}, shadow {:.3} s, {:.2} cpu-s) {:.2} Mrays/s",
+                t.whole,
+                t.primary,
+                t.shadow,
+                t.cpu_shadow,
+                t.rays_per_s() / 1e6
+            );
+        }
+        println!();
+        runs.push(row);
+    }
+    let load1 = loadavg();
+    let first = &runs[0];
+    println!("rays traced per loop (occluded among them; samples counted occluded in all):");
+    for (name, t) in loops.iter().zip(first) {
+        println!("  {name}: {} ({}; {})", t.traced, t.occluded, t.counted);
+    }
+    let base = loops
+        .iter()
+        .position(|l| l.starts_with("bare"))
+        .unwrap_or(0);
+    let median = |mut v: Vec<f64>| -> (f64, f64, f64) {
+        v.sort_by(f64::total_cmp);
+        (v[v.len() / 2], v[0], v[v.len() - 1])
+    };
+    println!(
+        "medians of {repeats} runs (min–max); ratios against {} within each run:",
+        loops[base]
+    );
+    for (i, name) in loops.iter().enumerate() {
+        let rate = median(runs.iter().map(|r| r[i].rays_per_s() / 1e6).collect());
+        let whole = median(runs.iter().map(|r| r[i].whole).collect());
+        let r_rate = median(
+            runs.iter()
+                .map(|r| r[i].rays_per_s() / r[base].rays_per_s())
+                .collect(),
         );
+        let r_cpu = median(
+            runs.iter()
+                .map(|r| {
+                    (r[i].traced as f64 / r[i].cpu_shadow)
+                        / (r[base].traced as f64 / r[base].cpu_shadow)
+                })
+                .collect(),
+        );
+        let r_whole = median(runs.iter().map(|r| r[i].whole / r[base].whole).collect());
         println!(
-            "run {rep}{}: ours {:.3} s (primary {:.3} s) {:.2} Mrays/s; raw {:.3} s (primary {:.3} s) {:.2} Mrays/s",
-            if raw_first { " (raw first)" } else { "" },
-            t_ours,
-            report.seconds_primary,
-            ours_rays as f64 / t_ours / 1e6,
-            t_raw,
-            t_raw_primary,
-            raw_rays as f64 / t_raw / 1e6
+            "  {name}: {:.2} Mrays/s ({:.2}–{:.2}), whole {:.3} s ({:.3}–{:.3}); rays/s ratio {:.3} ({:.3}–{:.3}), per CPU-s {:.3} ({:.3}–{:.3}); whole-time ratio {:.3} ({:.3}–{:.3})",
+            rate.0, rate.1, rate.2, whole.0, whole.1, whole.2, r_rate.0, r_rate.1, r_rate.2,
+            r_cpu.0, r_cpu.1, r_cpu.2, r_whole.0, r_whole.1, r_whole.2
         );
     }
-    let ours = ours_rays as f64 / best_ours / 1e6;
-    let raw = raw_rays as f64 / best_raw / 1e6;
-    println!("rays: ours {ours_rays}, raw {raw_rays} (occluded samples: raw {raw_occluded}, ours {ours_occluded:.0})");
-    cpu_ratios.sort_by(|a, b| a.partial_cmp(b).unwrap());
-    println!(
-        "shadow pass, CPU time: ours/raw throughput ratio median {:.3} (min {:.3}, max {:.3})",
-        cpu_ratios[cpu_ratios.len() / 2],
-        cpu_ratios[0],
-        cpu_ratios[cpu_ratios.len() - 1]
-    );
-    println!(
-        "best of {repeats}: ours {ours:.2} Mrays/s, raw Embree {raw:.2} Mrays/s, ratio {:.3}",
-        ours / raw
-    );
+    println!("load average before {load0}, after {load1}");
     Ok(())
 }
 
-/// CPU seconds (user + system) this process has used, from /proc/self/stat (10 ms ticks on
-/// Linux); NaN elsewhere. On a loaded machine CPU time compares the two loops' work more
-/// fairly than wall time.
-fn cpu_seconds() -> f64 {
-    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
-        return f64::NAN;
-    };
-    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
-    let rest = stat.rsplit_once(')').map_or("", |r| r.1);
-    let f: Vec<f64> = rest
-        .split_whitespace()
-        .skip(11)
-        .take(2)
-        .filter_map(|v| v.parse().ok())
-        .collect();
-    if f.len() == 2 {
-        (f[0] + f[1]) / 100.0
-    } else {
-        f64::NAN
+/// The baker, whole: device, scenes, primary hits, then every light; the sink counts occluded
+/// samples (K × covered samples, summed per light).
+fn ours(
+    swatch: &PreparedMesh,
+    lights: &ptm_format::LightSet,
+    cfg: &BakeConfig,
+    width: Option<usize>,
+) -> Result<Timing, ptm_bake::Error> {
+    let t0 = Instant::now();
+    let mut baker = Baker::new(swatch, cfg)?;
+    if let Some(w) = width {
+        baker.set_packet_width(w)?;
+    }
+    let spp = cfg.spp as f64;
+    let covered: Vec<f64> = baker.coverage().iter().map(|&c| c as f64 * spp).collect();
+    let mut counted = 0.0f64;
+    let cpu0 = cpu_seconds();
+    let rep = baker.trace(lights, &mut |_, k, _| {
+        counted += k
+            .iter()
+            .zip(&covered)
+            .map(|(&v, &c)| v as f64 * c)
+            .sum::<f64>();
+        Ok(())
+    })?;
+    Ok(Timing {
+        whole: t0.elapsed().as_secs_f64(),
+        primary: rep.seconds_primary,
+        shadow: rep.seconds_shadow,
+        cpu_shadow: cpu_seconds() - cpu0,
+        traced: rep.shadow_rays,
+        occluded: (counted.round() as u64).saturating_sub(rep.shadow_rays_skipped),
+        counted: counted.round() as u64,
+    })
+}
+
+/// The bare loop's primary hits, sub-sample by sub-sample in image order (row, column, sample):
+/// shadow-ray origins and unit normals as flat arrays, so that a packet of `W` consecutive
+/// sub-samples is a copy of `W` floats per coordinate.
+struct Hits {
+    org: [Vec<f32>; 3],
+    n: [Vec<f32>; 3],
+    hit: Vec<bool>,
+}
+
+struct Bare<'a> {
+    baker: &'a Baker,
+    scenes: &'a [&'a Scene],
+    dirs: &'a [[f64; 3]],
+    res: usize,
+    spp: usize,
+    pool: &'a rayon::ThreadPool,
+}
+
+impl Bare<'_> {
+    fn run(&self, width: usize, clip: bool, facing: bool) -> Timing {
+        match width {
+            16 => self.run_w::<16>(clip, facing),
+            8 => self.run_w::<8>(clip, facing),
+            4 => self.run_w::<4>(clip, facing),
+            w => panic!("bare loop of width {w}: 4, 8 or 16"),
+        }
+    }
+
+    /// The primary pass: per sub-sample the hit point moved off the surface along the normal
+    /// face-forwarded to the camera (the baker's arithmetic, so the rays are the same).
+    fn primary(&self) -> Hits {
+        let (res, spp) = (self.res, self.spp);
+        let tile = self.baker.tile();
+        let (z_top, eps) = (self.baker.z_cap() as f32, self.baker.ray_offset());
+        let scene = self.baker.primary_scene();
+        let n = res * res * spp;
+        let mut rows: Vec<([Vec<f32>; 6], Vec<bool>)> = Vec::new();
+        self.pool.install(|| {
+            rows = (0..res)
+                .into_par_iter()
+                .map(|j| {
+                    let mut c: [Vec<f32>; 6] = Default::default();
+                    let mut hit = Vec::with_capacity(res * spp);
+                    for i in 0..res {
+                        for s in 0..spp {
+                            let [x, y] = sample_xy([res, res], tile, spp, 0, [i, j], s);
+                            let org = [x as f32, y as f32, z_top];
+                            let h = scene.intersect1(org, [0.0, 0.0, -1.0], 0.0, f32::INFINITY);
+                            let len = h.map_or(0.0, |h| {
+                                h.ng.iter()
+                                    .map(|&c| c as f64 * c as f64)
+                                    .sum::<f64>()
+                                    .sqrt()
+                            });
+                            let (p, n) = match h {
+                                Some(h) if len > 0.0 => {
+                                    let sign = if h.ng[2] < 0.0 { -1.0 } else { 1.0 } / len;
+                                    let n = h.ng.map(|c| c as f64 * sign);
+                                    ([x, y, z_top as f64 - h.t as f64], n)
+                                }
+                                _ => ([0.0; 3], [0.0; 3]),
+                            };
+                            for a in 0..3 {
+                                c[a].push((p[a] + eps * n[a]) as f32);
+                                c[3 + a].push(n[a] as f32);
+                            }
+                            hit.push(h.is_some() && len > 0.0);
+                        }
+                    }
+                    (c, hit)
+                })
+                .collect()
+        });
+        let mut hits = Hits {
+            org: Default::default(),
+            n: Default::default(),
+            hit: Vec::with_capacity(n),
+        };
+        for (c, hit) in rows {
+            for a in 0..3 {
+                hits.org[a].extend_from_slice(&c[a]);
+                hits.n[a].extend_from_slice(&c[3 + a]);
+            }
+            hits.hit.extend_from_slice(&hit);
+        }
+        hits
+    }
+
+    /// Every light: one coherent packet per `W` consecutive sub-samples (the issue's C loop:
+    /// 16 sub-samples, that is 4 texels × spp 4), rayon over image rows.
+    fn run_w<const W: usize>(&self, clip: bool, facing: bool) -> Timing {
+        let (res, spp) = (self.res, self.spp);
+        let z_top = self.baker.z_cap() as f32;
+        let t0 = Instant::now();
+        let hits = self.primary();
+        let t_primary = t0.elapsed().as_secs_f64();
+        let t1 = Instant::now();
+        let cpu0 = cpu_seconds();
+        let (occluded, traced) = (AtomicU64::new(0), AtomicU64::new(0));
+        let row = res * spp;
+        for (l, scene) in self.dirs.iter().zip(self.scenes) {
+            let l = l.map(|c| c as f32);
+            self.pool.install(|| {
+                (0..res).into_par_iter().for_each(|j| {
+                    let (mut occ, mut n) = (0u64, 0u64);
+                    let mut rays = Packet::<W>::default();
+                    let mut valid = Valid::<W>::default();
+                    rays.dir_x = [l[0]; W];
+                    rays.dir_y = [l[1]; W];
+                    rays.dir_z = [l[2]; W];
+                    for k in (j * row..(j + 1) * row).step_by(W) {
+                        let m = W.min((j + 1) * row - k);
+                        let mut any = false;
+                        for i in 0..W {
+                            let on = i < m
+                                && hits.hit[k + i]
+                                && (!facing
+                                    || l[0] * hits.n[0][k + i]
+                                        + l[1] * hits.n[1][k + i]
+                                        + l[2] * hits.n[2][k + i]
+                                        > 0.0);
+                            valid.0[i] = -(on as i32);
+                            any |= on;
+                        }
+                        if !any {
+                            continue;
+                        }
+                        rays.org_x[..m].copy_from_slice(&hits.org[0][k..k + m]);
+                        rays.org_y[..m].copy_from_slice(&hits.org[1][k..k + m]);
+                        rays.org_z[..m].copy_from_slice(&hits.org[2][k..k + m]);
+                        for i in 0..W {
+                            rays.tfar[i] = if clip {
+                                (z_top - rays.org_z[i]) / l[2]
+                            } else {
+                                f32::INFINITY
+                            };
+                        }
+                        scene.occluded_packet(&valid, &mut rays);
+                        for i in 0..W {
+                            let on = valid.0[i] != 0;
+                            occ += (on && rays.occluded(i)) as u64;
+                            n += on as u64;
+                        }
+                    }
+                    occluded.fetch_add(occ, Ordering::Relaxed);
+                    traced.fetch_add(n, Ordering::Relaxed);
+                })
+            });
+        }
+        let shadow = t1.elapsed().as_secs_f64();
+        let occluded = occluded.load(Ordering::Relaxed);
+        Timing {
+            whole: t_primary + shadow,
+            primary: t_primary,
+            shadow,
+            cpu_shadow: cpu_seconds() - cpu0,
+            traced: traced.load(Ordering::Relaxed),
+            occluded,
+            counted: occluded,
+        }
     }
 }
 
-/// Minimal loop: primary `rtcIntersect1` per sample into a flat array, then per light one
-/// coherent `rtcOccluded16` packet per (4×4 block, sample); returns (seconds, seconds of the
-/// primary pass, CPU seconds of the shadow pass, rays, occluded).
-fn raw_loop(
-    baker: &Baker,
-    scenes: &[&Scene],
-    dirs: &[[f64; 3]],
-    res: usize,
-    spp: usize,
-) -> (f64, f64, f64, u64, u64) {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .start_handler(|_| embree::set_ftz_daz())
-        .build()
-        .unwrap();
-    let tile = baker.tile();
-    let (z_top, eps) = (baker.z_cap() as f32, baker.ray_offset() as f32);
-    let primary = baker.primary_scene();
-    let b = res / 4;
-    let occluded = AtomicU64::new(0);
-    let t0 = Instant::now();
-    // Per (block, sample, lane): origin and normal; NaN origin marks a miss.
-    let mut hits = vec![([f32::NAN; 3], [0.0f32; 3]); b * b * spp * 16];
-    pool.install(|| {
-        hits.par_chunks_mut(spp * 16)
-            .enumerate()
-            .for_each(|(blk, out)| {
-                for s in 0..spp {
-                    for lane in 0..16 {
-                        let (i, j) = ((blk % b) * 4 + lane % 4, (blk / b) * 4 + lane / 4);
-                        let [x, y] = sample_xy([res, res], tile, spp, 0, [i, j], s);
-                        let (x, y) = (x as f32, y as f32);
-                        if let Some(h) =
-                            primary.intersect1([x, y, z_top], [0.0, 0.0, -1.0], 0.0, f32::INFINITY)
-                        {
-                            let len =
-                                (h.ng[0] * h.ng[0] + h.ng[1] * h.ng[1] + h.ng[2] * h.ng[2]).sqrt();
-                            // Face-forward towards the camera, as ours does.
-                            let sign = if h.ng[2] < 0.0 { -1.0 } else { 1.0 } / len;
-                            let n = h.ng.map(|c| c * sign);
-                            out[s * 16 + lane] = (
-                                [x + eps * n[0], y + eps * n[1], z_top - h.t + eps * n[2]],
-                                n,
-                            );
-                        }
-                    }
-                }
-            })
-    });
-    let t_primary = t0.elapsed().as_secs_f64();
-    let cpu0 = cpu_seconds();
-    let mut rays = (res * res * spp) as u64;
-    let shadow = AtomicU64::new(0);
-    for (l, scene) in dirs.iter().zip(scenes) {
-        let l = l.map(|c| c as f32);
-        pool.install(|| {
-            hits.par_chunks(spp * 16).for_each(|blk| {
-                let (mut occ, mut traced) = (0u64, 0u64);
-                for s in 0..spp {
-                    let mut valid = Valid16::default();
-                    let mut rays = embree::empty_ray16();
-                    for lane in 0..16 {
-                        let (o, n) = blk[s * 16 + lane];
-                        if o[0].is_nan() || n[0] * l[0] + n[1] * l[1] + n[2] * l[2] <= 0.0 {
-                            continue;
-                        }
-                        valid.0[lane] = -1;
-                        rays.org_x[lane] = o[0];
-                        rays.org_y[lane] = o[1];
-                        rays.org_z[lane] = o[2];
-                        rays.dir_x[lane] = l[0];
-                        rays.dir_y[lane] = l[1];
-                        rays.dir_z[lane] = l[2];
-                        rays.tfar[lane] = (z_top - o[2]) / l[2];
-                    }
-                    if valid.0 == [0; 16] {
-                        continue;
-                    }
-                    scene.occluded16(&valid, &mut rays);
-                    for lane in 0..16 {
-                        traced += (valid.0[lane] != 0) as u64;
-                        occ += Scene::lane_occluded(&rays, lane) as u64;
-                    }
-                }
-                occluded.fetch_add(occ, Ordering::Relaxed);
-                shadow.fetch_add(traced, Ordering::Relaxed);
-            })
-        });
+/// The CPU's model name and family/model, from /proc/cpuinfo.
+fn cpu_name() -> String {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let field = |k: &str| {
+        info.lines()
+            .find(|l| l.starts_with(k))
+            .and_then(|l| l.split_once(':'))
+            .map_or(String::new(), |(_, v)| v.trim().to_string())
+    };
+    let avx512 = field("flags").split(' ').any(|f| f == "avx512f");
+    format!(
+        "{} (family {} model {}), {}",
+        field("model name"),
+        field("cpu family"),
+        field("model\t"),
+        if avx512 { "AVX-512" } else { "no AVX-512" }
+    )
+}
+
+/// The 1, 5 and 15 minute load averages.
+fn loadavg() -> String {
+    std::fs::read_to_string("/proc/loadavg")
+        .map(|s| s.split_whitespace().take(3).collect::<Vec<_>>().join(" "))
+        .unwrap_or_default()
+}
+
+/// User + system CPU seconds of this process so far, all threads (`CLOCK_PROCESS_CPUTIME_ID`).
+fn cpu_seconds() -> f64 {
+    #[repr(C)]
+    struct Timespec {
+        sec: i64,
+        nsec: i64,
     }
-    rays += shadow.load(Ordering::Relaxed);
-    let occluded = occluded.load(Ordering::Relaxed);
-    let t = t0.elapsed().as_secs_f64();
-    (t, t_primary, cpu_seconds() - cpu0, rays, occluded)
+    extern "C" {
+        fn clock_gettime(clock: i32, ts: *mut Timespec) -> i32;
+    }
+    const CLOCK_PROCESS_CPUTIME_ID: i32 = 2;
+    let mut ts = Timespec { sec: 0, nsec: 0 };
+    // SAFETY: clock_gettime writes one timespec (two i64 on 64-bit Linux) to `ts`.
+    if unsafe { clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &mut ts) } != 0 {
+        return f64::NAN;
+    }
+    ts.sec as f64 + ts.nsec as f64 * 1e-9
 }

@@ -1,11 +1,12 @@
 //! A small safe wrapper over `embree4-sys`: device, triangle and instance geometry, committed
-//! scenes, and the three queries the baker needs (`rtcIntersect1`, `rtcOccluded1`,
-//! `rtcOccluded16`), plus FTZ/DAZ for tracing threads.
+//! scenes, and the queries the baker needs (`rtcIntersect1`, `rtcOccluded1`, and
+//! `rtcOccluded4/8/16` packets at the CPU's native width), plus FTZ/DAZ for tracing threads.
 //!
 //! Hazards handled here (see `/work/shared/notes/bake.md`): the config string passed to
 //! `rtcNewDevice` is NUL-terminated; `rtcIntersect1` gets a 96-byte padded `RTCRayHit` because
 //! Embree 4.4 built with instance arrays writes `instPrimID` past the 80-byte struct of the 4.2
-//! headers; errors arrive through a device callback instead of a `rtcGetDeviceError` per ray.
+//! headers, and for the same reason a ray packet has room for its hit record ([`Packet`]);
+//! errors arrive through a device callback instead of a `rtcGetDeviceError` per ray.
 use std::ffi::{c_char, c_void, CStr, CString};
 use std::ptr;
 use std::sync::Mutex;
@@ -74,6 +75,24 @@ impl Device {
     pub fn version(&self) -> isize {
         // SAFETY: valid device.
         unsafe { sys::rtcGetDeviceProperty(self.raw, sys::RTCDeviceProperty::VERSION) }
+    }
+
+    /// The widest shadow-ray packet this CPU traces natively: 16 with AVX-512, 8 with AVX2, 4
+    /// with SSE; 1 if Embree has no packet kernels at all. Wider packets work everywhere but
+    /// are traced one ray at a time where not native ([`Packet`]).
+    pub fn packet_width(&self) -> usize {
+        use sys::RTCDeviceProperty as P;
+        // SAFETY: valid device; these properties are plain queries.
+        let native = |p| unsafe { sys::rtcGetDeviceProperty(self.raw, p) } != 0;
+        if native(P::NATIVE_RAY16_SUPPORTED) {
+            16
+        } else if native(P::NATIVE_RAY8_SUPPORTED) {
+            8
+        } else if native(P::NATIVE_RAY4_SUPPORTED) {
+            4
+        } else {
+            1
+        }
     }
 
     /// The first error Embree reported since the last call, as an `Err`.
@@ -236,14 +255,92 @@ pub struct Hit {
     pub ng: [f32; 3],
 }
 
-/// 16 rays for `rtcOccluded16`, structure of arrays as Embree wants them (64-byte aligned).
-pub type Ray16 = sys::RTCRay16;
+/// Lanes of `RTCHitN` in Embree 4.4 built with instance arrays: `Ng_x`, `Ng_y`, `Ng_z`, `u`,
+/// `v`, `primID`, `geomID`, `instID[1]`, `instPrimID[1]`.
+const HIT_FIELDS: usize = 9;
 
-/// The lane mask of a 16-ray packet: −1 active, 0 inactive. Embree loads it with 64-byte
-/// aligned vector loads, so it must be aligned like the packet.
+/// A packet of `N` rays (4, 8 or 16) for `rtcOccluded4/8/16`: the `RTCRayN` structure of arrays
+/// Embree reads, then room for the `RTCHitN` that follows it in an `RTCRayHitN`.
+///
+/// The room is not optional. Where the CPU has no native `N`-wide kernel (16 on any CPU without
+/// AVX-512, 8 without AVX2), Embree 4.4's `rtcOccludedN` traces the valid lanes one by one: it
+/// treats the `RTCRayN*` as an `RTCRayHitN*`, copies each lane's ray *and hit* fields out, and
+/// writes them all back (disassembly of `rtcOccluded16` in libembree4 4.4.0). On an `RTCRay16`
+/// alone that reads and rewrites 576 bytes past its end: on a stack, memory of the caller's
+/// frames, such as another rayon job's result and latch, written back stale while a thief
+/// wrote them (bench_bake's raw loop panicked with "entered unreachable code" in rayon's
+/// job.rs, or hung). The whole `RTCRayHitN` is always addressable here.
 #[repr(C, align(64))]
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Valid16(pub [i32; 16]);
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Packet<const N: usize> {
+    /// Origins.
+    pub org_x: [f32; N],
+    /// Origins.
+    pub org_y: [f32; N],
+    /// Origins.
+    pub org_z: [f32; N],
+    /// Start of each ray (in units of its direction).
+    pub tnear: [f32; N],
+    /// Directions (need not be unit).
+    pub dir_x: [f32; N],
+    /// Directions.
+    pub dir_y: [f32; N],
+    /// Directions.
+    pub dir_z: [f32; N],
+    /// Motion-blur time (unused: 0).
+    pub time: [f32; N],
+    /// End of each ray; Embree sets it to −∞ on an occluded lane.
+    pub tfar: [f32; N],
+    /// Ray masks (all bits: every geometry).
+    pub mask: [u32; N],
+    /// Ray ids (unused).
+    pub id: [u32; N],
+    /// Ray flags (0).
+    pub flags: [u32; N],
+    /// The `RTCHitN` fields Embree's one-by-one fallback reads and writes back.
+    hit: [[u32; N]; HIT_FIELDS],
+}
+
+impl<const N: usize> Default for Packet<N> {
+    /// Zero origins and directions, `tnear` 0, `tfar` +∞, every mask bit.
+    fn default() -> Self {
+        Self {
+            org_x: [0.0; N],
+            org_y: [0.0; N],
+            org_z: [0.0; N],
+            tnear: [0.0; N],
+            dir_x: [0.0; N],
+            dir_y: [0.0; N],
+            dir_z: [0.0; N],
+            time: [0.0; N],
+            tfar: [f32::INFINITY; N],
+            mask: [u32::MAX; N],
+            id: [0; N],
+            flags: [0; N],
+            hit: [[u32::MAX; N]; HIT_FIELDS],
+        }
+    }
+}
+
+impl<const N: usize> Packet<N> {
+    /// Whether lane `lane` of a traced packet hit something (Embree sets its `tfar` to −∞).
+    pub fn occluded(&self, lane: usize) -> bool {
+        self.tfar[lane] == f32::NEG_INFINITY
+    }
+}
+
+/// The lane mask of an `N`-ray packet: −1 active, 0 inactive. Embree loads it with aligned
+/// vector loads (a 16-byte aligned mask segfaulted `rtcOccluded16` in Embree 4.4).
+#[repr(C, align(64))]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Valid<const N: usize>(pub [i32; N]);
+
+impl<const N: usize> Default for Valid<N> {
+    /// No lane active.
+    fn default() -> Self {
+        Self([0; N])
+    }
+}
 
 fn occluded_args(coherent: bool) -> sys::RTCOccludedArguments {
     // What `rtcInitOccludedArguments` (a header inline function) does, with our flag.
@@ -320,24 +417,26 @@ impl Scene {
         ray.tfar == f32::NEG_INFINITY
     }
 
-    /// Traces the active lanes (`valid[i] == -1`) of a 16-ray packet with the COHERENT flag
-    /// (all lanes of one call should share a direction). Afterwards a lane is occluded iff its
-    /// `tfar` is `-inf` ([`Scene::lane_occluded`]).
-    pub fn occluded16(&self, valid: &Valid16, rays: &mut Ray16) {
+    /// Traces the active lanes (`valid[i] == -1`) of an `N`-ray packet (`N` = 4, 8 or 16)
+    /// with the COHERENT flag (all lanes of one call should share a direction; INCOHERENT
+    /// cost 6 % more instructions per ray on the weave). Afterwards a lane is occluded iff its
+    /// `tfar` is −∞ ([`Packet::occluded`]). Any `N` works on any CPU; [`Device::packet_width`]
+    /// says which one Embree traces natively.
+    pub fn occluded_packet<const N: usize>(&self, valid: &Valid<N>, rays: &mut Packet<N>) {
         let mut args = occluded_args(true);
-        // SAFETY: committed scene; `Ray16` and `Valid16` are 64-byte aligned.
-        unsafe { sys::rtcOccluded16(valid.0.as_ptr(), self.raw, rays, &mut args) };
+        let (v, r) = (valid.0.as_ptr(), rays as *mut Packet<N>);
+        // SAFETY: committed scene; the packet and the mask are 64-byte aligned, the packet is an
+        // `RTCRayN` followed by room for the `RTCHitN` Embree may touch, laid out as Embree's
+        // (field offsets tested below), and `N` picks the function of that width.
+        unsafe {
+            match N {
+                4 => sys::rtcOccluded4(v, self.raw, r.cast(), &mut args),
+                8 => sys::rtcOccluded8(v, self.raw, r.cast(), &mut args),
+                16 => sys::rtcOccluded16(v, self.raw, r.cast(), &mut args),
+                _ => panic!("Embree traces packets of 4, 8 or 16 rays, not {N}"),
+            }
+        }
     }
-
-    /// Whether lane `lane` of a packet traced by [`Scene::occluded16`] hit something (Embree sets its `tfar` to −∞).
-    pub fn lane_occluded(rays: &Ray16, lane: usize) -> bool {
-        rays.tfar[lane] == f32::NEG_INFINITY
-    }
-}
-
-/// An inactive 16-ray packet (fill the lanes you use).
-pub fn empty_ray16() -> Ray16 {
-    Ray16::default()
 }
 
 /// Sets flush-to-zero and denormals-are-zero on the calling thread, as Embree recommends for
@@ -375,14 +474,43 @@ pub fn ftz_daz_enabled() -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::mem::{align_of, offset_of, size_of};
 
     #[test]
     fn ray_hit_is_padded_to_96_bytes() {
-        assert_eq!(std::mem::size_of::<sys::RTCRayHit>(), 80);
-        assert_eq!(std::mem::size_of::<RayHitPadded>(), 96);
-        assert_eq!(std::mem::align_of::<RayHitPadded>(), 16);
-        assert_eq!(std::mem::align_of::<Ray16>(), 64);
-        assert_eq!(std::mem::align_of::<Valid16>(), 64);
+        assert_eq!(size_of::<sys::RTCRayHit>(), 80);
+        assert_eq!(size_of::<RayHitPadded>(), 96);
+        assert_eq!(align_of::<RayHitPadded>(), 16);
+    }
+
+    #[test]
+    fn packets_are_embree_ray_hit_packets_with_instance_arrays() {
+        // The ray part is RTCRayN field for field; the whole is RTCRayHitN of Embree 4.4
+        // (RTCHitN of the 4.2 headers plus one instPrimID array).
+        macro_rules! same_ray {
+            ($n:literal, $sys:ty, $hit:ty) => {{
+                type P = Packet<$n>;
+                assert_eq!(offset_of!(P, org_x), offset_of!($sys, org_x));
+                assert_eq!(offset_of!(P, org_z), offset_of!($sys, org_z));
+                assert_eq!(offset_of!(P, tnear), offset_of!($sys, tnear));
+                assert_eq!(offset_of!(P, dir_x), offset_of!($sys, dir_x));
+                assert_eq!(offset_of!(P, time), offset_of!($sys, time));
+                assert_eq!(offset_of!(P, tfar), offset_of!($sys, tfar));
+                assert_eq!(offset_of!(P, mask), offset_of!($sys, mask));
+                assert_eq!(offset_of!(P, flags), offset_of!($sys, flags));
+                assert_eq!(offset_of!(P, hit), size_of::<$sys>());
+                // Padded to 64 bytes for N = 4 and 8.
+                let need = size_of::<$sys>() + size_of::<$hit>() + 4 * $n;
+                assert_eq!(size_of::<P>(), need.next_multiple_of(64));
+                assert_eq!(align_of::<P>(), 64);
+                assert_eq!(align_of::<Valid<$n>>(), 64);
+            }};
+        }
+        same_ray!(4, sys::RTCRay4, sys::RTCHit4);
+        same_ray!(8, sys::RTCRay8, sys::RTCHit8);
+        same_ray!(16, sys::RTCRay16, sys::RTCHit16);
+        // What the disassembled fallback of rtcOccluded16 reaches: bytes 0..0x540.
+        assert_eq!(size_of::<Packet<16>>(), 0x540);
     }
 
     fn quad(z: f32) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
@@ -392,10 +520,48 @@ mod tests {
         )
     }
 
+    /// Lanes over x = x0 + 0.5, x0 + 1.5, … pointing up from z = 0, `tfar` 10; the last lane
+    /// inactive.
+    fn up_rays<const N: usize>(rays: &mut Packet<N>, valid: &mut Valid<N>, x0: usize) {
+        for lane in 0..N {
+            valid.0[lane] = if lane == N - 1 { 0 } else { -1 };
+            rays.org_x[lane] = 0.5 + (x0 + lane) as f32;
+            rays.org_y[lane] = 0.5;
+            rays.dir_z[lane] = 1.0;
+            rays.tfar[lane] = 10.0;
+        }
+    }
+
+    fn check_width<const N: usize>(inst: &Scene) {
+        // Instances at x offsets 0 and 2: only lanes over x = 0.5 and 2.5 are occluded.
+        for x0 in [0, 1] {
+            let mut rays = Packet::<N>::default();
+            let mut valid = Valid::<N>::default();
+            up_rays(&mut rays, &mut valid, x0);
+            let before = rays;
+            inst.occluded_packet(&valid, &mut rays);
+            for lane in 0..N - 1 {
+                let x = x0 + lane;
+                assert_eq!(rays.occluded(lane), x == 0 || x == 2, "width {N}, x {x}");
+                let single = inst.occluded1([0.5 + x as f32, 0.5, 0.0], [0.0, 0.0, 1.0], 0.0, 10.0);
+                assert_eq!(
+                    single,
+                    rays.occluded(lane),
+                    "width {N}, single ray at x {x}"
+                );
+            }
+            assert!(!rays.occluded(N - 1), "inactive lane untouched");
+            // Nothing but tfar changes, whichever kernel (native or one by one) traced it.
+            rays.tfar = before.tfar;
+            assert_eq!(rays, before, "width {N}");
+        }
+    }
+
     #[test]
     fn queries_agree_on_a_quad_and_its_instances() {
         let dev = Device::new("verbose=0").unwrap();
         assert!(dev.version() >= 40000, "version {}", dev.version());
+        assert!([1, 4, 8, 16].contains(&dev.packet_width()));
         let (p, t) = quad(0.5);
         let s = dev.triangle_scene(&p, &t).unwrap();
         let h = s
@@ -407,29 +573,72 @@ mod tests {
             .is_none());
         assert!(s.occluded1([0.5, 0.5, 0.0], [0.0, 0.0, 1.0], 0.0, 1.0));
         assert!(!s.occluded1([0.5, 0.5, 0.0], [0.0, 0.0, 1.0], 0.0, 0.4));
-        // Instances at x offsets 0 and 2: lanes over x = 0.5, 1.5, 2.5, ...
         let inst = dev
             .instance_scene(&s, &[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
             .unwrap();
-        let mut rays = empty_ray16();
-        let mut valid = Valid16::default();
-        for lane in 0..16 {
-            valid.0[lane] = if lane == 15 { 0 } else { -1 };
-            rays.org_x[lane] = 0.5 + lane as f32;
-            rays.org_y[lane] = 0.5;
-            rays.dir_z[lane] = 1.0;
-            rays.tfar[lane] = 10.0;
-        }
         set_ftz_daz();
         assert!(ftz_daz_enabled());
-        inst.occluded16(&valid, &mut rays);
-        for lane in 0..15 {
-            let expect = lane == 0 || lane == 2;
-            assert_eq!(Scene::lane_occluded(&rays, lane), expect, "lane {lane}");
-            let single = inst.occluded1([0.5 + lane as f32, 0.5, 0.0], [0.0, 0.0, 1.0], 0.0, 10.0);
-            assert_eq!(single, expect, "single lane {lane}");
-        }
-        assert!(!Scene::lane_occluded(&rays, 15), "inactive lane untouched");
+        check_width::<4>(&inst);
+        check_width::<8>(&inst);
+        check_width::<16>(&inst);
         dev.take_error("test").unwrap();
+    }
+
+    /// Embree touches nothing past a packet's `RTCRayHitN`, whichever kernel traces it: each
+    /// width's packet ends exactly where an inaccessible page begins, so a stray read or write
+    /// faults. (On a CPU without AVX-512, `rtcOccluded16` is the one-by-one fallback, which
+    /// reads and writes the hit fields: a bare `RTCRay16` placed so faults.)
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn packets_end_where_embree_stops_touching_memory() {
+        use std::ffi::c_int;
+        extern "C" {
+            fn mmap(
+                addr: *mut c_void,
+                len: usize,
+                prot: c_int,
+                flags: c_int,
+                fd: c_int,
+                off: i64,
+            ) -> *mut c_void;
+            fn mprotect(addr: *mut c_void, len: usize, prot: c_int) -> c_int;
+            fn munmap(addr: *mut c_void, len: usize) -> c_int;
+        }
+        const PAGE: usize = 4096;
+        const PROT_NONE: c_int = 0;
+        const PROT_RW: c_int = 1 | 2;
+        const MAP_PRIVATE_ANON: c_int = 0x02 | 0x20;
+        fn at_page_end<const N: usize>(inst: &Scene) {
+            // SAFETY: a fresh private mapping of two pages, the second made inaccessible; the
+            // packet lies inside the first, is written before it is read, and the mapping is
+            // unmapped after its last use.
+            unsafe {
+                let base = mmap(ptr::null_mut(), 2 * PAGE, PROT_RW, MAP_PRIVATE_ANON, -1, 0);
+                assert!(!base.is_null() && base as isize != -1, "mmap");
+                assert_eq!(
+                    mprotect(base.cast::<u8>().add(PAGE).cast(), PAGE, PROT_NONE),
+                    0
+                );
+                let at = base.cast::<u8>().add(PAGE - size_of::<Packet<N>>());
+                assert_eq!(at as usize % 64, 0);
+                let rays = at.cast::<Packet<N>>();
+                rays.write(Packet::default());
+                let mut valid = Valid::<N>::default();
+                up_rays(&mut *rays, &mut valid, 0);
+                inst.occluded_packet(&valid, &mut *rays);
+                assert!((*rays).occluded(0) && !(*rays).occluded(1) && (*rays).occluded(2));
+                assert_eq!(munmap(base, 2 * PAGE), 0);
+            }
+        }
+        let dev = Device::new("verbose=0").unwrap();
+        let (p, t) = quad(0.5);
+        let s = dev.triangle_scene(&p, &t).unwrap();
+        let inst = dev
+            .instance_scene(&s, &[[0.0, 0.0, 0.0], [2.0, 0.0, 0.0]])
+            .unwrap();
+        set_ftz_daz();
+        at_page_end::<4>(&inst);
+        at_page_end::<8>(&inst);
+        at_page_end::<16>(&inst);
     }
 }

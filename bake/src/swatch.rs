@@ -332,8 +332,9 @@ pub const MAX_TILES_SPANNED: f64 = 16.0;
 /// The longest side of a tile over its shortest (a strip of 1024 threads by one is 1024).
 pub const MAX_TILE_ASPECT: f64 = 1e4;
 
-/// The most tiles a mesh may be tall (long pile over a small tile), as its shadow runs are.
-pub const MAX_TILES_TALL: f64 = crate::tiling::MAX_RUN_TILES;
+/// The most tiles a mesh may be tall (long pile over a small tile); the copies follow shadow
+/// runs as long (`tiling::MAX_RUN_TILES` is defined from this).
+pub const MAX_TILES_TALL: f64 = 256.0;
 
 /// The OBJ reader's errors as the bake's own, with the same messages (`spec` names a file the
 /// reader did not).

@@ -10,7 +10,7 @@
 //! copies on the far side of the light. For a point light the receiver-to-light segments are
 //! cut where they cross z_max; the region is the hull of the tile and its corners moved along
 //! those segments.
-use crate::swatch::Bounds;
+use crate::swatch::{Bounds, MAX_TILES_TALL};
 
 /// Copies (a, b) whose geometry can meet a ray that starts over the central tile and runs
 /// inside the convex hull of the tile and the points `extra` (xy, mesh units). `margin`
@@ -58,8 +58,9 @@ pub fn copies_meeting(
 
 /// Longest horizontal shadow run, in tiles, that the copies follow. A light a hair above the
 /// horizon would otherwise need millions of copies; beyond this run a ray counts as lit and
-/// the light is reported as capped ([`run_is_capped`]).
-pub const MAX_RUN_TILES: f64 = 256.0;
+/// the light is reported as capped ([`run_is_capped`]). As long as a mesh may be tall, so that
+/// a light at 45° is never capped.
+pub const MAX_RUN_TILES: f64 = MAX_TILES_TALL;
 
 /// Whether direction `l`'s shadow run exceeds [`MAX_RUN_TILES`].
 pub fn run_is_capped(tile: [f64; 2], bounds: &Bounds, l: [f64; 3]) -> bool {
