@@ -130,18 +130,10 @@ pub(super) fn warm_start<S: Simd, const M: usize>(
     cl
 }
 
-/// For fitting light n of a tile: ω(σ(z) − k) and ωσ(z)(1 − σ(z)), z = aₙ·c (0 where the sample
-/// is left out). z is summed in two chains to halve its latency.
+/// z = aₙ·c for light n of a tile, summed in two chains (even and odd monomials) to halve its
+/// latency; the Newton step and the final pass take z from here, so both see the same sums.
 #[inline(always)]
-fn residual_weight<S: Simd, const M: usize>(
-    cpu: S,
-    t: &Tables,
-    kt: &[f32],
-    c: &[S::V; M],
-    n: usize,
-) -> (S::V, S::V) {
-    let l = S::LANES;
-    let kv = cpu.load(&kt[n * l..]);
+fn z_of<S: Simd, const M: usize>(cpu: S, t: &Tables, c: &[S::V; M], n: usize) -> S::V {
     let an = &t.a[n * M..(n + 1) * M];
     let (mut z0, mut z1) = (cpu.splat(0.0), cpu.splat(0.0));
     let mut j = 0;
@@ -153,7 +145,22 @@ fn residual_weight<S: Simd, const M: usize>(
     if j < M {
         z0 = cpu.fma(cpu.splat(an[j]), c[j], z0);
     }
-    let p = cpu.sigmoid(cpu.add(z0, z1));
+    cpu.add(z0, z1)
+}
+
+/// For fitting light n of a tile: ω(σ(z) − k) and ωσ(z)(1 − σ(z)), z = aₙ·c (0 where the sample
+/// is left out).
+#[inline(always)]
+fn residual_weight<S: Simd, const M: usize>(
+    cpu: S,
+    t: &Tables,
+    kt: &[f32],
+    c: &[S::V; M],
+    n: usize,
+) -> (S::V, S::V) {
+    let l = S::LANES;
+    let kv = cpu.load(&kt[n * l..]);
+    let p = cpu.sigmoid(z_of(cpu, t, c, n));
     let o = cpu.where_nonneg(kv, cpu.splat(t.omega[n]));
     let r = cpu.mul(o, cpu.sub(p, kv));
     let w = cpu.mul(cpu.mul(o, p), cpu.sub(cpu.splat(1.0), p));
@@ -342,19 +349,7 @@ pub(super) fn final_pass<S: Simd, const M: usize>(
     let (mut ss, mut mx, mut hs, mut hn) = (zero, zero, zero, zero);
     let (mut valid, mut ones, mut zeros, mut wrong) = (zero, zero, zero, zero);
     for n in 0..t.used.len() {
-        let an = &t.a[n * M..(n + 1) * M];
-        // z in two chains, as in `residual_weight`.
-        let (mut z0, mut z1) = (zero, zero);
-        let mut j = 0;
-        while j + 1 < M {
-            z0 = cpu.fma(cpu.splat(an[j]), c[j], z0);
-            z1 = cpu.fma(cpu.splat(an[j + 1]), c[j + 1], z1);
-            j += 2;
-        }
-        if j < M {
-            z0 = cpu.fma(cpu.splat(an[j]), c[j], z0);
-        }
-        let z = cpu.add(z0, z1);
+        let z = z_of(cpu, t, &c, n);
         let kv = cpu.load(&kt[n * l..]);
         let e = cpu.sub(cpu.sigmoid(z), kv);
         let e2 = cpu.where_nonneg(kv, cpu.mul(e, e));
