@@ -317,9 +317,12 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     Ok(scene)
 }
 
+/// An 8-bit RGBA image: width, height, texels.
+type Rgba8 = (usize, usize, Vec<[u8; 4]>);
+
 /// The casters `--caster builtin:NAME` names: `leaves` (256², 60 translucent green discs).
 /// `None` for a file.
-fn builtin_caster(path: &Path) -> anyhow::Result<Option<(usize, usize, Vec<[u8; 4]>)>> {
+fn builtin_caster(path: &Path) -> anyhow::Result<Option<Rgba8>> {
     let Some(name) = path.to_str().and_then(|s| s.strip_prefix("builtin:")) else {
         return Ok(None);
     };
