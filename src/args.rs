@@ -142,7 +142,8 @@ impl Choice for Blur {
 #[derive(clap::Args, Clone, Debug)]
 pub struct ModelArgs {
     /// Link from polynomial to K. The default measured best on every built-in swatch
-    /// (README, "What accuracy costs"); `--link identity --uv projected` is the patent's PTM.
+    /// (docs/model.md, "What accuracy costs"); `--link identity --uv projected` is the patent's
+    /// PTM, fitted by least squares.
     #[arg(long, value_parser = choice::<Link>(), default_value = "logistic")]
     pub link: Link,
     /// Map from light direction to (u, v).

@@ -21,7 +21,9 @@ pub struct Args {
     /// Swatch: an OBJ file (polygons are triangulated) or builtin:NAME[?k=v&...].
     #[arg(long, default_value = "builtin:plain-weave")]
     pub swatch: String,
-    /// Tile size W,H in mesh units (default: a builtin's tile, or the OBJ's x/y bounding box).
+    /// Tile size W,H in mesh units. Default: a builtin's own tile; for an OBJ its `# tile W H`
+    /// comment (which `ptm swatch` writes before the first vertex; some OBJ editors drop it),
+    /// else the x/y bounding box, which is larger than the tile when yarns overhang it.
     #[arg(
         long,
         value_name = "W,H",
@@ -29,10 +31,12 @@ pub struct Args {
         allow_hyphen_values = true
     )]
     pub tile: Option<Vec<f64>>,
-    /// Texels over the central tile: N (square) or W,H.
+    /// Texels over the central tile: W,H, or N along the tile's longer side and the other side
+    /// in proportion, so that texels are square (N×N on a square tile).
     #[arg(long, value_name = "N|W,H", value_delimiter = ',', num_args = 1..=2, default_values_t = [64])]
     pub res: Vec<usize>,
-    /// N spherical Fibonacci light directions above --min-elevation.
+    /// N spherical Fibonacci light directions above --min-elevation (default 32 when neither
+    /// --dome nor --lights is given).
     #[arg(long, value_name = "N", conflicts_with_all = ["dome", "lights"])]
     pub dirs: Option<usize>,
     /// Dome layout: rings:E1xC1,E2xC2,... (elevation in degrees x light count) or fibonacci:N.
@@ -88,7 +92,7 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
     // are inputs are refused before any input is read.
     let destinations = destinations(args)?;
     let (swatch, t_load) = resolve_swatch(args)?;
-    let (res, rows) = resolve_rows(args)?;
+    let (res, rows) = resolve_rows(args, swatch.tile)?;
     let lights = build_dome(args, [res[0], rows.len()])?;
     let part = match check_outputs(args, res, &swatch, &lights)? {
         Output::Complete(path) => {
@@ -122,19 +126,44 @@ fn resolve_swatch(args: &Args) -> anyhow::Result<(PreparedMesh, f64)> {
     let swatch = PreparedMesh::load(&args.swatch, tile)?;
     let t_load = t0.elapsed().as_secs_f64();
     for w in &swatch.warnings() {
-        eprintln!("ptm bake: warning: {w}");
+        eprintln!("ptm bake: warning: {}", crate::errors::swatch_warning(w));
     }
     Ok((swatch, t_load))
 }
 
-/// The whole bake's texels (`--res`) and the rows this run traces and holds: all of them, or
-/// a farm shard's block. Refuses the flag combinations a shard cannot bake.
-fn resolve_rows(args: &Args) -> anyhow::Result<([usize; 2], Range<usize>)> {
+/// `--res N` on a `tile`: N texels along its longer side and the other side in proportion
+/// (rounded, at least 1), so that texels are square to within half a texel over the tile.
+pub fn square_texels(n: usize, tile: [f64; 2]) -> [usize; 2] {
+    let other = |short: f64, long: f64| ((n as f64 * short / long).round() as usize).max(1);
+    if tile[0] >= tile[1] {
+        [n, other(tile[1], tile[0])]
+    } else {
+        [other(tile[0], tile[1]), n]
+    }
+}
+
+/// The whole bake's texels (`--res`: W,H, or N along the tile's longer side with square
+/// texels) and the rows this run traces and holds: all of them, or a farm shard's block.
+/// Refuses the flag combinations a shard cannot bake.
+fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Range<usize>)> {
     let res = match args.res[..] {
-        [n] => [n, n],
+        [n] => square_texels(n, tile),
         [w, h] => [w, h],
         _ => bail!("--res takes N or W,H"),
     };
+    if args.res.len() == 1 && res[0] != res[1] {
+        eprintln!(
+            "ptm bake: --res {} on the {}×{} tile: {}×{} texels, square ({:.4}×{:.4} mesh units; \
+             --res W,H sets both)",
+            args.res[0],
+            tile[0],
+            tile[1],
+            res[0],
+            res[1],
+            tile[0] / res[0] as f64,
+            tile[1] / res[1] as f64
+        );
+    }
     // A shard traces and holds only its rows.
     let rows = match args.shard {
         Some(s) => s.rows(res[1])?,
@@ -632,9 +661,17 @@ fn bake_json(
         degenerate_triangles: swatch.degenerate,
         tile: swatch.tile,
         seam_mismatch: swatch.seams.map(|s| s.mismatch.and_then(json::finite)),
-        warnings: swatch.warnings().iter().map(ToString::to_string).collect(),
+        warnings: swatch
+            .warnings()
+            .iter()
+            .map(crate::errors::swatch_warning)
+            .collect(),
         width: res[0],
         height: res[1],
+        texel: [
+            swatch.tile[0] / res[0] as f64,
+            swatch.tile[1] / res[1] as f64,
+        ],
         spp: args.spp,
         seed: args.seed,
         lights: lights.len(),

@@ -43,6 +43,17 @@ pub fn fit_warnings(ds: &[Diagnostic]) -> Vec<String> {
     ds.iter().map(fit_warning).collect()
 }
 
+/// A swatch diagnostic of the bake in words, with the flag that replaces a bounding-box tile.
+pub fn swatch_warning(w: &ptm_bake::Diagnostic) -> String {
+    match w {
+        ptm_bake::Diagnostic::NotPeriodic {
+            tile_from_bounds: true,
+            ..
+        } => format!("{w} (--tile W,H)"),
+        _ => w.to_string(),
+    }
+}
+
 /// The command's wording of one cause, when it is a library error that needs one.
 fn hinted(e: &(dyn StdError + 'static)) -> Option<String> {
     if let Some(e) = e.downcast_ref::<ptm_format::Error>() {

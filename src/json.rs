@@ -200,6 +200,8 @@ pub struct Baked {
     pub width: usize,
     /// Rows of the whole bake.
     pub height: usize,
+    /// A texel's width and height in mesh units (tile / texels: square for `--res N`).
+    pub texel: [f64; 2],
     /// Footprint samples per texel.
     pub spp: u32,
     /// Seed of the sample positions.
@@ -317,6 +319,9 @@ pub struct Fit {
     pub lights_fit: usize,
     /// Indices of the held-out lights.
     pub holdout_lights: Vec<usize>,
+    /// The hold-out count is the default (an eighth of the lights where the dome allows it),
+    /// not `--holdout N`.
+    pub holdout_default: bool,
     /// Coefficients per texel.
     pub coefficients: usize,
     /// Rank of the design matrix.
@@ -339,7 +344,7 @@ pub struct Fit {
     pub rms_error: Stats,
     /// Largest |residual| of K per texel (null where the fit does not measure it).
     pub max_error: Option<Stats>,
-    /// RMS error of K per texel on the held-out lights (null without `--holdout`).
+    /// RMS error of K per texel on the held-out lights (null when none are held out).
     pub holdout_rms_error: Option<Stats>,
     /// Non-finite samples dropped (`--skip-bad`).
     pub skipped_samples: usize,
@@ -351,6 +356,15 @@ pub struct Fit {
     pub half_error_bound: Option<f64>,
     /// The HP PTM 1.2 export (null without `--export-hp`).
     pub hp_export: Option<HpExport>,
+    /// `--png-k`: K of the fit under light `png_light` as a grey PNG (absent without it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub png_k: Option<String>,
+    /// The light `png_k` shows (absent without `--png-k`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub png_light: Option<usize>,
+    /// `--png-error`: the per-texel RMS residual as a grey PNG, white = 0.25 (absent without it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub png_error: Option<String>,
     /// How an RTI image stack's values became K (null for a sample stack).
     pub images: Option<Images>,
     /// The whole run.
@@ -413,6 +427,9 @@ pub struct Render {
     pub size: [u32; 2],
     /// The view's rectangle on the cloth [x0, y0, x1, y1], swatch units.
     pub view: [f32; 4],
+    /// Tiles of the PTM across and down the view (`--repeat`, widened along one side when
+    /// `--size` has another aspect than the tiles).
+    pub tiles: [f32; 2],
     /// Lights in the scene.
     pub lights: usize,
     /// The blur method (null without a caster).
@@ -478,6 +495,12 @@ pub struct Turntable {
     pub frames: u32,
     /// Frames per row of the sheet.
     pub columns: usize,
+    /// Rows of frames.
+    pub rows: usize,
+    /// Pixels of grey gutter between frames and around the sheet.
+    pub gutter: usize,
+    /// Per frame, the azimuth the lights were turned by, degrees (its label on the sheet).
+    pub azimuths_deg: Vec<f32>,
     /// Seconds per render pass, per frame.
     pub seconds_passes: Vec<Passes>,
 }

@@ -38,11 +38,14 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Ray-trace a tileable swatch from a dome of lights: per-texel occluded fraction K.
+    /// Ray-trace a tileable swatch from a dome of lights: per texel and light the occluded
+    /// fraction K (a sample stack, or with --fit a PTM).
     Bake(bake::Args),
-    /// Least-squares fit of a PTM (K as a polynomial in the light's (u, v)) per texel.
+    /// Fit a PTM per texel (K as a polynomial in the light's (u, v)): logistic maximum
+    /// likelihood by default, least squares with --link identity.
     Fit(fit::Args),
-    /// Render the swatch plane under area lights with the GPU runtime, modulated by 1 − K.
+    /// Render the swatch plane under area lights on the GPU, shaded by 1 − K of a PTM and the
+    /// soft shadow of a planar caster.
     Preview(preview::Args),
     /// Generate a procedural tileable swatch as an OBJ file.
     Swatch(swatch::Args),

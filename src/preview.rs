@@ -15,7 +15,8 @@ use crate::json;
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Occlusion PTM (`ptm fit` output). Without it the plane renders with no K.
+    /// Occlusion PTM (`ptm fit` output) in either layout: NAME.ptm.exr, or the renderer layout's
+    /// NAME.ptm.c0.exr (NAME.ptm.exr when only its parts exist). Without it, no K.
     #[arg(long)]
     pub ptm: Option<PathBuf>,
     /// Output sRGB PNG (not with --window).
@@ -24,16 +25,18 @@ pub struct Args {
     /// Also write the linear radiance as an RGB float EXR.
     #[arg(long)]
     pub exr: Option<PathBuf>,
-    /// Output size in pixels.
-    #[arg(long, value_parser = parse_pair::<u32>, default_value = "512,512")]
-    pub size: (u32, u32),
+    /// Output size W,H in pixels. Default: 512 along the longer side of the tiles shown
+    /// (--repeat), the other side in proportion, so that the cloth's texels stay square. A
+    /// size of another aspect shows more cloth along one side (`--json`'s `tiles` says how much).
+    #[arg(long, value_parser = parse_pair::<u32>)]
+    pub size: Option<(u32, u32)>,
     /// Light centre x,y,z in swatch units (z above the cloth); repeat for several lights.
     /// Default: one light at 37° elevation, up and to the left, far enough (3.3 view widths) for
     /// the lighting to stay even across the view, low enough for the weave to shadow itself.
     #[arg(long, value_parser = parse_triple, allow_hyphen_values = true)]
     pub light: Vec<[f32; 3]>,
     /// Sphere radius per light (the last value repeats for further lights). Default: 5% of
-    /// the view's width.
+    /// the view's longer side.
     #[arg(long)]
     pub light_radius: Vec<f32>,
     /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen
@@ -43,21 +46,23 @@ pub struct Args {
     /// Linear RGB colour per light (last repeats).
     #[arg(long, value_parser = parse_triple)]
     pub color: Vec<[f32; 3]>,
-    /// Tiles of the PTM across the view in each direction.
-    #[arg(long, default_value_t = 2)]
-    pub repeat: u32,
+    /// Tiles of the PTM shown: N (N across and N down, whatever the tile's aspect) or X,Y.
+    #[arg(long, value_name = "N|X,Y", value_parser = parse_repeat, default_value = "2")]
+    pub repeat: (u32, u32),
     /// Constant linear albedo r,g,b.
     #[arg(long, value_parser = parse_triple, default_value = "0.8,0.8,0.8")]
     pub albedo: [f32; 3],
     /// Albedo texture (sRGB PNG), tiled with the PTM.
     #[arg(long)]
     pub albedo_texture: Option<PathBuf>,
-    /// Planar RGBA caster image (alpha = opacity), parallel to the cloth.
+    /// Planar RGBA caster image (alpha = opacity), parallel to the cloth, or `builtin:leaves`
+    /// (a generated 256² cut-out of leaves). Its default placement scales with the view.
     #[arg(long)]
     pub caster: Option<PathBuf>,
-    /// Caster height above the cloth (swatch units).
-    #[arg(long, default_value_t = 0.5)]
-    pub caster_height: f32,
+    /// Caster height above the cloth (swatch units). Default: an eighth of the view's longer
+    /// side (0.5 over the default 2×2 tiles of a 2×2 swatch).
+    #[arg(long)]
+    pub caster_height: Option<f32>,
     /// Tilt of the caster in degrees about its centre line parallel to X (positive lifts its far,
     /// +Y edge); the whole caster must stay above the cloth. Not with --blur separable.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
@@ -86,7 +91,9 @@ pub struct Args {
     /// Vertical field of view of the perspective camera, degrees.
     #[arg(long, default_value_t = 45.0)]
     pub fov: f32,
-    /// Render N light azimuths (lights turned about the view's centre) into a contact sheet.
+    /// Render N light azimuths (lights turned about the view's centre by 360°/N each) into a
+    /// sheet: frames in a grid that fits N (8: 4×2), each under its azimuth label, with grey
+    /// gutters between them.
     #[arg(long, value_name = "N")]
     pub turntable: Option<u32>,
     /// Render with every blur method and the CPU Monte Carlo ground truth; print the error and
@@ -121,6 +128,38 @@ fn parse_pair<T: std::str::FromStr>(s: &str) -> Result<(T, T), String> {
     }
 }
 
+fn parse_repeat(s: &str) -> Result<(u32, u32), String> {
+    let (x, y) = match s.split_once(',') {
+        None => {
+            let n = s
+                .trim()
+                .parse()
+                .map_err(|_| format!("`{s}` is not a whole number"))?;
+            (n, n)
+        }
+        Some(_) => parse_pair::<u32>(s)?,
+    };
+    if x == 0 || y == 0 {
+        return Err(format!("`{s}`: at least 1 tile each way"));
+    }
+    Ok((x, y))
+}
+
+/// The output size: `--size`, or 512 pixels along the longer side of `view` (x0, y0, x1, y1)
+/// and the other side in proportion (at least 1).
+fn output_size(args: &Args, view: [f32; 4]) -> [u32; 2] {
+    if let Some((w, h)) = args.size {
+        return [w, h];
+    }
+    let (vw, vh) = (view[2] - view[0], view[3] - view[1]);
+    let side = |a: f32, b: f32| ((512.0 * a / b).round() as u32).clamp(1, 512);
+    if vw >= vh {
+        [512, side(vh, vw)]
+    } else {
+        [side(vw, vh), 512]
+    }
+}
+
 fn parse_triple(s: &str) -> Result<[f32; 3], String> {
     let v: Vec<f32> = s
         .split(',')
@@ -139,19 +178,18 @@ fn nth<T: Copy>(v: &[T], i: usize, default: T) -> T {
     v.get(i).or(v.last()).copied().unwrap_or(default)
 }
 
-/// The scene the flags describe: the PTM (or plain cloth) tiled `--repeat` times, the view at
-/// the output's aspect, albedo, lights (one default light when none is given), the caster and
-/// the camera.
+/// The scene the flags describe: the PTM (or plain cloth) tiled `--repeat` times (X across, Y
+/// down), the output size (`--size`, or square pixels on those tiles), the view at the
+/// output's aspect, albedo, lights (one default light when none is given), the caster and the
+/// camera.
 fn build_scene(args: &Args) -> anyhow::Result<Scene> {
-    let size = [args.size.0, args.size.1];
-    if args.repeat == 0 {
-        bail!("--repeat must be at least 1");
-    }
+    let (rx, ry) = args.repeat;
     let mut scene = match &args.ptm {
         Some(path) => {
-            let ptm =
-                Ptm::load(path).with_context(|| format!("loading the PTM {}", path.display()))?;
-            Scene::over_ptm(ptm, args.repeat, size)
+            // Either layout (`ptm fit --layout rgba`'s parts, named by any part or the stem).
+            // Its errors name the file.
+            let ptm = ptm_format::layout::load(path)?;
+            Scene::over_ptm(ptm, 1, [1, 1])
         }
         None => {
             let mut s = Scene::over_ptm(
@@ -166,16 +204,24 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                     tile: [1.0, 1.0],
                     planes: vec![vec![0.0]; 6],
                 },
-                args.repeat,
-                size,
+                1,
+                [1, 1],
             );
             s.ptm = None;
             s
         }
     };
-    // A non-square output shows a non-square patch with square pixels.
+    // As `Scene::over_ptm` lays out its view, in f64 then rounded once.
+    let tile = scene.ptm.as_ref().map_or([1.0, 1.0], |p| p.tile);
+    scene.view[2] = (tile[0] * rx as f64) as f32;
+    scene.view[3] = (tile[1] * ry as f64) as f32;
+    let size = output_size(args, scene.view);
+    scene.size = size;
+    // A non-square output shows a non-square patch with square pixels, widened (never cropped)
+    // along one side from the tiles asked for.
     let aspect = size[0] as f32 / size[1] as f32;
-    if aspect > 1.0 {
+    let view_aspect = (scene.view[2] - scene.view[0]) / (scene.view[3] - scene.view[1]);
+    if aspect > view_aspect {
         scene.view[2] = scene.view[0] + (scene.view[3] - scene.view[1]) * aspect;
     } else {
         scene.view[3] = scene.view[1] + (scene.view[2] - scene.view[0]) / aspect;
@@ -232,8 +278,13 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
         .collect();
 
     if let Some(path) = &args.caster {
-        check_image_size(path, "--caster")?;
-        let (w, h, rgba) = output::read_rgba8(path)?;
+        let (w, h, rgba) = match builtin_caster(path)? {
+            Some(c) => c,
+            None => {
+                check_image_size(path, "--caster")?;
+                output::read_rgba8(path)?
+            }
+        };
         let (cw, ch) = args.caster_size.unwrap_or((
             0.5 * (scene.view[2] - scene.view[0]),
             0.5 * (scene.view[3] - scene.view[1]),
@@ -244,7 +295,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
             height: h,
             rgba,
             rect: [cx - 0.5 * cw, cy - 0.5 * ch, cx + 0.5 * cw, cy + 0.5 * ch],
-            elevation: args.caster_height,
+            elevation: args.caster_height.unwrap_or(0.125 * extent),
             tilt_deg: args.caster_tilt,
         });
     }
@@ -264,6 +315,33 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
         });
     }
     Ok(scene)
+}
+
+/// An 8-bit RGBA image: width, height, texels.
+type Rgba8 = (usize, usize, Vec<[u8; 4]>);
+
+/// The casters `--caster builtin:NAME` names: `leaves` (256², 60 translucent green discs).
+/// `None` for a file.
+fn builtin_caster(path: &Path) -> anyhow::Result<Option<Rgba8>> {
+    let Some(name) = path.to_str().and_then(|s| s.strip_prefix("builtin:")) else {
+        return Ok(None);
+    };
+    match name {
+        "leaves" => {
+            let c = ptm_runtime::synthetic::leaves(256, [0.0; 4], 0.0);
+            Ok(Some((c.width, c.height, c.rgba)))
+        }
+        _ => bail!("--caster builtin:{name}: unknown builtin caster; there is builtin:leaves"),
+    }
+}
+
+/// Tiles of the PTM (or of the unit tile without one) across and down the view.
+fn tiles_shown(scene: &Scene) -> [f32; 2] {
+    let tile = scene.ptm.as_ref().map_or([1.0, 1.0], |p| p.tile);
+    [
+        ((scene.view[2] - scene.view[0]) as f64 / tile[0]) as f32,
+        ((scene.view[3] - scene.view[1]) as f64 / tile[1]) as f32,
+    ]
 }
 
 /// Refuses an image the decoder would refuse for its size with what the limit is and what to
@@ -351,8 +429,9 @@ pub fn run(args: &Args) -> anyhow::Result<json::Preview> {
     let mut report = json::Render {
         adapter: gpu.describe(),
         variant: prepared.variant.name(),
-        size: [args.size.0, args.size.1],
+        size: scene.size,
         view: scene.view,
+        tiles: tiles_shown(&scene),
         lights: scene.lights.len(),
         blur: scene.caster.as_ref().map(|_| scene.blur.name()),
         seconds_device: device_s,
@@ -385,7 +464,8 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
             args.exposure
         );
     }
-    let (w, h) = args.size;
+    // The default size is at most 512×512.
+    let (w, h) = args.size.unwrap_or((512, 512));
     if w == 0 || h == 0 || w > MAX_SIDE || h > MAX_SIDE {
         bail!("--size {w},{h}: each side must be 1 to {MAX_SIDE} pixels");
     }
@@ -497,13 +577,19 @@ fn render(
         per_frame.push(json::Passes(t.passes));
         frames.push(img);
     }
-    let columns = (n as f64).sqrt().ceil() as usize;
+    // Frame k turns the lights by 360°·k/n: its label is that azimuth.
+    let azimuths: Vec<f32> = (0..n).map(|k| 360.0 * k as f32 / n as f32).collect();
+    let labels: Vec<String> = azimuths.iter().map(|a| format!("{}°", a.round())).collect();
+    let layout = output::sheet_layout(frames.len(), frames[0].width, frames[0].height);
     report.turntable = Some(json::Turntable {
         frames: n,
-        columns,
+        columns: layout.columns,
+        rows: layout.rows,
+        gutter: layout.gutter,
+        azimuths_deg: azimuths,
         seconds_passes: per_frame,
     });
-    Ok(Image::contact_sheet(&frames, columns).expect("frames share one size"))
+    Ok(Image::labelled_sheet(&frames, &labels).expect("frames share one size"))
 }
 
 /// `--compare-blur`: every blur method against the Monte Carlo soft shadow, as a table on

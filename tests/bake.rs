@@ -289,3 +289,94 @@ fn bake_fit_writes_the_renderer_layout_and_convert_round_trips_it() {
     );
     assert!(!d.join("x.ptm.exr").exists());
 }
+
+/// Issue #25.7: an OBJ whose `# tile` header was dropped (as some OBJ tools do) bakes over its
+/// bounding box; when that tile is not periodic the warning names the likely cause and what to
+/// do, on stderr and in `--json`; `ptm bake --help` documents the header.
+#[test]
+fn a_dropped_tile_header_is_named_with_the_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A knit: its loops reach past the tile, so its bounding box is larger than the tile.
+    common::ok(["swatch", "jersey", "-o", "pw.obj"], d);
+    let obj = std::fs::read_to_string(d.join("pw.obj")).unwrap();
+    assert!(obj.contains("# tile "));
+    let edited: String = obj
+        .lines()
+        .filter(|l| !l.starts_with("# tile"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(d.join("edited.obj"), edited).unwrap();
+    let args = [
+        "bake",
+        "--swatch",
+        "edited.obj",
+        "--res",
+        "4",
+        "--dirs",
+        "4",
+    ];
+    let run = common::ptm([&args[..], &["--spp", "1", "-o", "s.exr"]].concat(), d);
+    assert!(run.ok, "{}", run.stderr);
+    for says in ["not periodic", "bounding box", "`# tile W H`", "--tile W,H"] {
+        assert!(run.stderr.contains(says), "no {says:?} in {}", run.stderr);
+    }
+    let j = common::json([&args[..], &["--spp", "1", "-o", "t.exr"]].concat(), d);
+    let w = j["warnings"].to_string();
+    assert!(w.contains("bounding box") && w.contains("--tile"), "{w}");
+    // With the header the same mesh bakes without a seam warning.
+    let run = common::ptm(
+        [
+            "bake", "--swatch", "pw.obj", "--res", "4", "--dirs", "4", "--spp", "1", "-o", "u.exr",
+        ],
+        d,
+    );
+    assert!(
+        run.ok && !run.stderr.contains("not periodic"),
+        "{}",
+        run.stderr
+    );
+    let help = common::ok(["bake", "--help"], d);
+    assert!(help.contains("# tile W H"), "{help}");
+}
+
+/// Issue #25.8: `--res N` on a non-square tile keeps texels square (N along the longer side),
+/// says so, and `--json` gives the texel's size; `--res W,H` is taken as given.
+#[test]
+fn res_n_keeps_texels_square_on_a_non_square_tile() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let flat = "# tile 2 0.716\nv 0 0 0\nv 2 0 0\nv 2 0.716 0\nv 0 0.716 0\nf 1 2 3 4\n";
+    std::fs::write(d.join("strip.obj"), flat).unwrap();
+    let bake = |res: &str, out: &str| {
+        let args = ["bake", "--swatch", "strip.obj", "--res", res, "--dirs", "4"];
+        common::ptm(
+            [&["--json"][..], &args, &["--spp", "1", "-o", out]].concat(),
+            d,
+        )
+    };
+    let run = bake("64", "a.exr");
+    assert!(run.ok, "{}", run.stderr);
+    let j: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+    assert_eq!(
+        (j["width"].as_u64(), j["height"].as_u64()),
+        (Some(64), Some(23)),
+        "{j}"
+    );
+    let texel = [
+        j["texel"][0].as_f64().unwrap(),
+        j["texel"][1].as_f64().unwrap(),
+    ];
+    assert!((texel[0] / texel[1] - 1.0).abs() < 0.01, "{texel:?}");
+    assert!(
+        run.stderr.contains("64×23 texels, square"),
+        "{}",
+        run.stderr
+    );
+    let run = bake("64,64", "b.exr");
+    let j: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+    assert_eq!(
+        (j["width"].as_u64(), j["height"].as_u64()),
+        (Some(64), Some(64))
+    );
+}

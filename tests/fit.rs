@@ -552,3 +552,75 @@ fn fit_command_reads_an_rti_image_stack() {
         "{k}"
     );
 }
+
+/// Issue #25.4: by default an eighth of the lights are held out where the dome leaves 4 lights
+/// per coefficient, and both figures are printed, labelled, with what they mean; `--holdout 0`
+/// fits every light; a dome too small for ptm11 holds none out and says why; `--png-k` and
+/// `--png-error` write K under the first held-out light and the residual map.
+#[test]
+fn the_fit_holds_out_lights_by_default_and_labels_both_errors() {
+    let dir = tmpdir();
+    let d = dir.path();
+    let lights = dome(32);
+    let (s, _) = stack(&lights, 6, 5, true);
+    s.write(&d.join("s.exr")).unwrap();
+    let run = ptm(
+        [
+            "--json",
+            "fit",
+            "s.exr",
+            "-o",
+            "a.ptm.exr",
+            "--png-k",
+            "k.png",
+            "--png-error",
+            "e.png",
+        ],
+        d,
+    );
+    assert!(run.ok, "{}", run.stderr);
+    let j: serde_json::Value = serde_json::from_str(&run.stdout).unwrap();
+    assert_eq!(j["holdout_lights"].as_array().unwrap().len(), 4, "{j}");
+    assert_eq!(
+        (j["lights_fit"].as_u64(), j["holdout_default"].as_bool()),
+        (Some(28), Some(true))
+    );
+    assert!(j["holdout_rms_error"]["mean"].as_f64().unwrap() > 0.0);
+    for says in [
+        "training residual",
+        "4 held-out lights",
+        "reading it",
+        "docs/model.md",
+    ] {
+        assert!(run.stderr.contains(says), "no {says:?} in {}", run.stderr);
+    }
+    // K under the first held-out light, as the PTM evaluates it, and the error map.
+    let first = j["holdout_lights"][0].as_u64().unwrap() as usize;
+    assert_eq!(j["png_light"].as_u64(), Some(first as u64));
+    let fitted = Ptm::load(&d.join("a.ptm.exr")).unwrap();
+    let (w, h, k) = ptm_runtime::output::read_rgba8(&d.join("k.png")).unwrap();
+    assert_eq!((w, h), (6, 5));
+    for (t, px) in k.iter().enumerate() {
+        let want = fitted.eval_dir(t % w, t / w, lights.dirs[first]);
+        assert!(
+            (px[0] as f32 - 255.0 * want).abs() <= 0.5 + 1e-3,
+            "texel {t}"
+        );
+    }
+    let (w, h, _) = ptm_runtime::output::read_rgba8(&d.join("e.png")).unwrap();
+    assert_eq!((w, h), (6, 5));
+    // --holdout 0 fits every light.
+    let j = common::json(["fit", "s.exr", "-o", "b.ptm.exr", "--holdout", "0"], d);
+    assert_eq!(
+        (j["lights_fit"].as_u64(), j["holdout_default"].as_bool()),
+        (Some(32), Some(false))
+    );
+    assert!(j["holdout_rms_error"].is_null());
+    // ptm11 on 32 lights: 28 would be under 4 × 11.
+    let run = ptm(["fit", "s.exr", "-o", "c.ptm.exr", "--basis", "ptm11"], d);
+    assert!(
+        run.ok && run.stderr.contains("too few to spare"),
+        "{}",
+        run.stderr
+    );
+}

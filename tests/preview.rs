@@ -121,8 +121,49 @@ fn preview_without_ptm_and_turntable_sheet() {
     ]);
     assert_eq!(j["variant"], "nok");
     assert_eq!(j["turntable"]["frames"], 5);
-    // 5 frames, 3 columns: 3 × 2 cells of 40 × 30.
-    assert_eq!(png_size(&png), (120, 60));
+    // 5 frames in one row of 40 × 30 under 7-pixel label strips, 2-pixel gutters.
+    assert_eq!(png_size(&png), (5 * 40 + 6 * 2, 37 + 2 * 2));
+}
+
+/// Issue #25.6: 8 turntable frames make a 4×2 sheet with no empty cell, grey gutters between
+/// the frames, and each frame's azimuth written above it.
+#[test]
+fn a_turntable_of_eight_is_four_by_two_with_gutters_and_labels() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("sheet.png");
+    let j = run_json(&["-o", p(&png), "--size", "40,30", "--turntable", "8"]);
+    let t = &j["turntable"];
+    assert_eq!(
+        (t["columns"].as_u64(), t["rows"].as_u64()),
+        (Some(4), Some(2)),
+        "{j}"
+    );
+    let az: Vec<f64> = t["azimuths_deg"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a.as_f64().unwrap())
+        .collect();
+    assert_eq!(az, [0.0, 45.0, 90.0, 135.0, 180.0, 225.0, 270.0, 315.0]);
+    let (w, h, rgba) = ptm_runtime::output::read_rgba8(&png).unwrap();
+    assert_eq!((w, h), (4 * 40 + 5 * 2, 2 * 37 + 3 * 2));
+    let at = |x: usize, y: usize| rgba[y * w + x];
+    let grey = at(0, 0);
+    assert!(grey[0] > 60 && grey[0] < 200, "gutter {grey:?}");
+    for cy in 0..2 {
+        for cx in 0..4 {
+            let (x0, y0) = (2 + cx * 42, 2 + cy * 39);
+            // The gutter before each cell, the label's white pixels in its strip, and a lit frame.
+            assert_eq!(at(x0 - 1, y0 + 20), grey);
+            let white = (y0..y0 + 7)
+                .flat_map(|y| (x0..x0 + 40).map(move |x| (x, y)))
+                .filter(|&(x, y)| at(x, y)[..3] == [255, 255, 255])
+                .count();
+            assert!(white >= 10, "cell {cx},{cy}: {white} label pixels");
+            let lit = (y0 + 7..y0 + 37).any(|y| at(x0 + 20, y)[0] > 20);
+            assert!(lit, "cell {cx},{cy} is black");
+        }
+    }
 }
 
 #[test]
@@ -183,4 +224,146 @@ fn preview_errors_name_the_problem() {
         assert!(!out.ok && err.contains(says), "{args:?}: {err}");
         assert!(!dir.path().join("x.png").exists());
     }
+}
+
+/// Issue #25.1: the renderer layout `ptm fit --layout rgba` writes renders as the channel
+/// layout does, named by its first part or by the stem when only the parts exist; an error
+/// never calls a renderer-layout part truncated.
+#[test]
+fn preview_reads_the_renderer_layout_by_either_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let channels = write_ptm(dir.path());
+    let loaded = Ptm::load(&channels).unwrap();
+    let rgba = dir.path().join("parts.ptm.exr");
+    ptm_format::layout::save(
+        &loaded,
+        &rgba,
+        &SaveOptions::default(),
+        ptm_format::Layout::Rgba,
+    )
+    .unwrap();
+    assert!(!rgba.exists() && dir.path().join("parts.ptm.c0.exr").exists());
+    let render = |input: &Path, name: &str| {
+        let png = dir.path().join(name);
+        let out = ptm(
+            [
+                "preview",
+                "--ptm",
+                p(input),
+                "-o",
+                p(&png),
+                "--size",
+                "32,32",
+            ],
+            dir.path(),
+        );
+        assert!(
+            out.ok && !out.stderr.contains("truncated"),
+            "{}: {}",
+            input.display(),
+            out.stderr
+        );
+        ptm_runtime::output::read_rgba8(&png).unwrap()
+    };
+    let want = render(&channels, "channels.png");
+    assert_eq!(render(&rgba, "stem.png"), want);
+    assert_eq!(render(&dir.path().join("parts.ptm.c0.exr"), "c0.png"), want);
+}
+
+/// Issue #25.8: on a non-square tile `--repeat N` shows N tiles each way and the default size
+/// keeps the cloth's texels square (512 along the longer side); `--repeat X,Y` picks each;
+/// `--json` says how many tiles the view shows.
+#[test]
+fn repeat_covers_both_axes_of_a_non_square_tile() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut strip = Ptm::load(&write_ptm(dir.path())).unwrap();
+    strip.tile = [2.0, 0.716];
+    let path = dir.path().join("strip.ptm.exr");
+    strip.save(&path, &SaveOptions::default()).unwrap();
+    let png = dir.path().join("r.png");
+    let j = run_json(&["--ptm", p(&path), "-o", p(&png), "--repeat", "2"]);
+    assert_eq!(png_size(&png), (512, 183), "{j}");
+    let tiles = j["tiles"].as_array().unwrap();
+    assert!((tiles[0].as_f64().unwrap() - 2.0).abs() < 0.01, "{j}");
+    assert!((tiles[1].as_f64().unwrap() - 2.0).abs() < 0.01, "{j}");
+    let j = run_json(&["--ptm", p(&path), "-o", p(&png), "--repeat", "3,8"]);
+    // 6 × 5.728 swatch units: 512 × 489 pixels, square on the cloth.
+    assert_eq!(png_size(&png), (512, 489), "{j}");
+    let view = j["view"].as_array().unwrap();
+    // Widened by at most the rounding of 489 pixels.
+    assert!(
+        (view[3].as_f64().unwrap() - 5.728).abs() < 6.0 / 512.0,
+        "{j}"
+    );
+    // A square --size of a wide view shows more tiles down, and says so.
+    let j = run_json(&["--ptm", p(&path), "-o", p(&png), "--size", "64,64"]);
+    let down = j["tiles"][1].as_f64().unwrap();
+    assert!((down - 4.0 / 0.716).abs() < 0.01, "{j}");
+}
+
+/// Issue #25.5: `--caster builtin:leaves` needs no file, its default placement (centre, size,
+/// height) scales with the view so that its shadow lands in frame on any tile, and a caster
+/// whose shadow misses the view is warned about on stderr and in `--json`.
+#[test]
+fn a_builtin_caster_shadows_the_view_and_a_missed_shadow_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cloth = Ptm::load(&write_ptm(dir.path())).unwrap();
+    let png = |n: &str| dir.path().join(n);
+    let plain = png("plain.png");
+    let leaves = png("leaves.png");
+    for (tile, name) in [([1.0, 1.0], "unit"), ([3.0, 3.0], "three")] {
+        cloth.tile = tile;
+        let path = dir.path().join(format!("{name}.ptm.exr"));
+        cloth.save(&path, &SaveOptions::default()).unwrap();
+        let args = ["--ptm", p(&path), "--size", "48,48"];
+        run_json(&[&args[..], &["-o", p(&plain)]].concat());
+        let j = run_json(&[&args[..], &["--caster", "builtin:leaves", "-o", p(&leaves)]].concat());
+        assert_eq!(j["warnings"], serde_json::json!([]), "{name}: {j}");
+        let mean = |f: &Path| {
+            let (_, _, px) = ptm_runtime::output::read_rgba8(f).unwrap();
+            px.iter().map(|p| p[1] as f64).sum::<f64>() / px.len() as f64
+        };
+        assert!(
+            mean(&leaves) < 0.97 * mean(&plain),
+            "{name}: no shadow in view"
+        );
+    }
+    let out = ptm(
+        [
+            "--json",
+            "preview",
+            "--caster",
+            "builtin:leaves",
+            "--caster-center",
+            "50,50",
+            "--size",
+            "32,32",
+            "-o",
+            p(&leaves),
+        ],
+        dir.path(),
+    );
+    assert!(out.ok, "{}", out.stderr);
+    assert!(
+        out.stderr.contains("caster's shadow under light 0"),
+        "{}",
+        out.stderr
+    );
+    let j: Value = serde_json::from_str(&out.stdout).unwrap();
+    assert!(
+        j["warnings"][0]
+            .as_str()
+            .unwrap()
+            .contains("wholly outside the view"),
+        "{j}"
+    );
+    let bad = ptm(
+        ["preview", "--caster", "builtin:oak", "-o", p(&leaves)],
+        dir.path(),
+    );
+    assert!(
+        !bad.ok && bad.stderr.contains("builtin:leaves"),
+        "{}",
+        bad.stderr
+    );
 }

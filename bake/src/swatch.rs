@@ -51,6 +51,9 @@ pub struct PreparedMesh {
     pub shift: [f64; 2],
     /// Seam match along x (index 0) and y (index 1).
     pub seams: [Seam; 2],
+    /// The tile is the mesh's x/y bounding box: none was given and the OBJ has no
+    /// `# tile W H` header.
+    pub tile_from_bounds: bool,
 }
 
 impl PreparedMesh {
@@ -223,6 +226,7 @@ impl PreparedMesh {
             bounds,
             shift,
             seams,
+            tile_from_bounds: given.is_none(),
         })
     }
 
@@ -252,6 +256,7 @@ impl PreparedMesh {
                 axis: s.axis,
                 mismatch: s.mismatch.map(|m| m * k),
             }),
+            tile_from_bounds: self.tile_from_bounds,
         }
     }
 
@@ -273,6 +278,7 @@ impl PreparedMesh {
                     tile: self.tile,
                     mismatch,
                     tolerance,
+                    tile_from_bounds: self.tile_from_bounds,
                 });
             }
         }
@@ -290,12 +296,15 @@ pub enum Diagnostic {
     DegenerateTriangles { origin: String, triangles: usize },
     /// The mesh's cross-sections at the tile's opposite borders along `axis` (0 = x, 1 = y)
     /// differ by up to `mismatch` (mesh units), over the `tolerance`: seams will show.
+    /// `tile_from_bounds`: the tile is the bounding box (no tile given, no `# tile` header),
+    /// the likely cause when the mesh overhangs its true tile.
     NotPeriodic {
         origin: String,
         axis: usize,
         tile: [f64; 2],
         mismatch: f64,
         tolerance: f64,
+        tile_from_bounds: bool,
     },
 }
 
@@ -312,6 +321,7 @@ impl std::fmt::Display for Diagnostic {
                 tile,
                 mismatch,
                 tolerance,
+                tile_from_bounds,
             } => {
                 let (a, b) = if *axis == 0 { ("x", "W") } else { ("y", "H") };
                 write!(
@@ -320,7 +330,18 @@ impl std::fmt::Display for Diagnostic {
                      and {a} = {b} differ by up to {mismatch:.3e} (tolerance {tolerance:.1e}); \
                      seams will show",
                     tile[0], tile[1]
-                )
+                )?;
+                if *tile_from_bounds {
+                    write!(
+                        f,
+                        ". The tile was taken from the mesh's x/y bounding box because the OBJ \
+                         has no `# tile W H` header (`ptm swatch` writes one; an OBJ editor that \
+                         drops comments loses it), and a mesh whose yarns overhang their tile \
+                         has a larger bounding box than its tile: put the header back or give \
+                         the tile size"
+                    )?;
+                }
+                Ok(())
             }
         }
     }

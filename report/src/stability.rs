@@ -454,7 +454,7 @@ pub fn precision(
                         ..Default::default()
                     },
                 )?;
-                let back = Ptm::load(&path)?;
+                let back = ptm_format::layout::load(&path)?;
                 let _ = std::fs::remove_file(&path);
                 let half = measure(&back, &truth.lights, &k_true, &cov);
                 rows.push(PrecisionRow {

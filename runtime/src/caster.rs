@@ -27,6 +27,46 @@ pub struct Caster {
     pub tilt_deg: f32,
 }
 
+impl Caster {
+    /// The rectangle [x0, y0, x1, y1] on the cloth (z = 0) that the caster's shadow under a
+    /// spherical light at `position` of `radius` can darken: its corners projected from the
+    /// light's centre, widened by the widest penumbra. `None` when the light is not above every
+    /// corner (the caster does not shadow it).
+    pub fn shadow_rect(&self, position: [f32; 3], radius: f32) -> Option<[f32; 4]> {
+        let [x0, y0, x1, y1] = self.rect;
+        let (cy, hh) = (0.5 * (y0 + y1), 0.5 * (y1 - y0));
+        let (s, c) = self.tilt_deg.to_radians().sin_cos();
+        let mut out = [
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        for x in [x0, x1] {
+            for side in [-1.0f32, 1.0] {
+                let (y, z) = (cy + side * hh * c, self.elevation + side * hh * s);
+                let above = position[2] - z;
+                if above.is_nan() || above <= 0.0 {
+                    return None;
+                }
+                let t = position[2] / above;
+                let spread = radius.max(0.0) * z.max(0.0) / above;
+                let hit = [
+                    position[0] + (x - position[0]) * t,
+                    position[1] + (y - position[1]) * t,
+                ];
+                out = [
+                    out[0].min(hit[0] - spread),
+                    out[1].min(hit[1] - spread),
+                    out[2].max(hit[0] + spread),
+                    out[3].max(hit[1] + spread),
+                ];
+            }
+        }
+        Some(out)
+    }
+}
+
 /// Box-downsamples a caster whose larger side exceeds [`MAX_CASTER_SIDE`] by the smallest
 /// integer factor that fits; returns (width, height, texels, factor).
 pub fn fit_caster(c: &Caster) -> (usize, usize, Vec<[u8; 4]>, usize) {
@@ -70,4 +110,36 @@ pub fn opacity_texels(rgba: &[[u8; 4]], colored: bool) -> Vec<u32> {
             o[0] | (o[1] << 8) | (o[2] << 16)
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_shadow_rectangle_is_the_projected_caster_widened_by_the_penumbra() {
+        let c = Caster {
+            width: 1,
+            height: 1,
+            rgba: vec![[0, 0, 0, 255]],
+            rect: [-0.5, -0.5, 0.5, 0.5],
+            elevation: 1.0,
+            tilt_deg: 0.0,
+        };
+        // Light at height 2 over the centre: the shadow is twice the caster; the penumbra of a
+        // sphere of radius 0.1 adds 0.1·1/(2 − 1) on each side.
+        assert_eq!(
+            c.shadow_rect([0.0, 0.0, 2.0], 0.0),
+            Some([-1.0, -1.0, 1.0, 1.0])
+        );
+        assert_eq!(
+            c.shadow_rect([0.0, 0.0, 2.0], 0.1),
+            Some([-1.1, -1.1, 1.1, 1.1])
+        );
+        // Off to +x at height 2: the shadow is thrown to −x.
+        let s = c.shadow_rect([4.0, 0.0, 2.0], 0.0).unwrap();
+        assert_eq!(s, [-5.0, -1.0, -3.0, 1.0]);
+        // A light on or below the caster plane is not shadowed by it.
+        assert_eq!(c.shadow_rect([0.0, 0.0, 1.0], 0.0), None);
+    }
 }

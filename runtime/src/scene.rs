@@ -380,6 +380,21 @@ impl Scene {
             link,
             uv,
         };
+        // A caster whose shadow misses the orthographic view (a perspective view sees more).
+        if let (Some(c), None) = (&self.caster, &self.perspective) {
+            for (i, l) in self.lights.iter().enumerate() {
+                let Some(s) = c.shadow_rect(l.position, l.radius) else {
+                    continue;
+                };
+                if s[2] < x0 || s[0] > x1 || s[3] < y0 || s[1] > y1 {
+                    warnings.push(Warning::CasterShadowMissesView {
+                        light: i,
+                        shadow: s,
+                        view: self.view,
+                    });
+                }
+            }
+        }
         Ok(SceneBuffers {
             frame,
             lights,
@@ -441,13 +456,24 @@ fn stored_levels(ptm: &Ptm, coeffs: &mut Vec<f32>, nonfinite: &mut usize) -> Vec
 }
 
 /// Data-dependent trouble found while preparing a scene, reported beside it (never an error).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Warning {
     /// The view minifies a logistic PTM whose file stores no MIP levels: the `levels`-level
     /// chain averages coefficients, which does not average K (σ is not linear).
     LogisticMipsDerived {
         /// Levels of the derived chain.
         levels: usize,
+    },
+    /// The caster's shadow under light `light` falls wholly outside the (orthographic) view:
+    /// `shadow` is the rectangle on the cloth it can darken ([`Caster::shadow_rect`]), `view`
+    /// the view's.
+    CasterShadowMissesView {
+        /// Index of the light.
+        light: usize,
+        /// The shadow's rectangle [x0, y0, x1, y1] on the cloth, swatch units.
+        shadow: [f32; 4],
+        /// The view's rectangle.
+        view: [f32; 4],
     },
 }
 
@@ -460,6 +486,18 @@ impl std::fmt::Display for Warning {
                  chain averages coefficients, which does not average K (σ is not linear) and \
                  misrenders distant cloth; minified logistic PTMs need stored levels: refit with \
                  `ptm fit`, which writes them"
+            ),
+            Warning::CasterShadowMissesView {
+                light,
+                shadow,
+                view,
+            } => write!(
+                f,
+                "the caster's shadow under light {light} falls on [{:.3}, {:.3}]×[{:.3}, {:.3}] \
+                 of the cloth, wholly outside the view [{:.3}, {:.3}]×[{:.3}, {:.3}]: none of it \
+                 shows; lower the caster, move it or the light, or scale the placement to the \
+                 tile",
+                shadow[0], shadow[2], shadow[1], shadow[3], view[0], view[2], view[1], view[3]
             ),
         }
     }

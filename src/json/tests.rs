@@ -154,6 +154,7 @@ impl Sample for Baked {
             warnings: s(),
             width: s(),
             height: s(),
+            texel: s(),
             spp: s(),
             seed: s(),
             lights: s(),
@@ -225,6 +226,7 @@ impl Sample for Fit {
             lights: s(),
             lights_fit: s(),
             holdout_lights: s(),
+            holdout_default: s(),
             coefficients: s(),
             rank: s(),
             condition_number: s(),
@@ -242,6 +244,9 @@ impl Sample for Fit {
             storage: s(),
             half_error_bound: s(),
             hp_export: s(),
+            png_k: s(),
+            png_light: s(),
+            png_error: s(),
             images: s(),
             seconds: s(),
             seconds_read: s(),
@@ -280,6 +285,7 @@ impl Sample for Render {
             variant: s(),
             size: s(),
             view: s(),
+            tiles: s(),
             lights: s(),
             blur: s(),
             seconds_device: s(),
@@ -313,6 +319,9 @@ impl Sample for Turntable {
         Turntable {
             frames: s(),
             columns: s(),
+            rows: s(),
+            gutter: s(),
+            azimuths_deg: s(),
             seconds_passes: s(),
         }
     }
