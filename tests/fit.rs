@@ -552,3 +552,55 @@ fn fit_command_reads_an_rti_image_stack() {
         "{k}"
     );
 }
+
+/// A flat RTI capture of `lights`: one 4×3 grey PNG per light, named `img_NN.png`, and its
+/// `.lp` file `dome.lp` in `dir`.
+fn rti_capture(dir: &Path, lights: &LightSet) -> std::path::PathBuf {
+    let mut lp = format!("{}\n", lights.len());
+    for (i, d) in lights.dirs.iter().enumerate() {
+        let name = format!("img_{i:02}.png");
+        write_grey_png(&dir.join(&name), 4, 3, &[200; 12]);
+        lp += &format!("{name} {} {} {}\n", d[0], d[1], d[2]);
+    }
+    let path = dir.join("dome.lp");
+    std::fs::write(&path, lp).unwrap();
+    path
+}
+
+#[test]
+fn images_the_lp_does_not_list_are_named() {
+    let dir = tmpdir();
+    let lp = rti_capture(dir.path(), &dome(12));
+    write_grey_png(&dir.path().join("stray.png"), 4, 3, &[0; 12]);
+    let pattern = format!("{}/*.png", dir.path().display());
+    let out = dir.path().join("rti.ptm.exr");
+    let args = [
+        "fit",
+        "--images",
+        &pattern,
+        "--lights",
+        p(&lp),
+        "-o",
+        p(&out),
+    ];
+    let run = ptm(args, dir.path());
+    assert!(run.ok, "{}", run.stderr);
+    assert!(
+        run.stderr.contains(&format!(
+            "warning: 1 image is not listed in {} and was ignored: stray.png",
+            lp.display()
+        )),
+        "{}",
+        run.stderr
+    );
+    write_grey_png(&dir.path().join("stray2.png"), 4, 3, &[0; 12]);
+    let run = ptm(args, dir.path());
+    assert!(
+        run.stderr.contains("2 images are not listed in")
+            && run
+                .stderr
+                .contains("and were ignored: stray.png, stray2.png"),
+        "{}",
+        run.stderr
+    );
+}

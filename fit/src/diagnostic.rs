@@ -73,6 +73,9 @@ pub enum Diagnostic {
     /// Logistic link with ridge 0: `texels` texels are separable, so their maximum-likelihood
     /// coefficients are infinite.
     Separable { texels: usize },
+    /// RTI images that the pattern matched but the `.lp` file `lp` does not list (file names),
+    /// left out of the stack.
+    UnusedImages { lp: String, images: Vec<String> },
     /// A diagnostic read back from a file, which records words only (a farm part's
     /// `part:warnings`).
     Recorded(String),
@@ -205,10 +208,23 @@ impl fmt::Display for Diagnostic {
                 f,
                 "{texels} texels are separable (K is 0 or 1 and a polynomial boundary splits them exactly) and the ridge is 0: their maximum-likelihood coefficients are infinite, so they stopped where the iteration cap left them"
             ),
+            Diagnostic::UnusedImages { lp, images } => {
+                let (n, shown) = (images.len(), images.len().min(UNUSED_SHOWN));
+                let (is, was) = if n == 1 { ("image is", "was") } else { ("images are", "were") };
+                write!(f, "{n} {is} not listed in {lp} and {was} ignored: ")?;
+                write!(f, "{}", images[..shown].join(", "))?;
+                if n > shown {
+                    write!(f, " and {} more", n - shown)?;
+                }
+                Ok(())
+            }
             Diagnostic::Recorded(words) => f.write_str(words),
         }
     }
 }
+
+/// How many of the images an [`Diagnostic::UnusedImages`] names before "and N more".
+const UNUSED_SHOWN: usize = 8;
 
 /// The words of each diagnostic, as a PTM file's `ptm:warnings` records them.
 pub fn words(diagnostics: &[Diagnostic]) -> Vec<String> {
@@ -281,5 +297,20 @@ mod tests {
             Diagnostic::Recorded("as read".into()).to_string(),
             "as read"
         );
+        let unused = |n: usize| Diagnostic::UnusedImages {
+            lp: "cap.lp".into(),
+            images: (0..n).map(|i| format!("IMG_{i}.png")).collect(),
+        };
+        assert_eq!(
+            unused(1).to_string(),
+            "1 image is not listed in cap.lp and was ignored: IMG_0.png"
+        );
+        assert_eq!(
+            unused(2).to_string(),
+            "2 images are not listed in cap.lp and were ignored: IMG_0.png, IMG_1.png"
+        );
+        assert!(unused(10)
+            .to_string()
+            .ends_with("IMG_6.png, IMG_7.png and 2 more"));
     }
 }

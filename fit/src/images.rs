@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Result, SampleStack};
+use crate::{Diagnostic, Error, Result, SampleStack};
 use ptm_format::LightSet;
 
 /// How 8-bit image values become visibility before K = 1 − visibility.
@@ -38,6 +38,30 @@ pub struct ImageStackInfo {
     pub srgb_decoded: usize,
     /// Images taken as linear values (16-bit or float, or all of them with [`Decoding::Raw`]).
     pub linear: usize,
+}
+
+impl ImageStackInfo {
+    /// What the fit should warn of the stack read with the `.lp` file `lp`: the images it does
+    /// not list, by file name.
+    pub fn warnings(&self, lp: &Path) -> Vec<Diagnostic> {
+        if self.unused.is_empty() {
+            return Vec::new();
+        }
+        let images = self
+            .unused
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .unwrap_or(p.as_os_str())
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        vec![Diagnostic::UnusedImages {
+            lp: lp.display().to_string(),
+            images,
+        }]
+    }
 }
 
 /// The file-name part of an `.lp` entry: RTIBuilder writes Windows paths

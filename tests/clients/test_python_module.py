@@ -241,6 +241,15 @@ expect_error(ValueError, "s.exr: not an occlusion PTM", lambda: ptm.load(w("s.ex
 with open(w("text.exr"), "w") as f:
     f.write("not an EXR\n")
 expect_error(ValueError, "text.exr: not a readable OpenEXR file", lambda: ptm.load(w("text.exr")), "a file that is no EXR")
+# A file cut short, in its header or its pixels: named once, and called possibly truncated.
+with open(w("ptm6-identity-projected.ptm.exr"), "rb") as f:
+    whole = f.read()
+for keep in (40, len(whole) // 2):
+    with open(w("cut.ptm.exr"), "wb") as f:
+        f.write(whole[:keep])
+    e = expect_error(ValueError, "(truncated or foreign?)", lambda: ptm.load(w("cut.ptm.exr")),
+                     f"a PTM cut at {keep} bytes")
+    check(e is not None and str(e).count("cut.ptm.exr") == 1, f"a PTM cut at {keep} bytes: named once ({e})")
 # A header that Ptm::load refuses is refused here too (written by Python OpenEXR).
 src = OpenEXR.File(w("ptm6-identity-projected.ptm.exr"))
 for key, value, needle in [("ptm:version", "occlusion-ptm/9", "occlusion-ptm/9"),
