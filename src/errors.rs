@@ -115,7 +115,11 @@ fn fit_error(e: &ptm_fit::Error) -> Option<String> {
         E::Images { pattern, reason } => format!("--images {pattern:?}: {reason}"),
         E::NotAPart { .. } => format!("{e}; parts are written by `ptm bake --shard I/N`"),
         E::File(e) => return format_error(e),
-        E::Io { .. } | E::LightFile { .. } | E::Format { .. } | E::Invalid(_) => return None,
+        E::Io { .. }
+        | E::LightFile { .. }
+        | E::Format { .. }
+        | E::Invalid(_)
+        | E::LightsBelowHorizon { .. } => return None,
     })
 }
 

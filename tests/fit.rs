@@ -604,3 +604,89 @@ fn images_the_lp_does_not_list_are_named() {
         run.stderr
     );
 }
+
+/// A stack with a light below the horizon: the fit names it in `warnings` and leaves it out,
+/// so the coefficients are those of the stack without it (its K = 1 would otherwise land on
+/// the (u, v) of its mirror image above the horizon).
+#[test]
+fn a_stack_light_below_the_horizon_is_named_and_left_out() {
+    let dir = tmpdir();
+    let lights = dome(20);
+    let (s, _) = stack(&lights, 5, 4, true);
+    s.write(&dir.path().join("above.exr")).unwrap();
+    let mut low = s.clone();
+    low.lights
+        .dirs
+        .push(ptm_format::vec3::normalize([0.954, 0.0, -0.3]));
+    low.lights.names.push("low".into());
+    low.k.push(vec![1.0; 20]);
+    low.write(&dir.path().join("low.exr")).unwrap();
+    let fit = |name: &str| {
+        let out = dir.path().join(format!("{name}.ptm.exr"));
+        let j = run_json(&[
+            "fit",
+            p(&dir.path().join(format!("{name}.exr"))),
+            "-o",
+            p(&out),
+        ]);
+        (j, Ptm::load(&out).unwrap())
+    };
+    let (ja, a) = fit("above");
+    let (jl, l) = fit("low");
+    assert_eq!(jl["lights"], 21);
+    assert_eq!(jl["lights_fit"], 20);
+    let w = jl["warnings"].as_array().unwrap();
+    assert!(
+        w.iter().any(|w| w
+            .as_str()
+            .unwrap()
+            .starts_with("1 light at or below the horizon left out of the fit (K = 1 there by definition): light 20 \"low\" at -17.")),
+        "{w:?}"
+    );
+    assert_eq!(ja["warnings"].as_array().map(Vec::len), Some(0), "{ja}");
+    for (pa, pl) in a.planes.iter().zip(&l.planes) {
+        for (x, y) in pa.iter().zip(pl) {
+            assert!((x - y).abs() < 1e-5, "{x} vs {y}");
+        }
+    }
+}
+
+/// A photographed stack whose `.lp` puts a light below the horizon (z < 0: a sign error in
+/// the capture) is refused, naming the light and the likely cause; every light below says the
+/// z axis is flipped.
+#[test]
+fn a_photographed_light_below_the_horizon_is_refused() {
+    let dir = tmpdir();
+    let mut lights = dome(12);
+    lights.dirs[5] = ptm_format::vec3::normalize([0.954, 0.0, -0.3]);
+    let lp = rti_capture(dir.path(), &lights);
+    let pattern = format!("{}/*.png", dir.path().display());
+    let out = dir.path().join("rti.ptm.exr");
+    let args = [
+        "fit",
+        "--images",
+        &pattern,
+        "--lights",
+        p(&lp),
+        "-o",
+        p(&out),
+    ];
+    let err = common::refused(args, dir.path());
+    assert!(
+        err.contains(&format!(
+            "{}: 1 of its 12 lights is below the horizon (z < 0): light 5 \"img_05.png\" at -17.",
+            lp.display()
+        )) && err.contains("the sign of z is likely wrong"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    for d in &mut lights.dirs {
+        d[2] = -d[2].abs();
+    }
+    rti_capture(dir.path(), &lights);
+    let err = common::refused(args, dir.path());
+    assert!(
+        err.contains("12 of its 12 lights are below") && err.contains("z axis is likely flipped"),
+        "{err}"
+    );
+}

@@ -5,6 +5,7 @@
 //! It names no command-line flag: the `ptm` binary adds those.
 use std::fmt;
 
+use ptm_format::lights::{horizon_words, HorizonLight};
 use ptm_format::Basis;
 
 /// One diagnostic of a fit (`FitReport::warnings`). Each variant's doc names its fields and
@@ -12,6 +13,10 @@ use ptm_format::Basis;
 #[allow(missing_docs)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Diagnostic {
+    /// Lights at or below the horizon (z ≤ 0): left out of the fit (weight 0), since K = 1
+    /// there by definition and, in the projected (u, v), such a light lands on the same (u, v)
+    /// as its mirror image above the horizon.
+    BelowHorizon { lights: Vec<HorizonLight> },
     /// Fewer lights enter the fit than the basis has coefficients.
     TooFewLights {
         lights: usize,
@@ -115,6 +120,13 @@ impl fmt::Display for Solution {
 impl fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
         match self {
+            Diagnostic::BelowHorizon { lights } => write!(
+                f,
+                "{} {} at or below the horizon left out of the fit (K = 1 there by definition): {}",
+                lights.len(),
+                if lights.len() == 1 { "light" } else { "lights" },
+                horizon_words(lights, HORIZON_SHOWN)
+            ),
             Diagnostic::TooFewLights {
                 lights,
                 coefficients,
@@ -222,6 +234,9 @@ impl fmt::Display for Diagnostic {
         }
     }
 }
+
+/// How many lights a [`Diagnostic::BelowHorizon`] names before "and N more".
+const HORIZON_SHOWN: usize = 8;
 
 /// How many of the images an [`Diagnostic::UnusedImages`] names before "and N more".
 const UNUSED_SHOWN: usize = 8;

@@ -83,6 +83,19 @@ pub fn read_image_stack(
     decoding: Decoding,
 ) -> Result<(SampleStack, ImageStackInfo)> {
     let lights = LightSet::read_lp(lp)?;
+    // On the horizon (z = 0) is a grazing light the fit leaves out; below it is a sign error.
+    let below: Vec<_> = lights
+        .below_horizon()
+        .into_iter()
+        .filter(|l| lights.dirs[l.index][2] < 0.0)
+        .collect();
+    if !below.is_empty() {
+        return Err(Error::LightsBelowHorizon {
+            lp: lp.display().to_string(),
+            of: lights.len(),
+            lights: below,
+        });
+    }
     let paths = glob::glob(pattern).map_err(|e| images(pattern, format!("bad pattern: {e}")))?;
     let mut by_name: HashMap<String, PathBuf> = HashMap::new();
     for p in paths {
