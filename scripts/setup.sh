@@ -75,3 +75,34 @@ if [ ! -e "$stamp" ]; then
     rm -f "$venv"/.installed-*
     touch "$stamp"
 fi
+
+# --- A second CPython for the Python module's abi3 wheel ---------------------------------------
+# scripts/test.sh builds the module once as an abi3 wheel (cp39-abi3: CPython >= 3.9) and tests
+# it on .deps/py (CPython 3.11) and on .deps/py2, a venv of the lowest version the wheel
+# supports: $PTM_PYTHON2 if set, else python3.9 on PATH or pyenv's 3.9, else CPython 3.9 fetched
+# by PyPI's `uv` (`uv python install`, a python-build-standalone download). Only numpy and
+# OpenEXR, the test's imports, pinned to the last releases for 3.9.
+venv2=.deps/py2
+pins2="numpy==2.0.2 OpenEXR==3.4.17"
+stamp2="$venv2/.installed-$(echo "$pins2" | sha256sum | cut -c1-16)"
+if [ ! -e "$stamp2" ]; then
+    py2=${PTM_PYTHON2:-}
+    if [ -z "$py2" ]; then
+        py2=$(command -v python3.9 || true)
+    fi
+    if [ -z "$py2" ] && command -v pyenv >/dev/null; then
+        py2=$(ls -d "$(pyenv root)"/versions/3.9.*/bin/python3.9 2>/dev/null | tail -1 || true)
+    fi
+    if [ -z "$py2" ]; then
+        say "fetching CPython 3.9 with uv into .deps/uv-python"
+        .deps/py/bin/pip install -q --disable-pip-version-check uv==0.13.8
+        UV_PYTHON_INSTALL_DIR=.deps/uv-python .deps/py/bin/uv python install -q 3.9
+        py2=$(UV_PYTHON_INSTALL_DIR=.deps/uv-python .deps/py/bin/uv python find 3.9)
+    fi
+    say "installing $pins2 into $venv2 ($("$py2" -c 'import platform; print("CPython", platform.python_version())'))"
+    rm -rf "$venv2"
+    "$py2" -m venv "$venv2"
+    # shellcheck disable=SC2086
+    "$venv2/bin/pip" install -q --disable-pip-version-check $pins2
+    touch "$stamp2"
+fi
