@@ -690,3 +690,53 @@ fn a_photographed_light_below_the_horizon_is_refused() {
         "{err}"
     );
 }
+
+/// The file names the lights it held out (`ptm:holdoutLights`), as `--json` does, for both
+/// links and both layouts, so a reader can measure the held-out error itself; a fit holding
+/// none out records an empty list.
+#[test]
+fn the_file_records_its_held_out_lights() {
+    let dir = tmpdir();
+    let (s, _) = stack(&dome(30), 5, 4, true);
+    let samples = dir.path().join("s.exr");
+    s.write(&samples).unwrap();
+    let text = |path: &Path| match ptm_format::exrio::read(path)
+        .unwrap()
+        .attrs
+        .get("ptm:holdoutLights")
+    {
+        Some(ptm_format::exrio::Attr::Text(t)) => t.clone(),
+        other => panic!("{}: ptm:holdoutLights is {other:?}", path.display()),
+    };
+    for (link, layout, file) in [
+        ("identity", "channels", "i.ptm.exr"),
+        ("logistic", "rgba", "l.ptm.c1.exr"),
+    ] {
+        let out = dir.path().join("i.ptm.exr".replace('i', &link[..1]));
+        let args = [
+            "fit",
+            p(&samples),
+            "-o",
+            p(&out),
+            "--link",
+            link,
+            "--layout",
+            layout,
+        ];
+        let j = common::json([&args[..], &["--holdout", "5"]].concat(), dir.path());
+        let held: Vec<String> = j["holdout_lights"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|i| i.to_string())
+            .collect();
+        assert_eq!(held.len(), 5, "{j}");
+        assert_eq!(
+            text(&dir.path().join(file)),
+            held.join(" "),
+            "{link} {layout}"
+        );
+        common::json(args, dir.path());
+        assert_eq!(text(&dir.path().join(file)), "", "{link} {layout}");
+    }
+}

@@ -207,6 +207,7 @@ impl ToFileFacts for FitReport {
             rms_p99: self.rms.p99,
             max_p99: self.max.map(|m| m.p99),
             holdout: self.holdout.map(|h| (h.mean, h.p99)),
+            holdout_lights: &self.holdout_lights,
             warnings: diagnostic::words(&self.warnings),
             samples: self.samples.as_deref(),
             rms_map: &self.rms_map,
