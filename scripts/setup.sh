@@ -86,13 +86,15 @@ venv2=.deps/py2
 pins2="numpy==2.0.2 OpenEXR==3.4.17"
 stamp2="$venv2/.installed-$(echo "$pins2" | sha256sum | cut -c1-16)"
 if [ ! -e "$stamp2" ]; then
-    py2=${PTM_PYTHON2:-}
-    if [ -z "$py2" ]; then
-        py2=$(command -v python3.9 || true)
-    fi
-    if [ -z "$py2" ] && command -v pyenv >/dev/null; then
-        py2=$(ls -d "$(pyenv root)"/versions/3.9.*/bin/python3.9 2>/dev/null | tail -1 || true)
-    fi
+    # The first candidate that runs as CPython 3.9 (a pyenv shim on PATH fails unless selected).
+    py2=""
+    for c in ${PTM_PYTHON2:-} "$(command -v python3.9 || true)" \
+        $(ls -d "$(pyenv root 2>/dev/null || echo /nonexistent)"/versions/3.9.*/bin/python3.9 2>/dev/null); do
+        if [ -n "$c" ] && "$c" -c 'import sys; assert sys.version_info[:2] == (3, 9)' 2>/dev/null; then
+            py2=$c
+            break
+        fi
+    done
     if [ -z "$py2" ]; then
         say "fetching CPython 3.9 with uv into .deps/uv-python"
         .deps/py/bin/pip install -q --disable-pip-version-check uv==0.13.8
