@@ -51,15 +51,21 @@ class Ptm:
         """Every header attribute (str, int, float or tuple)."""
     @property
     def layout(self) -> Optional[str]:
-        """"single" or "rgba" as loaded; None when built from arrays."""
+        """"channels" or "rgba" as loaded (the CLI's --layout names); None when built from arrays."""
+    def eval_xy(self, lx: _Floats, ly: _Floats) -> npt.NDArray[np.float32]:
+        """K for the projected light direction (lx, ly) = (l·T, l·B) (T = +X, B = +Y), not the
+        file's (u, v): the file's (u, v) map (e.g. hemispherical) and link are applied here.
+        Numbers → (height, width); N lights → (N, height, width)."""
     def eval(self, u: _Floats, v: _Floats) -> npt.NDArray[np.float32]:
-        """K for (u, v) = (l·X, l·Y): numbers → (height, width); N lights → (N, height, width)."""
+        """Deprecated (FutureWarning on every call site): eval_xy under its old name; its
+        arguments are the projected (lx, ly), not the file's (u, v)."""
     def eval_dir(self, l: npt.ArrayLike) -> npt.NDArray[np.float32]:
         """K for unit directions towards the light: (3,) → (height, width); (N, 3) → (N, height, width)."""
     def save(
-        self, path: _Path, half: bool = False, layout: Literal["single", "channels", "rgba"] = "single"
+        self, path: _Path, half: bool = False, layout: Literal["channels", "rgba"] = "channels"
     ) -> list[str]:
-        """Writes the PTM; returns the files written."""
+        """Writes the PTM; returns the files written. layout: the CLI's --layout names;
+        "single" (the old name of "channels") raises ValueError naming "channels"."""
 
 def load(path: _Path) -> Ptm:
     """Loads a PTM in either layout (the PTM EXR, or the renderer layout by a part or its stem)."""

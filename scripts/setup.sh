@@ -75,3 +75,45 @@ if [ ! -e "$stamp" ]; then
     rm -f "$venv"/.installed-*
     touch "$stamp"
 fi
+
+# --- A second CPython for the Python module's abi3 wheel ---------------------------------------
+# scripts/test.sh builds the module once as an abi3 wheel (cp39-abi3: CPython >= 3.9) and tests
+# it on .deps/py (CPython 3.11) and on .deps/py2, a venv of the lowest version the wheel
+# supports: $PTM_PYTHON2 if set, else python3.9 on PATH or pyenv's 3.9, else CPython 3.9 fetched
+# by PyPI's `uv` (`uv python install`, a python-build-standalone download). Only numpy and
+# OpenEXR, the test's imports, pinned to the last releases for 3.9.
+venv2=.deps/py2
+pins2="numpy==2.0.2 OpenEXR==3.4.17"
+stamp2="$venv2/.installed-$(echo "$pins2" | sha256sum | cut -c1-16)"
+if [ ! -e "$stamp2" ]; then
+    # The first candidate that runs as CPython 3.9 (a pyenv shim on PATH fails unless selected).
+    py2=""
+    for c in ${PTM_PYTHON2:-} "$(command -v python3.9 || true)" \
+        $(ls -d "$(pyenv root 2>/dev/null || echo /nonexistent)"/versions/3.9.*/bin/python3.9 \
+            "${PYENV_ROOT:-$HOME/.pyenv}"/versions/3.9.*/bin/python3.9 2>/dev/null); do
+        if [ -n "$c" ] && "$c" -c 'import sys; assert sys.version_info[:2] == (3, 9)' 2>/dev/null; then
+            py2=$c
+            break
+        fi
+    done
+    if [ -z "$py2" ]; then
+        say "fetching CPython 3.9 with uv into .deps/uv-python"
+        if .deps/py/bin/pip install -q --disable-pip-version-check uv==0.13.8 &&
+            UV_PYTHON_INSTALL_DIR=.deps/uv-python .deps/py/bin/uv python install -q 3.9; then
+            py2=$(UV_PYTHON_INSTALL_DIR=.deps/uv-python .deps/py/bin/uv python find 3.9)
+        fi
+    fi
+    if [ -n "$py2" ]; then
+        say "installing $pins2 into $venv2 ($("$py2" -c 'import platform; print("CPython", platform.python_version())'))"
+        rm -rf "$venv2"
+        "$py2" -m venv "$venv2"
+        # shellcheck disable=SC2086
+        "$venv2/bin/pip" install -q --disable-pip-version-check $pins2
+        touch "$stamp2"
+    else
+        # No 3.9 here and none to fetch: scripts/test.sh then tests the wheel on 3.11 alone and
+        # says so; set PTM_PYTHON2 to a CPython 3.9 to test both.
+        say "WARNING: no CPython 3.9 found or fetched; the Python module is tested on one interpreter"
+        rm -rf "$venv2"
+    fi
+fi

@@ -102,16 +102,34 @@ rm -rf "$rw_work"
 step "the OSL shader group of docs/pipeline.md against the OSL shaders it names (integrations/osl)"
 .deps/py/bin/python integrations/osl/test_readme_example.py
 
-step "the Python module ptm (python/, maturin) against Ptm::eval, round trips, errors, the docs/pipeline.md example (tests/clients)"
+step "the Python module ptm (python/, maturin): one abi3 wheel on two interpreters, against Ptm::eval, round trips, errors, the docs/pipeline.md example (tests/clients)"
 # A release build: the test times eval and a pipeline gets this build; it adds about 1 min.
+# One abi3 wheel (cp39-abi3: CPython >= 3.9), installed into the venv's CPython 3.11 and into
+# .deps/py2, the second interpreter scripts/setup.sh provides, and tested on both.
 t_module=$SECONDS
 rm -rf target/wheels/ptm
 .deps/py/bin/maturin build --release -q -m python/Cargo.toml -i .deps/py/bin/python -o target/wheels/ptm
-.deps/py/bin/pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/ptm/ptm-*.whl
+wheel=$(ls target/wheels/ptm/ptm-*.whl)
+case "$wheel" in
+    *-cp39-abi3-*) ;;
+    *) echo "the Python module's wheel $wheel is not abi3 for CPython >= 3.9 (cp39-abi3)" >&2; exit 1 ;;
+esac
+pythons=(.deps/py)
+if [ -x .deps/py2/bin/python ]; then
+    pythons+=(.deps/py2)
+else
+    echo "WARNING: no .deps/py2 (scripts/setup.sh found no CPython 3.9): the wheel is tested on one interpreter" >&2
+fi
+for py in "${pythons[@]}"; do
+    "$py/bin/pip" install -q --disable-pip-version-check --force-reinstall --no-deps "$wheel"
+done
 echo "python module: built and installed in $((SECONDS - t_module)) s" >&2
-py_work=$(mktemp -d)
-.deps/py/bin/python tests/clients/test_python_module.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$py_work"
-rm -rf "$py_work"
+for py in "${pythons[@]}"; do
+    py_work=$(mktemp -d)
+    echo "python module on $("$py/bin/python" -c 'import platform; print("CPython", platform.python_version())')" >&2
+    "$py/bin/python" tests/clients/test_python_module.py "$PWD/target/debug/ptm" "$PWD/target/debug/examples/ptm_eval" "$py_work"
+    rm -rf "$py_work"
+done
 
 step "MaterialX nodedef: validate, generate OSL and GLSL, compile the GLSL; its K in numpy against Ptm::eval (integrations/materialx)"
 mx_work=$(mktemp -d)

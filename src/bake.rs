@@ -347,11 +347,19 @@ fn fit_accumulator(
     Ok((Some(acc), shard_mips))
 }
 
+/// What the bake warns of its light set: lights at or below the horizon.
+fn light_warnings(lights: &LightSet) -> Vec<ptm_bake::Diagnostic> {
+    let below = lights.below_horizon();
+    match below.is_empty() {
+        true => Vec::new(),
+        false => vec![ptm_bake::Diagnostic::BelowHorizon { lights: below }],
+    }
+}
+
 /// Says on stderr what is about to be baked (and that lights below the horizon bake to K = 1).
 fn announce(args: &Args, swatch: &PreparedMesh, res: [usize; 2], lights: &LightSet) {
-    let below = lights.dirs.iter().filter(|d| d[2] <= 0.0).count();
-    if below > 0 {
-        eprintln!("ptm bake: warning: {below} light(s) at or below the horizon bake to K = 1");
+    for w in light_warnings(lights) {
+        eprintln!("ptm bake: warning: {w}");
     }
     eprintln!(
         "ptm bake: {}: {} triangles, tile {}×{}, {}×{} texels × {} spp, {} lights",
@@ -663,8 +671,9 @@ fn bake_json(
         seam_mismatch: swatch.seams.map(|s| s.mismatch.and_then(json::finite)),
         warnings: swatch
             .warnings()
-            .iter()
-            .map(crate::errors::swatch_warning)
+            .into_iter()
+            .chain(light_warnings(lights))
+            .map(|w| crate::errors::swatch_warning(&w))
             .collect(),
         width: res[0],
         height: res[1],

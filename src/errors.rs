@@ -17,12 +17,31 @@ pub fn explain(e: &anyhow::Error) -> String {
         if s.is_empty() || out.ends_with(&s) {
             continue;
         }
+        // A library error names its file first ("w.exr: not a readable …"); a context that
+        // already ends with that name ("reading w.exr") names it once.
+        let s = without_named_file(&out, &s).to_string();
         if !out.is_empty() {
             out += ": ";
         }
         out += &s;
     }
     out
+}
+
+/// `cause` without its leading `NAME: ` when the message so far ends with ` NAME` (or is
+/// `NAME`): the file a context names and its cause names again.
+fn without_named_file<'a>(out: &str, cause: &'a str) -> &'a str {
+    for (i, _) in cause.match_indices(": ") {
+        let name = &cause[..i];
+        let named = out == name
+            || out
+                .strip_suffix(name)
+                .is_some_and(|head| head.ends_with(' '));
+        if named {
+            return &cause[i + 2..];
+        }
+    }
+    cause
 }
 
 /// A fit diagnostic as the command prints it: the library's words, then the flag that changes
@@ -107,7 +126,11 @@ fn fit_error(e: &ptm_fit::Error) -> Option<String> {
         E::Images { pattern, reason } => format!("--images {pattern:?}: {reason}"),
         E::NotAPart { .. } => format!("{e}; parts are written by `ptm bake --shard I/N`"),
         E::File(e) => return format_error(e),
-        E::Io { .. } | E::LightFile { .. } | E::Format { .. } | E::Invalid(_) => return None,
+        E::Io { .. }
+        | E::LightFile { .. }
+        | E::Format { .. }
+        | E::Invalid(_)
+        | E::LightsBelowHorizon { .. } => return None,
     })
 }
 

@@ -304,12 +304,8 @@ fn read_input(args: &Args) -> anyhow::Result<Input> {
             };
             let (stack, info) =
                 read_image_stack(pattern, lp, [args.tile[0], args.tile[1]], decoding)?;
-            if !info.unused.is_empty() {
-                eprintln!(
-                    "ptm fit: warning: {} images are not listed in {} and were ignored",
-                    info.unused.len(),
-                    lp.display()
-                );
+            for w in info.warnings(lp) {
+                eprintln!("ptm fit: warning: {}", crate::errors::fit_warning(&w));
             }
             Ok(Input {
                 stack,

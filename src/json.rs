@@ -194,7 +194,8 @@ pub struct Baked {
     /// Per axis (x, y), how far the mesh's sections at the two tile borders differ, in mesh
     /// units (null where the mesh reaches across that border, or where it is infinite).
     pub seam_mismatch: [Option<f64>; 2],
-    /// The swatch's warnings, in words.
+    /// The bake's warnings, in words: the swatch's (degenerate triangles, seams) and the light
+    /// set's (lights at or below the horizon, each named).
     pub warnings: Vec<String>,
     /// Texels per row of the whole bake.
     pub width: usize,

@@ -202,9 +202,10 @@ fn error_input(e: &anyhow::Error) -> Option<String> {
             if let Some(x) = cause.downcast_ref::<ptm_fit::Error>() {
                 use ptm_fit::Error as F;
                 return match x {
-                    F::Io { path, .. } | F::LightFile { path, .. } | F::Format { path, .. } => {
-                        Some(path.clone())
-                    }
+                    F::Io { path, .. }
+                    | F::LightFile { path, .. }
+                    | F::Format { path, .. }
+                    | F::LightsBelowHorizon { lp: path, .. } => Some(path.clone()),
                     _ => None,
                 };
             }

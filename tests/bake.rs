@@ -379,4 +379,60 @@ fn res_n_keeps_texels_square_on_a_non_square_tile() {
         (j["width"].as_u64(), j["height"].as_u64()),
         (Some(64), Some(64))
     );
+
+/// A light at or below the horizon is named in `warnings` (bake and streaming fit alike, with
+/// `--json`), keeps its index in `below_horizon`, bakes to K = 1, and is left out of the fit.
+#[test]
+fn lights_below_the_horizon_are_named_and_left_out_of_the_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("box.obj"), BOX_OBJ).unwrap();
+    let mut lights = common::dome(12);
+    lights.dirs[3] = ptm_format::vec3::normalize([0.954, 0.0, -0.3]); // a sign error in z
+    lights.names[3] = "low".into();
+    std::fs::write(d.join("dome.lp"), lights.to_lp()).unwrap();
+    let bake = |extra: &[&str]| {
+        let mut args = vec![
+            "bake", "--swatch", "box.obj", "--res", "16", "--spp", "2", "--lights", "dome.lp",
+        ];
+        args.extend(extra);
+        common::json(args, d)
+    };
+    let named =
+        "1 light at or below the horizon bake to K = 1 (fully occluded): light 3 \"low\" at -17.";
+    let j = bake(&["-o", "s.exr"]);
+    assert_eq!(j["below_horizon"], serde_json::json!([3]));
+    let w = j["warnings"].as_array().unwrap();
+    assert!(
+        w.iter().any(|w| w.as_str().unwrap().starts_with(named)),
+        "{w:?}"
+    );
+    let stack = SampleStack::read(&d.join("s.exr")).unwrap();
+    assert!(stack.k[3].iter().all(|&k| k == 1.0));
+
+    let j = bake(&["-o", "w.ptm.exr", "--fit", "ptm6", "--link", "identity"]);
+    let w = j["warnings"].as_array().unwrap();
+    assert!(
+        w.iter().any(|w| w.as_str().unwrap().starts_with(named)),
+        "{w:?}"
+    );
+    let left_out = "1 light at or below the horizon left out of the fit (K = 1 there by \
+                    definition): light 3 \"low\" at -17.";
+    let fw = j["fit"]["warnings"].as_array().unwrap();
+    assert!(
+        fw.iter().any(|w| w.as_str().unwrap().starts_with(left_out)),
+        "{fw:?}"
+    );
+    // The file records it too, and fitted 11 lights.
+    let attrs = ptm_format::exrio::read(&d.join("w.ptm.exr")).unwrap().attrs;
+    assert_eq!(
+        attrs.get("ptm:nLightsFit"),
+        Some(&ptm_format::exrio::Attr::I32(11))
+    );
+    match attrs.get("ptm:warnings") {
+        Some(ptm_format::exrio::Attr::Texts(t)) => {
+            assert!(t.iter().any(|w| w.starts_with(left_out)), "{t:?}")
+        }
+        other => panic!("ptm:warnings is {other:?}"),
+    }
 }

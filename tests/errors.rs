@@ -92,3 +92,33 @@ fn fit_errors_name_the_flag_that_fixes_them() {
     assert!(!ok);
     assert!(err.contains("--basis ptm6"), "{err}");
 }
+
+/// A file cut short names itself once and says it may be truncated, whichever command reads it
+/// (a PTM through `ptm convert`, which reads either layout; a sample stack through `ptm fit`),
+/// cut in its header or in its pixels.
+#[test]
+fn a_truncated_file_is_named_once_and_called_truncated() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    stack(&dome(20), 8, 6).write(&d.join("s.exr")).unwrap();
+    common::ok(["fit", "s.exr", "-o", "w.ptm.exr", "--link", "identity"], d);
+    for (file, command) in [
+        ("w.ptm.exr", vec!["convert", "t.exr", "-o", "x.ptm.exr"]),
+        ("s.exr", vec!["fit", "t.exr", "-o", "y.ptm.exr"]),
+    ] {
+        let bytes = std::fs::read(d.join(file)).unwrap();
+        for keep in [40, bytes.len() / 2] {
+            std::fs::write(d.join("t.exr"), &bytes[..keep]).unwrap();
+            let err = common::refused(&command, d);
+            assert_eq!(
+                err.matches("t.exr").count(),
+                1,
+                "{file} cut at {keep}: {err}"
+            );
+            assert!(
+                err.contains("truncated or foreign?"),
+                "{file} cut at {keep}: {err}"
+            );
+        }
+    }
+}

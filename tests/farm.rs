@@ -63,12 +63,22 @@ fn sharded_stack_is_byte_identical() {
 }
 
 /// Identity link, hemispherical (u, v), MIP levels (computed by the merge from the whole image).
+/// Merged and whole alike record that no light was held out (`ptm:holdoutLights` empty).
 #[test]
 fn sharded_ptm6_is_byte_identical() {
-    sharded_equals_whole(
+    let whole = sharded_equals_whole(
         &[BAKE, &["--fit", "ptm6", "--link", "identity"]].concat(),
         "w.ptm.exr",
         &[1, 3, 4],
+    );
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("w.ptm.exr"), whole).unwrap();
+    let attrs = ptm_format::exrio::read(&dir.path().join("w.ptm.exr"))
+        .unwrap()
+        .attrs;
+    assert_eq!(
+        attrs.get("ptm:holdoutLights"),
+        Some(&ptm_format::exrio::Attr::Text(String::new()))
     );
 }
 

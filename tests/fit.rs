@@ -620,7 +620,191 @@ fn the_fit_holds_out_lights_by_default_and_labels_both_errors() {
     let run = ptm(["fit", "s.exr", "-o", "c.ptm.exr", "--basis", "ptm11"], d);
     assert!(
         run.ok && run.stderr.contains("too few to spare"),
+
+/// A flat RTI capture of `lights`: one 4×3 grey PNG per light, named `img_NN.png`, and its
+/// `.lp` file `dome.lp` in `dir`.
+fn rti_capture(dir: &Path, lights: &LightSet) -> std::path::PathBuf {
+    let mut lp = format!("{}\n", lights.len());
+    for (i, d) in lights.dirs.iter().enumerate() {
+        let name = format!("img_{i:02}.png");
+        write_grey_png(&dir.join(&name), 4, 3, &[200; 12]);
+        lp += &format!("{name} {} {} {}\n", d[0], d[1], d[2]);
+    }
+    let path = dir.join("dome.lp");
+    std::fs::write(&path, lp).unwrap();
+    path
+}
+
+#[test]
+fn images_the_lp_does_not_list_are_named() {
+    let dir = tmpdir();
+    let lp = rti_capture(dir.path(), &dome(12));
+    write_grey_png(&dir.path().join("stray.png"), 4, 3, &[0; 12]);
+    let pattern = format!("{}/*.png", dir.path().display());
+    let out = dir.path().join("rti.ptm.exr");
+    let args = [
+        "fit",
+        "--images",
+        &pattern,
+        "--lights",
+        p(&lp),
+        "-o",
+        p(&out),
+    ];
+    let run = ptm(args, dir.path());
+    assert!(run.ok, "{}", run.stderr);
+    assert!(
+        run.stderr.contains(&format!(
+            "warning: 1 image is not listed in {} and was ignored: stray.png",
+            lp.display()
+        )),
         "{}",
         run.stderr
     );
+    write_grey_png(&dir.path().join("stray2.png"), 4, 3, &[0; 12]);
+    let run = ptm(args, dir.path());
+    assert!(
+        run.stderr.contains("2 images are not listed in")
+            && run
+                .stderr
+                .contains("and were ignored: stray.png, stray2.png"),
+        "{}",
+        run.stderr
+    );
+}
+
+/// A stack with a light below the horizon: the fit names it in `warnings` and leaves it out,
+/// so the coefficients are those of the stack without it (its K = 1 would otherwise land on
+/// the (u, v) of its mirror image above the horizon).
+#[test]
+fn a_stack_light_below_the_horizon_is_named_and_left_out() {
+    let dir = tmpdir();
+    let lights = dome(20);
+    let (s, _) = stack(&lights, 5, 4, true);
+    s.write(&dir.path().join("above.exr")).unwrap();
+    let mut low = s.clone();
+    low.lights
+        .dirs
+        .push(ptm_format::vec3::normalize([0.954, 0.0, -0.3]));
+    low.lights.names.push("low".into());
+    low.k.push(vec![1.0; 20]);
+    low.write(&dir.path().join("low.exr")).unwrap();
+    let fit = |name: &str| {
+        let out = dir.path().join(format!("{name}.ptm.exr"));
+        let j = run_json(&[
+            "fit",
+            p(&dir.path().join(format!("{name}.exr"))),
+            "-o",
+            p(&out),
+        ]);
+        (j, Ptm::load(&out).unwrap())
+    };
+    let (ja, a) = fit("above");
+    let (jl, l) = fit("low");
+    assert_eq!(jl["lights"], 21);
+    assert_eq!(jl["lights_fit"], 20);
+    let w = jl["warnings"].as_array().unwrap();
+    assert!(
+        w.iter().any(|w| w
+            .as_str()
+            .unwrap()
+            .starts_with("1 light at or below the horizon left out of the fit (K = 1 there by definition): light 20 \"low\" at -17.")),
+        "{w:?}"
+    );
+    assert_eq!(ja["warnings"].as_array().map(Vec::len), Some(0), "{ja}");
+    for (pa, pl) in a.planes.iter().zip(&l.planes) {
+        for (x, y) in pa.iter().zip(pl) {
+            assert!((x - y).abs() < 1e-5, "{x} vs {y}");
+        }
+    }
+}
+
+/// A photographed stack whose `.lp` puts a light below the horizon (z < 0: a sign error in
+/// the capture) is refused, naming the light and the likely cause; every light below says the
+/// z axis is flipped.
+#[test]
+fn a_photographed_light_below_the_horizon_is_refused() {
+    let dir = tmpdir();
+    let mut lights = dome(12);
+    lights.dirs[5] = ptm_format::vec3::normalize([0.954, 0.0, -0.3]);
+    let lp = rti_capture(dir.path(), &lights);
+    let pattern = format!("{}/*.png", dir.path().display());
+    let out = dir.path().join("rti.ptm.exr");
+    let args = [
+        "fit",
+        "--images",
+        &pattern,
+        "--lights",
+        p(&lp),
+        "-o",
+        p(&out),
+    ];
+    let err = common::refused(args, dir.path());
+    assert!(
+        err.contains(&format!(
+            "{}: 1 of its 12 lights is below the horizon (z < 0): light 5 \"img_05.png\" at -17.",
+            lp.display()
+        )) && err.contains("the sign of z is likely wrong"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    for d in &mut lights.dirs {
+        d[2] = -d[2].abs();
+    }
+    rti_capture(dir.path(), &lights);
+    let err = common::refused(args, dir.path());
+    assert!(
+        err.contains("12 of its 12 lights are below") && err.contains("z axis is likely flipped"),
+        "{err}"
+    );
+}
+
+/// The file names the lights it held out (`ptm:holdoutLights`), as `--json` does, for both
+/// links and both layouts, so a reader can measure the held-out error itself; a fit holding
+/// none out records an empty list.
+#[test]
+fn the_file_records_its_held_out_lights() {
+    let dir = tmpdir();
+    let (s, _) = stack(&dome(30), 5, 4, true);
+    let samples = dir.path().join("s.exr");
+    s.write(&samples).unwrap();
+    let text = |path: &Path| match ptm_format::exrio::read(path)
+        .unwrap()
+        .attrs
+        .get("ptm:holdoutLights")
+    {
+        Some(ptm_format::exrio::Attr::Text(t)) => t.clone(),
+        other => panic!("{}: ptm:holdoutLights is {other:?}", path.display()),
+    };
+    for (link, layout, file) in [
+        ("identity", "channels", "i.ptm.exr"),
+        ("logistic", "rgba", "l.ptm.c1.exr"),
+    ] {
+        let out = dir.path().join("i.ptm.exr".replace('i', &link[..1]));
+        let args = [
+            "fit",
+            p(&samples),
+            "-o",
+            p(&out),
+            "--link",
+            link,
+            "--layout",
+            layout,
+        ];
+        let j = common::json([&args[..], &["--holdout", "5"]].concat(), dir.path());
+        let held: Vec<String> = j["holdout_lights"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|i| i.to_string())
+            .collect();
+        assert_eq!(held.len(), 5, "{j}");
+        assert_eq!(
+            text(&dir.path().join(file)),
+            held.join(" "),
+            "{link} {layout}"
+        );
+        common::json(args, dir.path());
+        assert_eq!(text(&dir.path().join(file)), "", "{link} {layout}");
+    }
 }

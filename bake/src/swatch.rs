@@ -292,6 +292,11 @@ impl PreparedMesh {
 #[allow(missing_docs)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Diagnostic {
+    /// Lights of the dome at or below the horizon (z ≤ 0): the bake traces none of them and
+    /// records K = 1 (fully occluded) wherever the swatch is covered.
+    BelowHorizon {
+        lights: Vec<ptm_format::HorizonLight>,
+    },
     /// `triangles` zero-area triangles of the mesh `origin` were skipped.
     DegenerateTriangles { origin: String, triangles: usize },
     /// The mesh's cross-sections at the tile's opposite borders along `axis` (0 = x, 1 = y)
@@ -311,6 +316,13 @@ pub enum Diagnostic {
 impl std::fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
         match self {
+            Diagnostic::BelowHorizon { lights } => write!(
+                f,
+                "{} {} at or below the horizon bake to K = 1 (fully occluded): {}",
+                lights.len(),
+                if lights.len() == 1 { "light" } else { "lights" },
+                ptm_format::lights::horizon_words(lights, 8)
+            ),
             Diagnostic::DegenerateTriangles { origin, triangles } => write!(
                 f,
                 "{origin}: skipped {triangles} degenerate (zero-area) triangles"

@@ -5,6 +5,7 @@
 //! It names no command-line flag: the `ptm` binary adds those.
 use std::fmt;
 
+use ptm_format::lights::{horizon_words, HorizonLight};
 use ptm_format::Basis;
 
 /// One diagnostic of a fit (`FitReport::warnings`). Each variant's doc names its fields and
@@ -12,6 +13,10 @@ use ptm_format::Basis;
 #[allow(missing_docs)]
 #[derive(Clone, Debug, PartialEq)]
 pub enum Diagnostic {
+    /// Lights at or below the horizon (z ≤ 0): left out of the fit (weight 0), since K = 1
+    /// there by definition and, in the projected (u, v), such a light lands on the same (u, v)
+    /// as its mirror image above the horizon.
+    BelowHorizon { lights: Vec<HorizonLight> },
     /// Fewer lights enter the fit than the basis has coefficients.
     TooFewLights {
         lights: usize,
@@ -73,6 +78,9 @@ pub enum Diagnostic {
     /// Logistic link with ridge 0: `texels` texels are separable, so their maximum-likelihood
     /// coefficients are infinite.
     Separable { texels: usize },
+    /// RTI images that the pattern matched but the `.lp` file `lp` does not list (file names),
+    /// left out of the stack.
+    UnusedImages { lp: String, images: Vec<String> },
     /// A diagnostic read back from a file, which records words only (a farm part's
     /// `part:warnings`).
     Recorded(String),
@@ -112,6 +120,13 @@ impl fmt::Display for Solution {
 impl fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
         match self {
+            Diagnostic::BelowHorizon { lights } => write!(
+                f,
+                "{} {} at or below the horizon left out of the fit (K = 1 there by definition): {}",
+                lights.len(),
+                if lights.len() == 1 { "light" } else { "lights" },
+                horizon_words(lights, HORIZON_SHOWN)
+            ),
             Diagnostic::TooFewLights {
                 lights,
                 coefficients,
@@ -205,10 +220,26 @@ impl fmt::Display for Diagnostic {
                 f,
                 "{texels} texels are separable (K is 0 or 1 and a polynomial boundary splits them exactly) and the ridge is 0: their maximum-likelihood coefficients are infinite, so they stopped where the iteration cap left them"
             ),
+            Diagnostic::UnusedImages { lp, images } => {
+                let (n, shown) = (images.len(), images.len().min(UNUSED_SHOWN));
+                let (is, was) = if n == 1 { ("image is", "was") } else { ("images are", "were") };
+                write!(f, "{n} {is} not listed in {lp} and {was} ignored: ")?;
+                write!(f, "{}", images[..shown].join(", "))?;
+                if n > shown {
+                    write!(f, " and {} more", n - shown)?;
+                }
+                Ok(())
+            }
             Diagnostic::Recorded(words) => f.write_str(words),
         }
     }
 }
+
+/// How many lights a [`Diagnostic::BelowHorizon`] names before "and N more".
+const HORIZON_SHOWN: usize = 8;
+
+/// How many of the images an [`Diagnostic::UnusedImages`] names before "and N more".
+const UNUSED_SHOWN: usize = 8;
 
 /// The words of each diagnostic, as a PTM file's `ptm:warnings` records them.
 pub fn words(diagnostics: &[Diagnostic]) -> Vec<String> {
@@ -281,5 +312,20 @@ mod tests {
             Diagnostic::Recorded("as read".into()).to_string(),
             "as read"
         );
+        let unused = |n: usize| Diagnostic::UnusedImages {
+            lp: "cap.lp".into(),
+            images: (0..n).map(|i| format!("IMG_{i}.png")).collect(),
+        };
+        assert_eq!(
+            unused(1).to_string(),
+            "1 image is not listed in cap.lp and was ignored: IMG_0.png"
+        );
+        assert_eq!(
+            unused(2).to_string(),
+            "2 images are not listed in cap.lp and were ignored: IMG_0.png, IMG_1.png"
+        );
+        assert!(unused(10)
+            .to_string()
+            .ends_with("IMG_6.png, IMG_7.png and 2 more"));
     }
 }

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Result, SampleStack};
+use crate::{Diagnostic, Error, Result, SampleStack};
 use ptm_format::LightSet;
 
 /// How 8-bit image values become visibility before K = 1 − visibility.
@@ -40,6 +40,30 @@ pub struct ImageStackInfo {
     pub linear: usize,
 }
 
+impl ImageStackInfo {
+    /// What the fit should warn of the stack read with the `.lp` file `lp`: the images it does
+    /// not list, by file name.
+    pub fn warnings(&self, lp: &Path) -> Vec<Diagnostic> {
+        if self.unused.is_empty() {
+            return Vec::new();
+        }
+        let images = self
+            .unused
+            .iter()
+            .map(|p| {
+                p.file_name()
+                    .unwrap_or(p.as_os_str())
+                    .to_string_lossy()
+                    .into_owned()
+            })
+            .collect();
+        vec![Diagnostic::UnusedImages {
+            lp: lp.display().to_string(),
+            images,
+        }]
+    }
+}
+
 /// The file-name part of an `.lp` entry: RTIBuilder writes Windows paths
 /// (`C:\Users\…\IMG_0001.JPG`), so both separators end a directory.
 pub fn lp_file_name(entry: &str) -> &str {
@@ -59,6 +83,19 @@ pub fn read_image_stack(
     decoding: Decoding,
 ) -> Result<(SampleStack, ImageStackInfo)> {
     let lights = LightSet::read_lp(lp)?;
+    // On the horizon (z = 0) is a grazing light the fit leaves out; below it is a sign error.
+    let below: Vec<_> = lights
+        .below_horizon()
+        .into_iter()
+        .filter(|l| lights.dirs[l.index][2] < 0.0)
+        .collect();
+    if !below.is_empty() {
+        return Err(Error::LightsBelowHorizon {
+            lp: lp.display().to_string(),
+            of: lights.len(),
+            lights: below,
+        });
+    }
     let paths = glob::glob(pattern).map_err(|e| images(pattern, format!("bad pattern: {e}")))?;
     let mut by_name: HashMap<String, PathBuf> = HashMap::new();
     for p in paths {

@@ -118,6 +118,18 @@ pub enum Error {
         /// What is wrong with the images.
         reason: String,
     },
+    /// A photographed stack (RTI images) whose `.lp` file `lp` puts `lights` of its `of`
+    /// lights below the horizon (z < 0). A camera photographs the lit side of the surface, so
+    /// such a light is almost surely a sign error in the capture's light positions.
+    #[error("{}", below_horizon_words(.lp, .of, .lights))]
+    LightsBelowHorizon {
+        /// The `.lp` file, as given.
+        lp: String,
+        /// Lights in it.
+        of: usize,
+        /// The lights below the horizon.
+        lights: Vec<ptm_format::HorizonLight>,
+    },
     /// An EXR file without `part:version`: not a farm part.
     #[error("{path}: not a ptm part file (no `part:version`)")]
     NotAPart {
@@ -128,6 +140,23 @@ pub enum Error {
     /// too large for half floats).
     #[error(transparent)]
     File(ptm_format::Error),
+}
+
+/// The words of [`Error::LightsBelowHorizon`].
+fn below_horizon_words(lp: &str, of: &usize, lights: &[ptm_format::HorizonLight]) -> String {
+    let n = lights.len();
+    format!(
+        "{lp}: {n} of its {of} lights {} below the horizon (z < 0): {}; a photographed surface is \
+         lit from above it, so {}",
+        if n == 1 { "is" } else { "are" },
+        ptm_format::lights::horizon_words(lights, 8),
+        if n == *of {
+            "the .lp's z axis is likely flipped (its z points from the swatch towards the camera)"
+        } else {
+            "the sign of z is likely wrong in the capture's light positions (z points from the \
+             swatch towards the camera): correct or remove those lines"
+        }
+    )
 }
 
 /// The fit crate's result type.
@@ -178,6 +207,7 @@ impl ToFileFacts for FitReport {
             rms_p99: self.rms.p99,
             max_p99: self.max.map(|m| m.p99),
             holdout: self.holdout.map(|h| (h.mean, h.p99)),
+            holdout_lights: &self.holdout_lights,
             warnings: diagnostic::words(&self.warnings),
             samples: self.samples.as_deref(),
             rms_map: &self.rms_map,

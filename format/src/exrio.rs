@@ -268,6 +268,12 @@ pub struct Contents {
     pub attrs: HashMap<String, Attr>,
 }
 
+/// What every reader says of a file the exr crate cannot read, with the likely causes: cut
+/// short (a copy or a write that did not finish) or not an OpenEXR file at all.
+pub fn unreadable(e: impl std::fmt::Display) -> String {
+    format!("not a readable OpenEXR file (truncated or foreign?): {e}")
+}
+
 /// The most uncompressed pixel bytes per byte of file a header may claim. Deflate cannot
 /// exceed about 1032:1; RLE, PIZ and B44 stay far below. A header is read before its pixels
 /// and the exr crate allocates whatever it claims: a mutated data window asked for 500 PB.
@@ -282,11 +288,7 @@ pub fn check_claimed_size(path: &Path, file_len: u64) -> Result<()> {
         path: path.display().to_string(),
         reason,
     };
-    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| {
-        bad(format!(
-            "not a readable OpenEXR file (truncated or foreign?): {e}"
-        ))
-    })?;
+    let meta = exr::meta::MetaData::read_from_file(path, false).map_err(|e| bad(unreadable(e)))?;
     for h in meta.headers.iter() {
         // In f64: a corrupt size must be measured, not overflow.
         let (w, ht) = (h.layer_size.0 as f64, h.layer_size.1 as f64);
@@ -375,7 +377,7 @@ fn decode(path: &Path, source: impl std::io::Read + std::io::Seek + Send) -> Res
         .from_buffered(source)
         .map_err(|e| Error::Format {
             path: path.display().to_string(),
-            reason: format!("not a readable OpenEXR file (truncated or foreign?): {e}"),
+            reason: unreadable(e),
         })?;
     let layer = image.layer_data;
     let size = layer.size;

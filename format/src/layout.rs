@@ -648,7 +648,7 @@ impl Ptm {
 pub fn detect(path: &Path) -> Result<Layout> {
     if path.exists() {
         let meta = exr::meta::MetaData::read_from_file(path, false)
-            .map_err(|e| format_err(path, format!("not a readable OpenEXR file: {e}")))?;
+            .map_err(|e| format_err(path, exrio::unreadable(e)))?;
         let rgba = meta.headers.iter().any(|h| {
             h.own_attributes
                 .other

@@ -44,7 +44,7 @@ pub mod vec3;
 pub use atomic::{same_file, write_atomic, Transaction};
 pub use basis::{Basis, Link, Monomial, UvMap};
 pub use layout::{Layout, PtmFile};
-pub use lights::LightSet;
+pub use lights::{HorizonLight, LightSet};
 pub use ptm::{FileFacts, Level, Ptm, PtmInfo, SaveOptions, ToFileFacts};
 
 /// Errors of the format crate. Messages name the file and, where there is something to do, what.

@@ -19,6 +19,43 @@ pub struct LightSet {
     pub dirs: Vec<[f64; 3]>,
 }
 
+/// A light of a [`LightSet`] at or below the swatch's horizon ([`LightSet::below_horizon`]).
+/// Its `Display` is how every diagnostic names it: `light 3 "IMG_0003.png" at -17.46°`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct HorizonLight {
+    /// Its index in the light set (channel `K.0003` of a stack for index 3).
+    pub index: usize,
+    /// Its name (the `.lp` file-name column).
+    pub name: String,
+    /// Its elevation in degrees (≤ 0).
+    pub elevation_deg: f64,
+}
+
+impl std::fmt::Display for HorizonLight {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "light {} {:?} at {:.2}°",
+            self.index, self.name, self.elevation_deg
+        )
+    }
+}
+
+/// The lights `lights` as a list in words: `light 3 "a" at -17.46°, light 5 "b" at 0.00°`, at
+/// most `shown` of them, then "and N more".
+pub fn horizon_words(lights: &[HorizonLight], shown: usize) -> String {
+    let mut s = lights
+        .iter()
+        .take(shown)
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(", ");
+    if lights.len() > shown {
+        s += &format!(" and {} more", lights.len() - shown);
+    }
+    s
+}
+
 impl LightSet {
     /// A light set from directions (normalised here), named `light0000`, `light0001`, ….
     pub fn from_dirs(dirs: impl IntoIterator<Item = [f64; 3]>) -> Self {
@@ -35,6 +72,19 @@ impl LightSet {
     /// Whether the set has no light.
     pub fn is_empty(&self) -> bool {
         self.dirs.is_empty()
+    }
+
+    /// The lights at or below the horizon (z ≤ 0), in light order: a bake traces none of them
+    /// (K = 1), a fit leaves them out, and a photographed stack refuses them.
+    pub fn below_horizon(&self) -> Vec<HorizonLight> {
+        (0..self.len())
+            .filter(|&i| self.dirs[i][2] <= 0.0)
+            .map(|i| HorizonLight {
+                index: i,
+                name: self.names[i].clone(),
+                elevation_deg: self.elevation_deg(i),
+            })
+            .collect()
     }
 
     /// Elevation of light `i` above the swatch plane, in degrees.

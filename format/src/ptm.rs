@@ -124,6 +124,9 @@ pub struct FileFacts<'a> {
     /// Mean and 99th percentile of the RMS error of K on hold-out lights, when some were held
     /// out (`ptm:holdoutRmsMean`, `ptm:holdoutRmsP99`).
     pub holdout: Option<(f64, f64)>,
+    /// Indices (in the light set's order) of the lights held out of the fit to measure
+    /// `holdout` (`ptm:holdoutLights`, decimal indices separated by spaces; empty when none).
+    pub holdout_lights: &'a [usize],
     /// Warnings in words (`ptm:warnings`), as the producer renders its diagnostics.
     pub warnings: Vec<String>,
     /// Where the samples came from when not from a ptm bake (`ptm:samples`), e.g. an RTI image
@@ -491,6 +494,10 @@ impl Ptm {
                 attrs.push(("ptm:holdoutRmsMean", Attr::F64(mean)));
                 attrs.push(("ptm:holdoutRmsP99", Attr::F64(p99)));
             }
+            attrs.push((
+                "ptm:holdoutLights",
+                Attr::Text(holdout_text(r.holdout_lights)),
+            ));
             if !r.warnings.is_empty() {
                 attrs.push(("ptm:warnings", Attr::Texts(r.warnings.to_vec())));
             }
@@ -509,6 +516,16 @@ impl Ptm {
         }
         exrio::encode_levels(path, self.width, self.height, channels, attrs)
     }
+}
+
+/// The held-out lights as `ptm:holdoutLights` records them: decimal indices separated by
+/// single spaces, in increasing order (`"0 5 10"`; `""` when none was held out).
+pub fn holdout_text(lights: &[usize]) -> String {
+    lights
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(" ")
 }
 
 /// How far outside [0, 1] a stored coverage may lie and still be read as a fraction: the

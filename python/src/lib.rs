@@ -60,21 +60,26 @@ fn value_err(msg: impl Into<String>) -> PyErr {
     PyValueError::new_err(msg.into())
 }
 
-/// The layout a `layout=` argument names: `"single"` (also `"channels"`, the CLI's word) or
-/// `"rgba"`.
+/// The layout a `layout=` argument names, by the CLI's `--layout` names: `"channels"` (one
+/// EXR, a channel per coefficient) or `"rgba"`. The old `"single"` is refused naming its new
+/// name, so a script that says it learns the name instead of a default.
 fn layout_of(name: &str) -> PyResult<Layout> {
     match name {
-        "single" | "channels" => Ok(Layout::Channels),
+        "channels" => Ok(Layout::Channels),
         "rgba" => Ok(Layout::Rgba),
+        "single" => Err(value_err(
+            "layout \"single\" is now called \"channels\", as the CLI's --layout names it \
+             (one EXR, a channel per coefficient); pass layout=\"channels\"",
+        )),
         _ => Err(value_err(format!(
-            "unknown layout {name:?} (this version writes \"single\" and \"rgba\")"
+            "unknown layout {name:?} (this version writes \"channels\" and \"rgba\")"
         ))),
     }
 }
 
 fn layout_name(layout: Layout) -> &'static str {
     match layout {
-        Layout::Channels => "single",
+        Layout::Channels => "channels",
         Layout::Rgba => "rgba",
     }
 }
@@ -258,17 +263,19 @@ struct PyPtm {
 #[pymethods]
 impl PyPtm {
     #[new]
-    #[pyo3(signature = (basis, coefficients, tile = (1.0, 1.0), link = "identity", uv = "projected", coverage = None, mips = None))]
+    // Text arguments are `String`s: the stable ABI of CPython 3.9 (abi3-py39) cannot lend a
+    // `&str` of a Python string (PyUnicode_AsUTF8AndSize joined it in 3.10).
+    #[pyo3(signature = (basis, coefficients, tile = (1.0, 1.0), link = "identity".into(), uv = "projected".into(), coverage = None, mips = None))]
     fn new(
-        basis: &str,
+        basis: String,
         coefficients: PyArrayLike3<'_, f32, AllowTypeChange>,
         tile: (f64, f64),
-        link: &str,
-        uv: &str,
+        link: String,
+        uv: String,
         coverage: Option<PyArrayLike2<'_, f32, AllowTypeChange>>,
         mips: Option<Vec<PyArrayLike3<'_, f32, AllowTypeChange>>>,
     ) -> PyResult<PyPtm> {
-        let basis = basis_of(basis)?;
+        let basis = basis_of(&basis)?;
         let shape = coefficients.shape().to_vec();
         let (terms, height, width) = (shape[0], shape[1], shape[2]);
         if terms != basis.len() {
@@ -313,8 +320,8 @@ impl PyPtm {
             .collect();
         let ptm = Ptm {
             basis,
-            link: link_of(link)?,
-            uv: uv_of(uv)?,
+            link: link_of(&link)?,
+            uv: uv_of(&uv)?,
             width,
             height,
             tile: [tile.0, tile.1],
@@ -422,30 +429,31 @@ impl PyPtm {
         Ok(d)
     }
 
-    /// The layout the PTM was loaded from, "single" or "rgba"; None when built from arrays.
+    /// The layout the PTM was loaded from, "channels" or "rgba"; None when built from arrays.
     #[getter]
     fn layout(&self) -> Option<&'static str> {
         self.layout.map(layout_name)
     }
 
     /// K, the occluded fraction (0 = lit, 1 = occluded), of every texel for lights whose
-    /// projections on the tangent plane are (u, v) = (l·X, l·Y), l the unit vector towards the
-    /// light in the upper hemisphere. The file's (u, v) map and link are applied here, and K is
+    /// projected direction is (lx, ly) = (l·T, l·B), l the unit vector towards the light in the
+    /// upper hemisphere (T = +X, B = +Y of the swatch). These are not the polynomial's (u, v):
+    /// the file's (u, v) map (`uv`, e.g. hemispherical) and link are applied here, and K is
     /// clamped to [0, 1], as `Ptm::eval` does.
     ///
-    /// u, v: numbers → float32 array (height, width); 1-D arrays of N lights (or one of them a
+    /// lx, ly: numbers → float32 array (height, width); 1-D arrays of N lights (or one of them a
     /// number) → (N, height, width). One thread, without the GIL: Python threads evaluate in
     /// parallel.
-    fn eval<'py>(
+    fn eval_xy<'py>(
         &self,
         py: Python<'py>,
-        u: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
-        v: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
+        lx: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
+        ly: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
     ) -> PyResult<Bound<'py, PyAny>> {
-        let ((us, ushape), (vs, vshape)) = (flat(&u), flat(&v));
+        let ((us, ushape), (vs, vshape)) = (flat(&lx), flat(&ly));
         if ushape.len() > 1 || vshape.len() > 1 {
             return Err(value_err(format!(
-                "u and v are numbers or 1-D arrays of lights, not arrays of shape {ushape:?} and {vshape:?}"
+                "lx and ly are numbers or 1-D arrays of lights, not arrays of shape {ushape:?} and {vshape:?}"
             )));
         }
         let scalar = ushape.is_empty() && vshape.is_empty();
@@ -456,7 +464,7 @@ impl PyPtm {
             _ if us.len() == vs.len() => us.len(),
             _ => {
                 return Err(value_err(format!(
-                    "u has {} lights but v has {}",
+                    "lx has {} lights but ly has {}",
                     us.len(),
                     vs.len()
                 )))
@@ -472,6 +480,27 @@ impl PyPtm {
             })
             .collect();
         self.evaluate(py, &lights, scalar)
+    }
+
+    /// Deprecated: `eval_xy(lx, ly)`, under its old name, whose arguments read like the file's
+    /// (u, v) but are the projected direction (l·T, l·B). Warns (FutureWarning, shown by
+    /// default) on every call site, then evaluates as `eval_xy`.
+    fn eval<'py>(
+        &self,
+        py: Python<'py>,
+        u: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
+        v: PyArrayLikeDyn<'py, f32, AllowTypeChange>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let category = py.get_type::<pyo3::exceptions::PyFutureWarning>();
+        PyErr::warn(
+            py,
+            category.as_any(),
+            c"Ptm.eval(u, v) is deprecated and will be removed: its arguments are the projected \
+              light direction (lx, ly) = (l.T, l.B), not the file's (u, v) map of it; call \
+              Ptm.eval_xy(lx, ly) (or eval_dir(l))",
+            1,
+        )?;
+        self.eval_xy(py, u, v)
     }
 
     /// K of every texel for unit directions l towards the light (swatch frame: x along the
@@ -510,20 +539,20 @@ impl PyPtm {
         self.evaluate(py, &lights, scalar)
     }
 
-    /// Writes the PTM to `path` and returns the files written: layout "single" (one EXR, one
-    /// channel per coefficient; also called "channels") or "rgba" (the renderer layout: `path`
+    /// Writes the PTM to `path` and returns the files written: layout "channels" (one EXR, one
+    /// channel per coefficient; the CLI's name, "single" before) or "rgba" (the renderer layout: `path`
     /// `w.ptm.exr` writes `w.ptm.c0.exr`, `w.ptm.c1.exr`, …). half=True stores half floats
     /// (ValueError if a coefficient does not fit). A loaded PTM keeps every map (MIP levels,
     /// coverage, error maps) and header attribute of its file; all files are written or none.
-    #[pyo3(signature = (path, half = false, layout = "single"))]
+    #[pyo3(signature = (path, half = false, layout = "channels".into()))]
     fn save(
         &self,
         py: Python<'_>,
         path: PathBuf,
         half: bool,
-        layout: &str,
+        layout: String,
     ) -> PyResult<Vec<String>> {
-        let layout = layout_of(layout)?;
+        let layout = layout_of(&layout)?;
         let written = py
             .detach(|| match &self.file {
                 None => {
@@ -669,8 +698,9 @@ fn load(py: Python<'_>, path: PathBuf) -> PyResult<PyPtm> {
 /// `ptm.load(path)` reads a PTM (the single-file PTM EXR or the renderer layout's RGB(A)
 /// parts) into a `ptm.Ptm`: `basis`, `link`, `uv`, `width`, `height`, `tile`, `monomials`,
 /// `coefficients` (numpy float32, (terms, height, width)), `coverage`, `mips`, `metadata`.
-/// `Ptm.eval(u, v)` and `Ptm.eval_dir(l)` give K, the occluded fraction of each texel, for one
-/// light or N at once; `Ptm.save(path, half=False, layout="single"|"rgba")` writes it, and
+/// `Ptm.eval_xy(lx, ly)` (the projected light direction (l·T, l·B), whatever the file's (u, v)
+/// map) and `Ptm.eval_dir(l)` give K, the occluded fraction of each texel, for one light or N at
+/// once; `Ptm.save(path, half=False, layout="channels"|"rgba")` writes it, and
 /// `ptm.Ptm(basis, coefficients, ...)` builds one from arrays. File format: docs/FORMAT.md.
 #[pymodule(name = "ptm")]
 fn ptm_module(m: &Bound<'_, PyModule>) -> PyResult<()> {

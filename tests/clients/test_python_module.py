@@ -1,8 +1,8 @@
 """The Python module `ptm` (python/, built by maturin into .deps/py) against the Rust reader on
-files the real `ptm` binary makes: Ptm.eval / Ptm.eval_dir equal Ptm::eval / Ptm::eval_dir
+files the real `ptm` binary makes: Ptm.eval_xy / Ptm.eval_dir equal Ptm::eval / Ptm::eval_dir
 (fit/examples/ptm_eval.rs) to 1e-6 for ptm6 and ptm11, both links and both (u, v) maps, over
 many lights (grazing, at and below the horizon, outside the unit disk); save/load round trips
-(single and rgba layouts, float and half, coverage, MIP levels, error maps) keep coefficients
+(channels and rgba layouts, float and half, coverage, MIP levels, error maps) keep coefficients
 and metadata; errors name the file; the README's Python example runs as written.
 
     python test_python_module.py PTM_BIN PTM_EVAL WORKDIR
@@ -90,11 +90,17 @@ def compare_eval(path, p):
     check(below.sum() >= 3 and np.all(got[below] == 1.0), f"{path}: lights at or below the horizon give K = 1")
     uv = uv_pairs()
     ref = rust_k(path, [f"{float(u)!r},{float(v)!r}" for u, v in uv])
-    got = p.eval(uv[:, 0], uv[:, 1])
+    got = p.eval_xy(uv[:, 0], uv[:, 1])
     err = max(err, float(np.abs(got.astype(np.float64) - ref).max()))
-    check(np.array_equal(p.eval(float(uv[3, 0]), float(uv[3, 1])), got[3]), f"{path}: eval of one (u, v)")
-    check(np.array_equal(p.eval(uv[:, 0], float(uv[3, 1]))[3], got[3]), f"{path}: eval with v a number")
-    check(np.array_equal(p.eval(uv[:5, 0].tolist(), uv[:5, 1].tolist()), got[:5]), f"{path}: eval of lists")
+    check(np.array_equal(p.eval_xy(float(uv[3, 0]), float(uv[3, 1])), got[3]), f"{path}: eval_xy of one (lx, ly)")
+    check(np.array_equal(p.eval_xy(uv[:, 0], float(uv[3, 1]))[3], got[3]), f"{path}: eval_xy with ly a number")
+    check(np.array_equal(p.eval_xy(lx=uv[:5, 0].tolist(), ly=uv[:5, 1].tolist()), got[:5]),
+          f"{path}: eval_xy of lists, by keyword")
+    # eval_xy takes the projected direction: on every map, K of l is eval_xy(l·T, l·B).
+    d = directions()
+    d = d[d[:, 2] > 0.1]
+    dk = np.abs(p.eval_xy(d[:, 0], d[:, 1]).astype(np.float64) - p.eval_dir(d)).max()
+    check(dk <= 1e-4, f"{path}: eval_xy(l·T, l·B) = eval_dir(l) (|ΔK| {dk:.1e}, f32 against f64 directions)")
     check(got.min() >= 0 and got.max() <= 1, f"{path}: K clamped to [0, 1]")
     check(err <= TOL, f"{path}: Python eval = Rust eval (worst |ΔK| {err:.1e})")
     return err
@@ -168,7 +174,7 @@ for name, basis, link, uv, extra in kinds:
     t_load += time.perf_counter() - t0
     rgba = "rgba" in extra
     check((p.basis, p.link, p.uv) == (basis, link, uv), f"{name}: basis, link, uv = {(p.basis, p.link, p.uv)}")
-    check(p.layout == ("rgba" if rgba else "single"), f"{name}: loaded from layout {p.layout}")
+    check(p.layout == ("rgba" if rgba else "channels"), f"{name}: loaded from layout {p.layout}")
     check(p.coefficients.shape == (len(p.monomials), p.height, p.width) and p.coefficients.dtype == np.float32,
           f"{name}: coefficients (terms, height, width) float32")
     md = p.metadata
@@ -184,11 +190,11 @@ for name, basis, link, uv, extra in kinds:
         # The stem names the renderer layout too.
         check(ptm.load(path).layout == "rgba", f"{name}: the stem loads the rgba parts")
     # Round trips: both layouts, float and half; Rust reads what Python wrote.
-    for layout in ["single", "rgba"]:
+    for layout in ["channels", "rgba"]:
         for half in [False, True]:
             out = w(f"rt-{layout}-{int(half)}-{name}")
             written = p.save(out, half=half, layout=layout)
-            want = [out] if layout == "single" else [out.replace(".exr", f".c{i}.exr") for i in range(2 if basis == "ptm6" else 3)]
+            want = [out] if layout == "channels" else [out.replace(".exr", f".c{i}.exr") for i in range(2 if basis == "ptm6" else 3)]
             if "--error-map" in extra and layout == "rgba":
                 want.append(out.replace(".exr", ".err.exr"))
             check(sorted(written) == sorted(want), f"{name} → {layout} half={half}: files {written}")
@@ -198,7 +204,7 @@ for name, basis, link, uv, extra in kinds:
                 worst = max(worst, compare_eval(out, q))
     if name == "ptm11-identity-hemispherical.ptm.exr":
         # A half file saved as float32 is exact; error maps survive (both layouts).
-        back = ptm.load(w(f"rt-single-0-{name}"))
+        back = ptm.load(w(f"rt-channels-0-{name}"))
         check(np.array_equal(back.coefficients, p.coefficients), f"{name}: half → float32 exact")
         same_file(p, ptm.load(w(f"rt-rgba-1-{name}")), f"{name}: half → rgba half", storage="half")
 
@@ -219,7 +225,7 @@ for basis, n in [("ptm6", 6), ("ptm11", 11)]:
             b = ptm.Ptm(basis, coeffs, tile=(2.0, 1.5), link=link, uv=uv, coverage=cov, mips=mips)
             check(b.layout is None and b.metadata.get("ptm:basis") == basis and b.metadata.get("ptm:link") == link,
                   f"built {basis} {link} {uv}: metadata of the file it would write")
-            for layout in ["single", "rgba"]:
+            for layout in ["channels", "rgba"]:
                 out = w(f"built-{basis}-{link}-{uv}-{layout}.ptm.exr")
                 b.save(out, layout=layout)
                 q = ptm.load(out)
@@ -228,7 +234,7 @@ for basis, n in [("ptm6", 6), ("ptm11", 11)]:
                       and all(np.array_equal(m.astype(np.float32), qm) for m, qm in zip(mips, q.mips)),
                       f"built {basis} {link} {uv} → {layout}: coefficients, coverage, MIP levels")
                 same_file(b, q, f"built {basis} {link} {uv} → {layout}")
-                worst = max(worst, compare_eval(out if layout == "single" else out.replace(".exr", ".c0.exr"), q))
+                worst = max(worst, compare_eval(out if layout == "channels" else out.replace(".exr", ".c0.exr"), q))
             hb = w(f"built-{basis}-{link}-{uv}-half.ptm.exr")
             b.save(hb, half=True)
             same_file(b, ptm.load(hb), f"built {basis} {link} {uv} → half", storage="half")
@@ -241,6 +247,15 @@ expect_error(ValueError, "s.exr: not an occlusion PTM", lambda: ptm.load(w("s.ex
 with open(w("text.exr"), "w") as f:
     f.write("not an EXR\n")
 expect_error(ValueError, "text.exr: not a readable OpenEXR file", lambda: ptm.load(w("text.exr")), "a file that is no EXR")
+# A file cut short, in its header or its pixels: named once, and called possibly truncated.
+with open(w("ptm6-identity-projected.ptm.exr"), "rb") as f:
+    whole = f.read()
+for keep in (40, len(whole) // 2):
+    with open(w("cut.ptm.exr"), "wb") as f:
+        f.write(whole[:keep])
+    e = expect_error(ValueError, "(truncated or foreign?)", lambda: ptm.load(w("cut.ptm.exr")),
+                     f"a PTM cut at {keep} bytes")
+    check(e is not None and str(e).count("cut.ptm.exr") == 1, f"a PTM cut at {keep} bytes: named once ({e})")
 # A header that Ptm::load refuses is refused here too (written by Python OpenEXR).
 src = OpenEXR.File(w("ptm6-identity-projected.ptm.exr"))
 for key, value, needle in [("ptm:version", "occlusion-ptm/9", "occlusion-ptm/9"),
@@ -258,6 +273,21 @@ os.remove(w("gap.ptm.c1.exr"))
 expect_error(ValueError, "gap.ptm.c1.exr: missing part c1", lambda: ptm.load(w("gap.ptm.c0.exr")),
              "an rgba layout with a part missing")
 expect_error(ValueError, "unknown layout", lambda: p.save(w("x.exr"), layout="planar"), "save(layout=…) unknown")
+# The CLI's names only: the old "single" says what it is called now, and writes nothing.
+expect_error(ValueError, 'now called "channels"', lambda: p.save(w("old.ptm.exr"), layout="single"),
+             'save(layout="single")')
+check(not os.path.exists(w("old.ptm.exr")), 'save(layout="single") writes nothing')
+check(p.save(w("default.ptm.exr")) == [w("default.ptm.exr")] and ptm.load(w("default.ptm.exr")).layout == "channels",
+      "save() writes the channels layout by default")
+# eval(u, v), the old name of eval_xy, warns loudly (a FutureWarning, shown by default) and still
+# evaluates as eval_xy.
+import warnings  # noqa: E402
+with warnings.catch_warnings(record=True) as caught:
+    warnings.simplefilter("default")
+    old = p.eval(0.3, 0.2)
+check(any(issubclass(c.category, FutureWarning) and "eval_xy(lx, ly)" in str(c.message) for c in caught),
+      f"eval(u, v) warns, naming eval_xy ({[str(c.message) for c in caught]})")
+check(np.array_equal(old, p.eval_xy(0.3, 0.2)), "eval(u, v) = eval_xy(lx, ly)")
 expect_error(FileNotFoundError, "no-dir", lambda: p.save(w("no-dir/x.ptm.exr")), "save into a missing folder")
 big = ptm.Ptm("ptm6", np.full((6, 2, 2), 1e5, np.float32))
 expect_error(ValueError, "big.ptm.exr: a coefficient of magnitude", lambda: big.save(w("big.ptm.exr"), half=True),
@@ -272,7 +302,7 @@ expect_error(ValueError, "unknown link", lambda: ptm.Ptm("ptm6", np.zeros((6, 2,
 expect_error(ValueError, "MIP levels", lambda: ptm.Ptm("ptm6", np.zeros((6, 4, 4)), mips=[np.zeros((6, 2, 2))]),
              "Ptm(mips) not the whole chain")
 expect_error(ValueError, "(N, 3)", lambda: p.eval_dir([0.0, 1.0]), "eval_dir of a 2-vector")
-expect_error(ValueError, "lights", lambda: p.eval([0.1, 0.2], [0.1, 0.2, 0.3]), "eval of u, v of different lengths")
+expect_error(ValueError, "lights", lambda: p.eval_xy([0.1, 0.2], [0.1, 0.2, 0.3]), "eval_xy of lx, ly of different lengths")
 
 # The Python example of docs/pipeline.md, run as written on a renderer-layout PTM named w.ptm.
 readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "pipeline.md")).read()
@@ -313,7 +343,7 @@ for basis, n in [("ptm6", 6), ("ptm11", 11)]:
         check(np.abs(kn.reshape(k.shape) - k).max() < 1e-4, f"speed {basis} {link}: numpy's K agrees")
         speed.append(f"{basis} {link} {k.size / dt / 1e6:.0f} (numpy matmul {k.size / dn / 1e6:.0f})")
 print(f"python module: {len(kinds)} fitted PTMs + 8 built from arrays, eval/eval_dir vs Rust Ptm::eval worst "
-      f"|ΔK| {worst:.1e} (tolerance {TOL:.0e}); round trips single/rgba × float/half; "
+      f"|ΔK| {worst:.1e} (tolerance {TOL:.0e}); round trips channels/rgba × float/half; "
       f"loads {t_load * 1e3 / len(kinds):.1f} ms each; eval_dir 1024 lights × 256² texels, Mtexel-evals/s: "
       + ", ".join(speed))
 if failures:

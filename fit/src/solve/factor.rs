@@ -21,9 +21,11 @@ pub(super) fn light_weights(
     let mut w: Vec<f64> = lights
         .dirs
         .iter()
+        // Lights at or below the horizon are left out: K = 1 there by definition.
         .map(|d| match opts.weight {
+            _ if d[2] <= 0.0 => 0.0,
             Weight::Uniform => 1.0,
-            Weight::Cosine => d[2].max(0.0),
+            Weight::Cosine => d[2],
         })
         .collect();
     for &i in &held {
@@ -177,6 +179,10 @@ pub(super) fn diagnose(
     let m = basis.len();
     let fit: Vec<usize> = (0..lights.len()).filter(|&i| w[i] > 0.0).collect();
     let mut out = Vec::new();
+    let below = lights.below_horizon();
+    if !below.is_empty() {
+        out.push(Diagnostic::BelowHorizon { lights: below });
+    }
     if fit.len() < m {
         out.push(Diagnostic::TooFewLights {
             lights: fit.len(),

@@ -5,13 +5,14 @@ use crate::simd::Isa;
 use crate::{Diagnostic, Error, Result};
 use ptm_format::{Basis, Link, UvMap};
 
-/// How each light's squared error counts in the fit.
+/// How each light's squared error counts in the fit. Under either, lights at or below the
+/// horizon get weight 0 (left out: K = 1 there by definition).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Weight {
-    /// Every light counts the same.
+    /// Every light above the horizon counts the same.
     Uniform,
     /// Weight = l_z = sin(elevation): grazing lights carry less light, so their errors matter
-    /// less for shading. Lights at or below the horizon get weight 0 (left out).
+    /// less for shading.
     Cosine,
 }
 
