@@ -379,6 +379,7 @@ fn res_n_keeps_texels_square_on_a_non_square_tile() {
         (j["width"].as_u64(), j["height"].as_u64()),
         (Some(64), Some(64))
     );
+}
 
 /// A light at or below the horizon is named in `warnings` (bake and streaming fit alike, with
 /// `--json`), keeps its index in `below_horizon`, bakes to K = 1, and is left out of the fit.

@@ -620,6 +620,10 @@ fn the_fit_holds_out_lights_by_default_and_labels_both_errors() {
     let run = ptm(["fit", "s.exr", "-o", "c.ptm.exr", "--basis", "ptm11"], d);
     assert!(
         run.ok && run.stderr.contains("too few to spare"),
+        "{}",
+        run.stderr
+    );
+}
 
 /// A flat RTI capture of `lights`: one 4×3 grey PNG per light, named `img_NN.png`, and its
 /// `.lp` file `dome.lp` in `dir`.
