@@ -80,11 +80,11 @@ for name in ("ptm_occlusion.mtlx", "example.mtlx"):
                     r = subprocess.run(["glslangValidator", path], capture_output=True, text=True)
                     assert r.returncode == 0, f"glslangValidator {path}:\n{r.stdout}{r.stderr}"
                 counts["glsl compiled"] = 2
-# The README's MaterialX example is the node of example.mtlx.
-readme = open(os.path.join(HERE, "..", "..", "README.md")).read()
-block = readme.split("```xml\n", 1)[1].split("```", 1)[0]
+# docs/pipeline.md's MaterialX example is the node of example.mtlx.
+doc = open(os.path.join(HERE, "..", "..", "docs", "pipeline.md")).read()
+block = doc.split("```xml\n", 1)[1].split("```", 1)[0]
 example = open(os.path.join(HERE, "example.mtlx")).read()
-assert all(line.strip() in example for line in block.splitlines()), "README MaterialX example differs from example.mtlx"
+assert all(line.strip() in example for line in block.splitlines()), "docs/pipeline.md's MaterialX example differs from example.mtlx"
 print(f"materialx: ND_ptm_occlusion_float validates; OSL and GLSL generated, GLSL compiled by glslangValidator ({counts})")
 
 # --- K of the nodegraph, evaluated in numpy, against Ptm::eval ---------------------------------
