@@ -1,22 +1,32 @@
 """Build Blender materials from an occlusion PTM in the renderer layout (docs/FORMAT.md).
 
-Two ways to evaluate K, both taking the key light's direction from a named light object (its
-+Z axis, i.e. the direction towards a sun lamp, through drivers):
+Two ways to evaluate K, both taking the key light's direction from a named light object
+through drivers (a sun's +Z axis; for a point, spot or area light, from the shading point
+towards the light's position):
 
 - ``mode="osl"``: a Script node running integrations/osl/ptm_occlusion.osl (Cycles, CPU, with
   Open Shading Language enabled; ``build_material`` switches it on).
 - ``mode="nodes"``: a node group made of Blender's own Image Texture, Separate Color, Vector
   Math and Math nodes, so EEVEE and GPU Cycles work too.
 
-``output="lit"`` gives a Principled BSDF whose base colour is multiplied by 1 - K (exact for
-the one key light the scene is lit by); ``output="k"`` emits K itself (what the tests render).
+What K darkens (``output=``):
 
-Use as a script::
+- ``"lit"`` (default): a Principled BSDF left as it is, plus a shader AOV ``ptm_k`` = K, and
+  the scene set up by ``occlude_key_light``: the key light in its own Cycles light group and a
+  compositor that subtracts the key light's pass × K from the image. Only the key light is
+  occluded: the world, fill lights and emitters are not. Cycles only (light groups).
+- ``"multiply"``: base colour × (1 - K). Any engine (EEVEE too), but K then darkens everything
+  the surface reflects, the world and fill lights as well as the key: exact only when the key
+  light is the only light.
+- ``"k"``: emits K itself (what the tests render).
+
+Use as a script (a whole scene rendered in one command: ``ptm_scene.py`` beside this file)::
 
     import sys; sys.path.insert(0, "integrations/blender")
-    import ptm_blender
-    mat = ptm_blender.build_material("w.ptm.c0.exr", light="Sun", mode="nodes")
-    plane.data.materials.append(mat)
+    import bpy, ptm_blender
+    bpy.ops.mesh.primitive_plane_add(size=2)
+    plane = bpy.context.active_object
+    plane.data.materials.append(ptm_blender.build_material("w.ptm.c0.exr", light="Light"))
 
 Blender's own Python has no OpenEXR module: the header is read here by hand (``read_header``).
 """
@@ -124,6 +134,41 @@ def _drive_light_dir(socket, light):
         # RNA paths index the matrix as stored, column first: [2][i] is row i of the Z axis.
         var.targets[0].data_path = f"matrix_world[2][{i}]"
         d.expression = "a"
+
+
+def _drive_light_pos(socket, light):
+    """Drivers: the Combine XYZ inputs = the light object's world position."""
+    for i, inp in enumerate(socket.node.inputs[:3]):
+        fc = inp.driver_add("default_value")
+        d = fc.driver
+        d.type = "SCRIPTED"
+        var = d.variables.new()
+        var.name = "a"
+        var.type = "SINGLE_PROP"
+        var.targets[0].id_type = "OBJECT"
+        var.targets[0].id = light
+        var.targets[0].data_path = f"matrix_world[3][{i}]"
+        d.expression = "a"
+
+
+def _connect_light(tree, light_in, light):
+    """Feeds `light_in` the direction from the shading point towards the key light: a sun's +Z
+    axis (the same everywhere), else (point, spot, area) towards the light's position from the
+    shading point, in world space."""
+    if light.data.type == "SUN":
+        light_in.default_value = light_direction(light)
+        _drive_light_dir(light_in, light)
+        return
+    pos = tree.nodes.new("ShaderNodeCombineXYZ")
+    for i, c in enumerate(light.matrix_world.translation):
+        pos.inputs[i].default_value = c
+    _drive_light_pos(pos.outputs[0], light)
+    geo = tree.nodes.new("ShaderNodeNewGeometry")
+    sub = tree.nodes.new("ShaderNodeVectorMath")
+    sub.operation = "SUBTRACT"
+    tree.links.new(pos.outputs[0], sub.inputs[0])
+    tree.links.new(geo.outputs["Position"], sub.inputs[1])
+    tree.links.new(sub.outputs["Vector"], light_in)
 
 
 def light_direction(light):
@@ -247,20 +292,113 @@ def occlusion_group(stem, basis, link, uv, interpolation="Linear"):
     return tree
 
 
+AOV = "ptm_k"
+KEY_GROUP = "ptm_key"
+COMPOSITOR = "PTM key-light occlusion"
+
+
+def _light_object(light):
+    if not isinstance(light, str):
+        return light
+    obj = bpy.data.objects.get(light)
+    if obj is None or obj.type != "LIGHT":
+        lights = sorted(o.name for o in bpy.data.objects if o.type == "LIGHT")
+        raise KeyError(f"key light {light!r}: no light object of that name in this file "
+                       f"(lights here: {', '.join(lights) or 'none'}); pass light= one of them")
+    return obj
+
+
+def occlude_key_light(light, scene=None, denoise=None):
+    """Confines the PTM's occlusion to the key light: `light` (object or name) goes into the
+    Cycles light group ``ptm_key``; every view layer gets the value AOV ``ptm_k`` (written by
+    the materials of ``build_material(output="lit")``; 0 elsewhere) and the light-group pass;
+    the compositor outputs Image − Combined_ptm_key × ptm_k, i.e. the key light's contribution
+    × (1 − K) plus everything else untouched. Idempotent. Switches the scene to Cycles.
+
+    `denoise` (default: the scene's Cycles denoising setting) moves denoising after the
+    subtraction (render denoising off, a Denoise node with the albedo and normal passes at the
+    end), since the light-group pass is never denoised: subtracting a noisy pass from a denoised
+    image would put the noise back into the shadows.
+
+    Limits: the product is taken per pixel on the camera's first hit, so the key light seen in
+    reflections and refractions and its indirect bounces are darkened by the K of the pixel
+    they end up in, not of the surface they left; a pixel straddling two surfaces gets the
+    product of their averages. Needs Blender 5.0's compositor node groups (tested with 5.0.1)."""
+    scene = scene or bpy.context.scene
+    light = _light_object(light)
+    if not hasattr(scene, "compositing_node_group"):
+        raise RuntimeError(f"Blender {bpy.app.version_string}: occlude_key_light needs Blender 5.0 "
+                           "(compositor node groups); use build_material(output=\"multiply\") instead")
+    scene.render.engine = "CYCLES"
+    if denoise is None:
+        denoise = scene.cycles.use_denoising
+    scene.cycles.use_denoising = False
+    light.lightgroup = KEY_GROUP
+    for vl in scene.view_layers:
+        if KEY_GROUP not in vl.lightgroups:
+            vl.lightgroups.add(name=KEY_GROUP)
+        if AOV not in vl.aovs:
+            aov = vl.aovs.add()
+            aov.name = AOV
+            aov.type = "VALUE"
+        vl.cycles.denoising_store_passes = denoise
+    tree = scene.compositing_node_group
+    if tree is not None and tree.name != COMPOSITOR and not tree.name.startswith(COMPOSITOR + "."):
+        raise RuntimeError(f"scene {scene.name!r} already has a compositor ({tree.name!r}): wire it "
+                           f"by hand as Image - Combined_{KEY_GROUP} * {AOV} from the Render Layers "
+                           "node, or remove it and call occlude_key_light again")
+    if tree is None:
+        tree = bpy.data.node_groups.new(COMPOSITOR, "CompositorNodeTree")
+        tree.interface.new_socket("Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        scene.compositing_node_group = tree
+    tree.nodes.clear()
+    rl = tree.nodes.new("CompositorNodeRLayers")
+    rl.scene = scene
+    mul = tree.nodes.new("ShaderNodeMix")
+    sub = tree.nodes.new("ShaderNodeMix")
+    for node, op in ((mul, "MULTIPLY"), (sub, "SUBTRACT")):
+        node.data_type = "RGBA"
+        node.blend_type = op
+        node.inputs["Factor"].default_value = 1.0
+    tree.links.new(rl.outputs[f"Combined_{KEY_GROUP}"], mul.inputs["A"])
+    tree.links.new(rl.outputs[AOV], mul.inputs["B"])
+    tree.links.new(rl.outputs["Image"], sub.inputs["A"])
+    tree.links.new(mul.outputs["Result"], sub.inputs["B"])
+    result = sub.outputs["Result"]
+    if denoise:
+        dn = tree.nodes.new("CompositorNodeDenoise")
+        tree.links.new(result, dn.inputs["Image"])
+        tree.links.new(rl.outputs["Denoising Normal"], dn.inputs["Normal"])
+        tree.links.new(rl.outputs["Denoising Albedo"], dn.inputs["Albedo"])
+        result = dn.outputs["Image"]
+    out = tree.nodes.new("NodeGroupOutput")
+    tree.links.new(result, out.inputs[0])
+    for i, n in enumerate(tree.nodes):
+        n.location = (220 * i, 0)
+    return tree
+
+
 def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.6, 1.0),
-                   repeat=1.0, interpolation="Linear", name=None):
+                   repeat=1.0, interpolation="Linear", name=None, scene=None):
     """A material evaluating the PTM at `path` (any of its parts, or `w.ptm.exr`) for the key
-    light object named `light` (or the object itself). See the module docstring."""
+    light object named `light` (or the object itself), tiled `repeat` times across the UV square
+    (a number, or (across, down) for a UV map that is not square in space, like a UV sphere's).
+    See the module docstring; with
+    ``output="lit"`` it also calls ``occlude_key_light(light, scene)``."""
+    if output not in ("lit", "multiply", "k"):
+        raise ValueError(f"output {output!r}: lit, multiply or k")
     stem, basis, link, uv = ptm_info(path)
-    light_obj = bpy.data.objects[light] if isinstance(light, str) else light
+    light_obj = _light_object(light)
     mat = bpy.data.materials.new(name or f"PTM {os.path.basename(stem)} ({mode})")
-    mat.use_nodes = True
+    if mat.node_tree is None:  # Blender < 5.0
+        mat.use_nodes = True
     tree = mat.node_tree
     tree.nodes.clear()
     out = tree.nodes.new("ShaderNodeOutputMaterial")
     texco = tree.nodes.new("ShaderNodeTexCoord")
     mapping = tree.nodes.new("ShaderNodeMapping")
-    mapping.inputs["Scale"].default_value = (repeat, repeat, 1.0)
+    rx, ry = (repeat, repeat) if isinstance(repeat, (int, float)) else repeat
+    mapping.inputs["Scale"].default_value = (rx, ry, 1.0)
     tree.links.new(texco.outputs["UV"], mapping.inputs["Vector"])
     if mode == "osl":
         bpy.context.scene.render.engine = "CYCLES"
@@ -291,14 +429,13 @@ def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.
         light_in = node.inputs["Light"]
     else:
         raise ValueError(f"mode {mode!r}: osl or nodes")
-    light_in.default_value = light_direction(light_obj)
-    _drive_light_dir(light_in, light_obj)
+    _connect_light(tree, light_in, light_obj)
     if output == "k":
         emit = tree.nodes.new("ShaderNodeEmission")
         emit.inputs["Strength"].default_value = 1.0
         tree.links.new(node.outputs["K"], emit.inputs["Color"])
         tree.links.new(emit.outputs[0], out.inputs["Surface"])
-    else:
+    elif output == "multiply":
         bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
         tint = tree.nodes.new("ShaderNodeMix")
         tint.data_type = "RGBA"
@@ -308,4 +445,12 @@ def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.
         tree.links.new(node.outputs["Visibility"], tint.inputs["B"])
         tree.links.new(tint.outputs["Result"], bsdf.inputs["Base Color"])
         tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    else:
+        bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
+        bsdf.inputs["Base Color"].default_value = albedo
+        tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
+        aov = tree.nodes.new("ShaderNodeOutputAOV")
+        aov.aov_name = AOV
+        tree.links.new(node.outputs["K"], aov.inputs["Value"])
+        occlude_key_light(light_obj, scene)
     return mat

@@ -5,6 +5,9 @@ The same for the OSL that MaterialX's generator writes for ND_ptm_occlusion_floa
 (integrations/materialx/mtlx_osl.py makes MTLX_OSL), compiled by Cycles' OSL compiler: a
 compile error fails the test with the compiler's message.
 The README's OSL shader group is built as written and lit: its shadowing equals 1 − Ptm::eval.
+The README's Blender examples run as written (the Python block in a fresh default scene, the
+ptm_scene.py command line); output="lit" occludes the key light only (composite = Image − key
+pass × K, never darker than the world alone), where output="multiply" darkens the world light too.
 Then renders the lit example (plane tiled 4×, micro-shadows from one key sun) to a PNG.
 
     python test_blender.py PTM_BIN PTM_EVAL MTLX_OSL WORKDIR [LIT_PNG]
@@ -216,6 +219,130 @@ def readme_osl_group():
     return err
 
 
+def render_socket(sc, socket, path):
+    """Renders with the compositor's output wired to the Render Layers output `socket` (a pass),
+    then rewires it as it was."""
+    tree = sc.compositing_node_group
+    rl = next(n for n in tree.nodes if n.bl_idname == "CompositorNodeRLayers")
+    out = next(n for n in tree.nodes if n.bl_idname == "NodeGroupOutput")
+    old = out.inputs[0].links[0].from_socket
+    tree.links.new(rl.outputs[socket], out.inputs[0])
+    try:
+        return render_k(sc, path)
+    finally:
+        tree.links.new(old, out.inputs[0])
+
+
+def key_light_only():
+    """output="lit" occludes the key light only (issue #25, item 3). A plane under a key sun and
+    a 0.15 grey world: the AOV carries K (= Ptm::eval at the pixel centres), the composite is
+    Image − key pass × K, and no pixel renders darker than the world alone lights it. The old
+    base-colour multiply (output="multiply") is rendered too: it must darken some texels below
+    the world-only level, or this test could not tell the two apart."""
+    name = os.path.join(WORK, "key.ptm.exr")
+    subprocess.run([PTM, "bake", "--res", str(RES), "--spp", "4", "--dirs", "64", "--fit", "ptm11",
+                    "--link", "logistic", "--uv", "hemispherical", "--layout", "rgba", "-o", name],
+                   check=True, capture_output=True)
+    d = (0.55, 0.55, 0.35)
+    ref = json.loads(subprocess.run([EVAL, ptm_blender.stem_of(name) + ".c0.exr", ",".join(map(str, d))],
+                                    check=True, capture_output=True, text=True).stdout)[0]
+    got = {}
+    for output in ("lit", "multiply"):
+        sc, plane, sun = scene_setup()
+        bg = sc.world.node_tree.nodes["Background"]
+        bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        bg.inputs["Strength"].default_value = 0.15
+        sun.data.energy = 3.0
+        sun.data.angle = 0.0
+        aim(sun, d)
+        sc.cycles.samples = 16
+        plane.data.materials.append(ptm_blender.build_material(name, light="Key", output=output,
+                                                               interpolation="Closest"))
+        got[output] = render_k(sc, os.path.join(WORK, f"key-{output}.exr"))
+        if output == "lit":
+            for socket in ("Image", f"Combined_{ptm_blender.KEY_GROUP}", ptm_blender.AOV):
+                got[socket] = render_socket(sc, socket, os.path.join(WORK, f"key-{socket}.exr"))
+    # A point light far along d (the position path of _connect_light): the direction from each
+    # shading point to it is d to 1e-5 rad, so K must match the sun's reference (the error
+    # scales as 1/distance, as geometry says: 5e-3 at 1e3, 5e-5 at 1e5).
+    sc, plane, sun = scene_setup()
+    point = bpy.data.objects.new("Point", bpy.data.lights.new("Point", "POINT"))
+    sc.collection.objects.link(point)
+    point.location = mathutils.Vector(d).normalized() * 1e5
+    bpy.context.view_layer.update()
+    plane.data.materials.append(ptm_blender.build_material(name, light="Point", output="k",
+                                                           interpolation="Closest"))
+    k_point = render_k(sc, os.path.join(WORK, "key-point.exr"))
+    px = [(r, c) for r in range(RES) for c in range(RES)]
+    err_point = max(abs(k_point[r][c] - ref[r][c]) for r, c in px)
+    image, key, aov = got["Image"], got[f"Combined_{ptm_blender.KEY_GROUP}"], got[ptm_blender.AOV]
+    rest = {(r, c): image[r][c] - key[r][c] for r, c in px}
+    err_k = max(abs(aov[r][c] - ref[r][c]) for r, c in px)
+    err_comp = max(abs(got["lit"][r][c] - (image[r][c] - key[r][c] * ref[r][c])) for r, c in px)
+    below_lit = min(got["lit"][r][c] - rest[r, c] for r, c in px)
+    dark_mul = sum(got["multiply"][r][c] < rest[r, c] - 0.02 for r, c in px)
+    shadowed = sum(ref[r][c] > 0.5 for r, c in px)
+    print(f"blender: point light far along the sun's direction: K vs Ptm::eval {err_point:.2e}")
+    print(f"blender: key-light occlusion: AOV K vs Ptm::eval {err_k:.2e}, composite vs Image - key*K "
+          f"{err_comp:.2e}, lowest composite - world-only {below_lit:+.2e} over {len(px)} pixels "
+          f"({shadowed} with K > 0.5); output=\"multiply\" renders {dark_mul} pixels darker than the "
+          "world alone", flush=True)
+    problems = []
+    if shadowed == 0:
+        problems.append("no pixel has K > 0.5: the test would prove nothing")
+    if not err_k <= TOL:
+        problems.append(f"AOV K off by {err_k:.2e}")
+    if not err_point <= TOL:
+        problems.append(f"K under a point light off by {err_point:.2e}")
+    if not err_comp <= TOL * max(max(row) for row in image):
+        problems.append(f"composite off by {err_comp:.2e}")
+    if not below_lit >= -1e-5:
+        problems.append(f"composite darker than the world alone by {-below_lit:.2e}")
+    if dark_mul == 0:
+        problems.append("output=multiply darkened nothing below the world level: the test cannot tell")
+    return err_k, problems
+
+
+def readme_blender(fresh_scene_block, command_block):
+    """The Blender examples of docs/pipeline.md as written: the Python-console block in a fresh
+    default scene (a cube, a point light named "Light", a camera), then rendered; the one-line
+    scene script through bpy (`blender --background --python` → this Python)."""
+    name = os.path.join(WORK, "w.ptm.exr")
+    subprocess.run([PTM, "convert", os.path.join(WORK, "ptm11-logistic.ptm.exr"), "-o", name,
+                    "--layout", "rgba"], check=True, capture_output=True)
+    bpy.ops.wm.read_factory_settings(use_empty=False)
+    cwd = os.getcwd()
+    os.chdir(WORK)
+    try:
+        exec(compile(fresh_scene_block, "docs/pipeline.md (Blender example)", "exec"), {})
+        sc = bpy.context.scene
+        plane = bpy.context.active_object
+        assert plane.data.materials and plane.data.materials[0].node_tree, "README example made no material"
+        sc.render.resolution_x = sc.render.resolution_y = RES
+        sc.cycles.samples = 1
+        sc.render.filepath = os.path.join(WORK, "readme.png")
+        bpy.ops.render.render(write_still=True)
+        assert os.path.exists(sc.render.filepath), "README example rendered nothing"
+        print("blender: README Python example builds its material and renders in a fresh default scene")
+        repo = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+        if not os.path.exists("integrations"):
+            os.symlink(os.path.abspath(os.path.join(repo, "integrations")), "integrations")
+        lines = [ln for ln in command_block.splitlines() if ln.startswith("blender ")]
+        assert len(lines) == 1, f"docs/pipeline.md: expected one `blender …` line, found {lines}"
+        argv = lines[0].split()
+        assert argv[:4] == ["blender", "--background", "--python", "integrations/blender/ptm_scene.py"], argv
+        args = argv[5:] + ["--res", "48", "--samples", "2"]
+        t = time.time()
+        run = subprocess.run([sys.executable, argv[3]] + args, capture_output=True, text=True)
+        assert run.returncode == 0, f"{lines[0]}: exit {run.returncode}:\n{run.stderr[-2000:]}"
+        out = args[1]
+        assert os.path.getsize(out) > 0, f"{lines[0]}: wrote no {out}"
+        print(f"blender: README scene command runs as written ({time.time() - t:.1f} s): "
+              + [ln for ln in run.stdout.splitlines() if ln.startswith("ptm_scene:")][-1])
+    finally:
+        os.chdir(cwd)
+
+
 def main():
     os.makedirs(WORK, exist_ok=True)
     worst = {}
@@ -258,31 +385,27 @@ def main():
                 continue
             worst[f"{basis} {link} {uv} {mode}"] = err
             print(f"blender: {basis} {link} {uv} {mode}: max |K - Ptm::eval| = {err:.2e} over {len(DIRS)} lights", flush=True)
-    bad = {k: v for k, v in worst.items() if not v <= TOL}
     # OSL's t = 0 is the file's top row, MaterialX's v = 0 its bottom: without the flip K must
     # be visibly wrong (else this test could not tell a flipped image from a right one).
-    bad.update({f"{k} mtlx-osl-noflip (expected > 0.05)": v for k, v in flipped.items() if not v > 0.05})
-    # The README's Blender example, run as written (a scene with an active plane and a "Sun").
+    bad = {f"{k} mtlx-osl-noflip (expected > 0.05)": v for k, v in flipped.items() if not v > 0.05}
+    # The README's Blender examples, run as written.
     readme = open(os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "docs", "pipeline.md")).read()
     block = readme.split("<!-- readme-blender -->\n```python\n", 1)[1].split("```", 1)[0]
-    sc, plane, sun = scene_setup()
-    sun.name = "Sun"
-    bpy.context.view_layer.objects.active = plane
-    subprocess.run([PTM, "convert", os.path.join(WORK, "ptm11-logistic.ptm.exr"), "-o",
-                    os.path.join(WORK, "w.ptm.exr"), "--layout", "rgba"], check=True, capture_output=True)
-    cwd = os.getcwd()
-    os.chdir(WORK)
-    exec(compile(block, "docs/pipeline.md (Blender example)", "exec"), {})
-    os.chdir(cwd)
-    assert plane.data.materials and plane.data.materials[0].node_tree, "README example made no material"
-    print("blender: README example builds its material")
+    command = readme.split("<!-- readme-blender-scene -->\n```sh\n", 1)[1].split("```", 1)[0]
+    readme_blender(block, command)
+    worst["key-light occlusion, AOV K (output=lit)"], problems = key_light_only()
+    bad.update({f"key-light occlusion: {p}": 1.0 for p in problems})
     worst["README OSL shader group (lit ratio)"] = readme_osl_group()
+    bad.update({k: v for k, v in worst.items() if not v <= TOL})
     if LIT_PNG:
         sc, plane, sun = scene_setup()
         name = os.path.join(WORK, "lit.ptm.exr")
         subprocess.run([PTM, "bake", "--swatch", "builtin:twill", "--res", "64", "--spp", "8", "--dirs", "128",
                         "--fit", "ptm11", "--link", "logistic", "--uv", "hemispherical", "--layout", "rgba",
                         "-o", name], check=True, capture_output=True)
+        bg = sc.world.node_tree.nodes["Background"]
+        bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+        bg.inputs["Strength"].default_value = 0.15
         plane.data.materials.append(ptm_blender.build_material(name, light="Key", mode="nodes",
                                                                output="lit", repeat=4.0))
         sun.data.energy = 3.0
