@@ -5,6 +5,8 @@
 # fail the run; each must become a regression input in fuzz/corpus/<reader>/ or a unit test.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-cargo build -q -p ptm-fuzz
+# PTM_CARGO_FEATURES (scripts/test.sh sets it): build with the workspace's feature set, so the
+# dependencies the test build compiled are reused rather than compiled again for one package.
+cargo build -q --workspace --bin ptm-fuzz ${PTM_CARGO_FEATURES:+--features "$PTM_CARGO_FEATURES"}
 target="${CARGO_TARGET_DIR:-target}"
 exec "$target/debug/ptm-fuzz" --cases "${1:-10000}" --seed "${2:-1}"
