@@ -293,6 +293,7 @@ def occlusion_group(stem, basis, link, uv, interpolation="Linear"):
 
 
 AOV = "ptm_k"
+AMBIENT_AOV = "ptm_ambient"
 KEY_GROUP = "ptm_key"
 COMPOSITOR = "PTM key-light occlusion"
 
@@ -308,7 +309,21 @@ def _light_object(light):
     return obj
 
 
-def occlude_key_light(light, scene=None, denoise=None):
+def companion_maps(path):
+    """The companion maps `ptm bake --maps --maps-png` wrote beside the PTM at `path`
+    (`w.ptm.c0.exr` → `w.normal.png`, `w.ao.png`): {"normal": file, "ao": file} for those
+    that exist."""
+    base = stem_of(path)
+    base = base[:-4] if base.endswith(".ptm") else base
+    found = {}
+    for name in ("normal", "ao"):
+        f = f"{base}.{name}.png"
+        if os.path.exists(f):
+            found[name] = f
+    return found
+
+
+def occlude_key_light(light, scene=None, denoise=None, ambient=False):
     """Confines the PTM's occlusion to the key light: `light` (object or name) goes into the
     Cycles light group ``ptm_key``; every view layer gets the value AOV ``ptm_k`` (written by
     the materials of ``build_material(output="lit")``; 0 elsewhere) and the light-group pass;
@@ -320,6 +335,12 @@ def occlude_key_light(light, scene=None, denoise=None):
     end), since the light-group pass is never denoised: subtracting a noisy pass from a denoised
     image would put the noise back into the shadows.
 
+    `ambient=True` (``build_material`` sets it when it applies an AO map) also multiplies the
+    rest of the light, everything but the key, by the AO map: the value AOV ``ptm_ambient`` =
+    1 − AO, and the output is Image − key × ptm_k − (Image − key) × ptm_ambient. AO stands for
+    the occlusion of ambient light by detail below the mesh (glTF's occlusion texture is defined
+    the same way: indirect light only). Once on, it stays on for the scene.
+
     Limits: the product is taken per pixel on the camera's first hit, so the key light seen in
     reflections and refractions and its indirect bounces are darkened by the K of the pixel
     they end up in, not of the surface they left; a pixel straddling two surfaces gets the
@@ -330,6 +351,8 @@ def occlude_key_light(light, scene=None, denoise=None):
         raise RuntimeError(f"Blender {bpy.app.version_string}: occlude_key_light needs Blender 5.0 "
                            "(compositor node groups); use build_material(output=\"multiply\") instead")
     scene.render.engine = "CYCLES"
+    ambient = ambient or bool(scene.get("ptm_ambient", False))
+    scene["ptm_ambient"] = ambient
     if denoise is None:
         denoise = scene.cycles.use_denoising
     scene.cycles.use_denoising = False
@@ -337,10 +360,11 @@ def occlude_key_light(light, scene=None, denoise=None):
     for vl in scene.view_layers:
         if KEY_GROUP not in vl.lightgroups:
             vl.lightgroups.add(name=KEY_GROUP)
-        if AOV not in vl.aovs:
-            aov = vl.aovs.add()
-            aov.name = AOV
-            aov.type = "VALUE"
+        for name in (AOV, AMBIENT_AOV) if ambient else (AOV,):
+            if name not in vl.aovs:
+                aov = vl.aovs.add()
+                aov.name = name
+                aov.type = "VALUE"
         vl.cycles.denoising_store_passes = denoise
     tree = scene.compositing_node_group
     if tree is not None and tree.name != COMPOSITOR and not tree.name.startswith(COMPOSITOR + "."):
@@ -365,6 +389,19 @@ def occlude_key_light(light, scene=None, denoise=None):
     tree.links.new(rl.outputs["Image"], sub.inputs["A"])
     tree.links.new(mul.outputs["Result"], sub.inputs["B"])
     result = sub.outputs["Result"]
+    if ambient:
+        rest, mul2, sub2 = (tree.nodes.new("ShaderNodeMix") for _ in range(3))
+        for node, op in ((rest, "SUBTRACT"), (mul2, "MULTIPLY"), (sub2, "SUBTRACT")):
+            node.data_type = "RGBA"
+            node.blend_type = op
+            node.inputs["Factor"].default_value = 1.0
+        tree.links.new(rl.outputs["Image"], rest.inputs["A"])
+        tree.links.new(rl.outputs[f"Combined_{KEY_GROUP}"], rest.inputs["B"])
+        tree.links.new(rest.outputs["Result"], mul2.inputs["A"])
+        tree.links.new(rl.outputs[AMBIENT_AOV], mul2.inputs["B"])
+        tree.links.new(result, sub2.inputs["A"])
+        tree.links.new(mul2.outputs["Result"], sub2.inputs["B"])
+        result = sub2.outputs["Result"]
     if denoise:
         dn = tree.nodes.new("CompositorNodeDenoise")
         tree.links.new(result, dn.inputs["Image"])
@@ -379,15 +416,31 @@ def occlude_key_light(light, scene=None, denoise=None):
 
 
 def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.6, 1.0),
-                   repeat=1.0, interpolation="Linear", name=None, scene=None):
+                   repeat=1.0, interpolation="Linear", name=None, scene=None, maps="auto"):
     """A material evaluating the PTM at `path` (any of its parts, or `w.ptm.exr`) for the key
     light object named `light` (or the object itself), tiled `repeat` times across the UV square
     (a number, or (across, down) for a UV map that is not square in space, like a UV sphere's).
     See the module docstring; with
-    ``output="lit"`` it also calls ``occlude_key_light(light, scene)``."""
+    ``output="lit"`` it also calls ``occlude_key_light(light, scene)``.
+
+    `maps`: the companion maps of the same bake (``ptm bake --maps --maps-png``): "auto" (the
+    default) takes those that ``companion_maps(path)`` finds, a dict {"normal": png, "ao": png}
+    names them, None uses none. The normal map (tangent space, +Y up: Blender's Normal Map node
+    as it is) feeds the BSDF's normal (K keeps the mesh's own frame: the PTM was baked against
+    the tile's plane); AO darkens everything but the key light (``occlude_key_light(ambient=True)``),
+    so only with ``output="lit"``."""
     if output not in ("lit", "multiply", "k"):
         raise ValueError(f"output {output!r}: lit, multiply or k")
     stem, basis, link, uv = ptm_info(path)
+    if maps == "auto":
+        maps = companion_maps(path) if output != "k" else {}
+    maps = dict(maps or {})
+    unknown = set(maps) - {"normal", "ao"}
+    if unknown:
+        raise ValueError(f"maps: unknown map(s) {sorted(unknown)}; normal and ao are used")
+    if "ao" in maps and output != "lit":
+        raise ValueError(f"maps: an AO map darkens the light other than the key, which needs "
+                         f"output=\"lit\" (got {output!r}); leave AO out for {output!r}")
     light_obj = _light_object(light)
     mat = bpy.data.materials.new(name or f"PTM {os.path.basename(stem)} ({mode})")
     if mat.node_tree is None:  # Blender < 5.0
@@ -435,7 +488,23 @@ def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.
         emit.inputs["Strength"].default_value = 1.0
         tree.links.new(node.outputs["K"], emit.inputs["Color"])
         tree.links.new(emit.outputs[0], out.inputs["Surface"])
-    elif output == "multiply":
+
+    def map_image(file):
+        img = bpy.data.images.load(os.path.abspath(file), check_existing=True)
+        img.colorspace_settings.name = "Non-Color"
+        tex = tree.nodes.new("ShaderNodeTexImage")
+        tex.image, tex.interpolation, tex.extension = img, interpolation, "REPEAT"
+        tree.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+        return tex
+
+    def apply_normal_map(bsdf):
+        if "normal" in maps:
+            nmap = tree.nodes.new("ShaderNodeNormalMap")
+            nmap.space = "TANGENT"
+            tree.links.new(map_image(maps["normal"]).outputs["Color"], nmap.inputs["Color"])
+            tree.links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+
+    if output == "multiply":
         bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
         tint = tree.nodes.new("ShaderNodeMix")
         tint.data_type = "RGBA"
@@ -445,12 +514,22 @@ def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.
         tree.links.new(node.outputs["Visibility"], tint.inputs["B"])
         tree.links.new(tint.outputs["Result"], bsdf.inputs["Base Color"])
         tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
-    else:
+        apply_normal_map(bsdf)
+    elif output == "lit":
         bsdf = tree.nodes.new("ShaderNodeBsdfPrincipled")
         bsdf.inputs["Base Color"].default_value = albedo
         tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
+        apply_normal_map(bsdf)
         aov = tree.nodes.new("ShaderNodeOutputAOV")
         aov.aov_name = AOV
         tree.links.new(node.outputs["K"], aov.inputs["Value"])
-        occlude_key_light(light_obj, scene)
+        if "ao" in maps:
+            occ = tree.nodes.new("ShaderNodeMath")
+            occ.operation = "SUBTRACT"
+            occ.inputs[0].default_value = 1.0
+            tree.links.new(map_image(maps["ao"]).outputs["Color"], occ.inputs[1])
+            amb = tree.nodes.new("ShaderNodeOutputAOV")
+            amb.aov_name = AMBIENT_AOV
+            tree.links.new(occ.outputs[0], amb.inputs["Value"])
+        occlude_key_light(light_obj, scene, ambient="ao" in maps)
     return mat

@@ -11,7 +11,8 @@ on a floor), --repeat N or X,Y (tiles across the UV square),
 (grey world strength: the fill that K must not darken), --samples N, --res N (square image),
 --mode nodes|osl, --output lit|multiply (see ptm_blender.py), --albedo R,G,B, --no-ptm (the same
 render without the occlusion), --compare (both side by side in one image: without | with),
---no-denoise,
+--no-denoise, --no-maps (leave out the normal and AO maps that `ptm bake --maps --maps-png`
+wrote beside the PTM: NAME.normal.png, NAME.ao.png, used when present),
 --blend FILE (also save the .blend).
 """
 import argparse
@@ -45,6 +46,8 @@ def parse(argv):
     ap.add_argument("--no-ptm", action="store_true")
     ap.add_argument("--compare", action="store_true")
     ap.add_argument("--no-denoise", action="store_true", help="leave Cycles' denoiser off")
+    ap.add_argument("--no-maps", action="store_true",
+                    help="leave out the normal and AO maps found beside the PTM (ptm bake --maps --maps-png)")
     ap.add_argument("--blend")
     args = ap.parse_args(argv)
     try:
@@ -151,7 +154,8 @@ def build_scene(args):
         mat = plain
     else:
         mat = ptm_blender.build_material(args.ptm, light=key, mode=args.mode, output=args.output,
-                                         albedo=args.albedo, repeat=args.repeat, scene=sc)
+                                         albedo=args.albedo, repeat=args.repeat, scene=sc,
+                                         maps=None if args.no_maps else "auto")
     obj.data.materials.append(mat)
     return sc, obj, plain
 
