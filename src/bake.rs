@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh};
-use ptm_fit::shard::PartMeta;
+use ptm_fit::shard::{BakeIdentity, PartMeta};
 use ptm_fit::{Accumulator, FitOptions, SampleStack};
 use ptm_format::atomic::{same_file, Transaction};
 use ptm_format::{Basis, Layout, LightSet, SaveOptions};
@@ -104,9 +104,14 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
         Output::Whole => None,
         Output::Part(meta, path) => Some((meta, path)),
     };
-    let (accumulator, shard_mips) = fit_accumulator(args, &lights, res[0], rows.len())?;
+    let products = ProductKind::of(args)
+        .into_iter()
+        .map(|kind| Product::new(kind, args, &lights, res[0], rows.len()))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    // A part's MIP levels are finished by the merge (`Accumulator::finish_part`).
+    let shard_mips = args.shard.is_some() && args.fit.is_some() && !args.model.no_mips;
     announce(args, &swatch, res, &lights);
-    let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, accumulator)?;
+    let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, products)?;
     let written = write_outputs(&swatch, &lights, kept, &part, destinations, shard_mips)?;
     print_summary(&report, &written);
     Ok(json::Bake::Baked(Box::new(bake_json(
@@ -200,40 +205,21 @@ fn build_dome(args: &Args, mem_res: [usize; 2]) -> anyhow::Result<LightSet> {
     Ok(lights)
 }
 
-/// Every bake setting that changes the output, in words, as a farm part records it (parts of
-/// different settings never merge). Thread count and packet tracing do
-/// not (the output is bit-identical for any), nor does where the swatch file lies (its content
-/// hash is recorded separately). New output-changing flags must be added here.
+/// What identifies this bake in a farm part: every setting that changes the output, in the
+/// words of the library's [`BakeIdentity`] (parts of different settings never merge).
 fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet) -> String {
-    let dirs: Vec<u8> = lights
-        .dirs
-        .iter()
-        .flat_map(|d| d.iter().flat_map(|c| c.to_le_bytes()))
-        .collect();
-    let names = lights.names.join("\n");
-    let light_hash = ptm_fit::shard::fingerprint([&dirs[..], names.as_bytes()]);
-    let m = &args.model;
-    let fit = match args.fit {
-        None => "stack".to_string(),
-        Some(f) => format!(
-            "{} link={} uv={} mips={} regularize={:?} tolerance={:e} max-iterations={}",
-            f.name(),
-            m.link.name(),
-            m.uv.name(),
-            !m.no_mips,
-            args.regularize,
-            m.tolerance,
-            m.max_iterations
-        ),
-    };
-    let distance = match args.light_distance {
-        None => "distant".to_string(),
-        Some(r) => format!("{r:e}"),
-    };
-    format!(
-        "res={}x{} tile={:e}x{:e} spp={} seed={} lights={} ({light_hash}) light-distance={distance} fit={fit}",
-        res[0], res[1], tile[0], tile[1], args.spp, args.seed, lights.len()
-    )
+    let fit = args.fit.map(|f| fit_options(args, f));
+    BakeIdentity {
+        res,
+        tile,
+        spp: args.spp,
+        seed: args.seed,
+        lights,
+        light_distance: args.light_distance,
+        fit: fit.as_ref(),
+        maps: None,
+    }
+    .settings()
 }
 
 /// Where the bake goes.
@@ -324,29 +310,6 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
     })
 }
 
-/// With `--fit`, the streaming fit of `width × height` texels that takes each light's K as it
-/// is traced, and whether a farm part defers the MIP levels to the merge. Prints the fit's
-/// warnings about the light set.
-fn fit_accumulator(
-    args: &Args,
-    lights: &LightSet,
-    width: usize,
-    height: usize,
-) -> anyhow::Result<(Option<Accumulator>, bool)> {
-    let Some(f) = args.fit else {
-        return Ok((None, false));
-    };
-    let opts = fit_options(args, f);
-    // A part's MIP levels are finished by the merge (`Accumulator::finish_part`).
-    let shard_mips = args.shard.is_some() && opts.mips;
-    let mut acc = Accumulator::new(lights, width, height, &opts)?;
-    acc.set_spp(args.spp)?;
-    for w in acc.warnings() {
-        eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
-    }
-    Ok((Some(acc), shard_mips))
-}
-
 /// What the bake warns of its light set: lights at or below the horizon.
 fn light_warnings(lights: &LightSet) -> Vec<ptm_bake::Diagnostic> {
     let below = lights.below_horizon();
@@ -374,17 +337,115 @@ fn announce(args: &Args, swatch: &PreparedMesh, res: [usize; 2], lights: &LightS
     );
 }
 
-/// Where traced K planes went: the streaming fit, or planes kept for the sample stack.
-enum Samples {
-    /// Boxed: the accumulator's fields are large beside a `Planes`.
-    Fit(Box<Accumulator>),
-    Stack(ptm_bake::Planes),
+/// What the bake makes, before it is made: each kind knows the memory its buffers take (the
+/// memory check sums them) and what it says of them when they do not fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ProductKind {
+    /// K of every light kept and written as the sample stack.
+    Stack,
+    /// K streamed into the per-texel fit and written as the PTM.
+    Fit(Basis),
 }
 
-/// What a trace keeps for the output: its K, the texels' coverage, and the traced size
-/// (width × the rows traced).
+impl ProductKind {
+    /// The products `args` ask for, in the order they are fed and written.
+    fn of(args: &Args) -> Vec<ProductKind> {
+        vec![match args.fit {
+            Some(f) => ProductKind::Fit(f),
+            None => ProductKind::Stack,
+        }]
+    }
+
+    /// Bytes this product holds for a bake of `res` texels and `lights` lights, and its
+    /// buffers in words. In f64: absurd requests must be measured, not overflow.
+    fn memory(self, args: &Args, res: [usize; 2], lights: usize) -> (f64, &'static str) {
+        match self {
+            // What the accumulator will hold (its sums, or the logistic link's counts).
+            ProductKind::Fit(f) => {
+                let counts = Accumulator::count_bytes(args.model.link, args.spp) as f64;
+                let bytes = Accumulator::memory_bytes(
+                    res[0].saturating_mul(res[1]),
+                    lights,
+                    &fit_options(args, f),
+                    args.spp,
+                    args.light_distance.is_some(),
+                );
+                (
+                    bytes as f64,
+                    if counts > 0.0 {
+                        "the streaming fit's sums and the logistic link's exact sample counts"
+                    } else {
+                        "the streaming fit's sums"
+                    },
+                )
+            }
+            // K per light (handed to the EXR writer, not copied); for point lights also (u, v).
+            ProductKind::Stack => (
+                SampleStack::memory_bytes(res[0], res[1], lights, args.light_distance.is_some()),
+                "the sample stack (K of every light, written as samples.exr)",
+            ),
+        }
+    }
+}
+
+/// One product of the bake, being made: fed the texels' coverage, then every light's K plane
+/// as it is traced, then written as a file of its own or as a farm part.
+enum Product {
+    /// K of every light, kept for the sample stack.
+    Stack(ptm_bake::Planes),
+    /// K streamed into the per-texel fit (boxed: its fields are large beside a `Planes`).
+    Fit(Box<Accumulator>),
+}
+
+impl Product {
+    /// The product of `kind` for `width × height` traced texels. Prints the fit's warnings
+    /// about the light set.
+    fn new(
+        kind: ProductKind,
+        args: &Args,
+        lights: &LightSet,
+        width: usize,
+        height: usize,
+    ) -> anyhow::Result<Product> {
+        Ok(match kind {
+            ProductKind::Stack => Product::Stack(ptm_bake::Planes::default()),
+            ProductKind::Fit(f) => {
+                let mut acc = Accumulator::new(lights, width, height, &fit_options(args, f))?;
+                acc.set_spp(args.spp)?;
+                for w in acc.warnings() {
+                    eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
+                }
+                Product::Fit(Box::new(acc))
+            }
+        })
+    }
+
+    /// Takes the traced texels' coverage, before any light.
+    fn set_coverage(&mut self, coverage: &[f32]) -> anyhow::Result<()> {
+        match self {
+            Product::Stack(_) => {}
+            Product::Fit(acc) => acc.set_coverage(coverage)?,
+        }
+        Ok(())
+    }
+
+    /// Takes light `i`'s K plane (and, for point lights, each texel's (u, v)).
+    fn add_light(&mut self, i: usize, k: &[f32], uv: Option<&[[f32; 2]]>) -> ptm_bake::Result<()> {
+        match self {
+            Product::Stack(planes) => planes.push(i, k, uv),
+            Product::Fit(acc) => match uv {
+                Some(uv) => acc.add_light_uv(i, k, uv),
+                None => acc.add_light(i, k),
+            }
+            .map_err(ptm_bake::Error::sink),
+        }
+    }
+}
+
+/// What a trace keeps for the output: its products, the texels' coverage, and the traced
+/// size (width × the rows traced).
 struct Kept {
-    samples: Samples,
+    products: Vec<Product>,
     coverage: Vec<f32>,
     size: [usize; 2],
 }
@@ -397,7 +458,7 @@ fn trace(
     res: [usize; 2],
     rows: Range<usize>,
     lights: &LightSet,
-    mut accumulator: Option<Accumulator>,
+    mut products: Vec<Product>,
 ) -> anyhow::Result<(Kept, BakeReport)> {
     let cfg = BakeConfig {
         res,
@@ -409,8 +470,8 @@ fn trace(
     };
     let mut baker = Baker::new_rows(swatch, &cfg, rows.clone())?;
     let coverage = baker.coverage().to_vec();
-    if let Some(acc) = accumulator.as_mut() {
-        acc.set_coverage(&coverage)?;
+    for p in &mut products {
+        p.set_coverage(&coverage)?;
     }
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(lights.len() as u64);
@@ -424,18 +485,12 @@ fn trace(
     } else {
         None
     };
-    let mut planes = ptm_bake::Planes::default();
     let report = baker.trace(lights, &mut |i, k, uv| {
         if let Some(b) = &bar {
             b.inc(1);
         }
-        match accumulator.as_mut() {
-            Some(acc) => match uv {
-                Some(uv) => acc.add_light_uv(i, k, uv),
-                None => acc.add_light(i, k),
-            }
-            .map_err(ptm_bake::Error::sink)?,
-            None => planes.push(i, k, uv)?,
+        for p in &mut products {
+            p.add_light(i, k, uv)?;
         }
         Ok(())
     })?;
@@ -460,12 +515,8 @@ fn trace(
             ptm_bake::tiling::MAX_RUN_TILES
         );
     }
-    let samples = match accumulator {
-        Some(acc) => Samples::Fit(Box::new(acc)),
-        None => Samples::Stack(planes),
-    };
     let kept = Kept {
-        samples,
+        products,
         coverage,
         size: [res[0], rows.len()],
     };
@@ -488,9 +539,135 @@ struct Written {
     t_write: f64,
 }
 
-/// Solves the fit (if any) and stages the PTM or sample stack for `--output` or the farm part,
-/// and the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes
-/// the `.lp` beside the merged output); publishes them together.
+/// Where and how the products of a bake are written: the swatch and lights they describe,
+/// the traced texels' coverage and size, the farm part (if any), and the output's layout.
+struct WriteTo<'a> {
+    swatch: &'a PreparedMesh,
+    lights: &'a LightSet,
+    coverage: &'a [f32],
+    size: [usize; 2],
+    part: &'a Option<(PartMeta, PathBuf)>,
+    /// A farm part defers the MIP levels to the merge.
+    shard_mips: bool,
+    output: &'a Path,
+    layout: Layout,
+}
+
+/// What one product wrote: its files (staged in the transaction, or a farm part written) and,
+/// for the fit, its summary and the seconds the solve took.
+#[derive(Default)]
+struct ProductWritten {
+    files: Vec<PathBuf>,
+    fit: Option<json::BakeFit>,
+    t_fit: f64,
+}
+
+impl Product {
+    /// Finishes the product and stages its files for a whole bake in `tx`, or writes its farm
+    /// part.
+    fn write(self, to: &WriteTo, tx: &mut Transaction) -> anyhow::Result<ProductWritten> {
+        let output = to.output;
+        let writing = || crate::outputs::Named::new("writing", output);
+        match self {
+            Product::Fit(acc) => {
+                let t0 = Instant::now();
+                let (ptm, fit, levels) = match to.part {
+                    Some((meta, _)) => {
+                        acc.finish_part(to.swatch.tile, meta.rows.clone(), meta.height)?
+                    }
+                    None => {
+                        let (ptm, fit) = acc.finish(to.swatch.tile)?;
+                        (ptm, fit, Default::default())
+                    }
+                };
+                // The per-light accumulation ran inside the shadow stage; this is the solve.
+                let t_fit = t0.elapsed().as_secs_f64();
+                for w in &fit.warnings {
+                    eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
+                }
+                crate::fit::print_logistic("ptm bake", &fit);
+                let summary = json::BakeFit {
+                    basis: fit.basis.map(|b| b.name()),
+                    link: ptm.link.name(),
+                    uv: ptm.uv.name(),
+                    mip_levels: fit.mip_levels,
+                    logistic: json::Logistic::of(&fit),
+                    solver: fit.solver.clone(),
+                    rank: fit.rank,
+                    condition_number: json::finite(fit.cond),
+                    rms_error_mean: fit.rms.mean,
+                    rms_error_p99: fit.rms.p99,
+                    warnings: crate::errors::fit_warnings(&fit.warnings),
+                    stages: json::Stages(fit.seconds.clone()),
+                };
+                let files = match to.part {
+                    // The part takes the fit itself: no copy of its planes.
+                    Some((meta, path)) => {
+                        crate::shard::write_ptm(
+                            path,
+                            meta,
+                            ptm,
+                            fit,
+                            to.coverage.to_vec(),
+                            to.lights,
+                            to.shard_mips,
+                            levels,
+                        )
+                        .with_context(writing)?;
+                        vec![output.to_path_buf()]
+                    }
+                    None => {
+                        let save = SaveOptions {
+                            half: false,
+                            report: Some(&fit),
+                            error_map: false,
+                        };
+                        let encoded = ptm_format::layout::encode(&ptm, output, &save, to.layout)
+                            .with_context(writing)?;
+                        for (p, bytes) in &encoded {
+                            tx.add(p).with_context(writing)?;
+                            tx.stage_bytes(p, bytes).with_context(writing)?;
+                        }
+                        encoded.into_iter().map(|(p, _)| p).collect()
+                    }
+                };
+                Ok(ProductWritten {
+                    files,
+                    fit: Some(summary),
+                    t_fit,
+                })
+            }
+            Product::Stack(planes) => {
+                let stack = SampleStack {
+                    width: to.size[0],
+                    height: to.size[1],
+                    tile: to.swatch.tile,
+                    lights: to.lights.clone(),
+                    k: planes.k,
+                    coverage: to.coverage.to_vec(),
+                    uv: planes.uv,
+                };
+                match to.part {
+                    Some((meta, path)) => {
+                        crate::shard::write_stack(path, meta, stack).with_context(writing)?
+                    }
+                    None => {
+                        let bytes = stack.encode_into(output).with_context(writing)?;
+                        tx.stage_bytes(output, &bytes).with_context(writing)?;
+                    }
+                }
+                Ok(ProductWritten {
+                    files: vec![output.to_path_buf()],
+                    ..Default::default()
+                })
+            }
+        }
+    }
+}
+
+/// Finishes every product and stages its files for `--output` (or writes the farm part), and
+/// the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes the
+/// `.lp` beside the merged output); publishes them together.
 fn write_outputs(
     swatch: &PreparedMesh,
     lights: &LightSet,
@@ -500,7 +677,7 @@ fn write_outputs(
     shard_mips: bool,
 ) -> anyhow::Result<Written> {
     let Kept {
-        samples,
+        products,
         coverage,
         size,
     } = kept;
@@ -511,92 +688,24 @@ fn write_outputs(
         lights_file,
         layout,
     } = dest;
-    let mut t_fit = 0.0;
-    let mut t1 = Instant::now();
-    let writing = || crate::outputs::Named::new("writing", &output);
-    let mut files = vec![output.clone()];
-    let fit_json = match samples {
-        Samples::Fit(acc) => {
-            let (ptm, fit, levels) = match part {
-                Some((meta, _)) => acc.finish_part(swatch.tile, meta.rows.clone(), meta.height)?,
-                None => {
-                    let (ptm, fit) = acc.finish(swatch.tile)?;
-                    (ptm, fit, Default::default())
-                }
-            };
-            // The per-light accumulation ran inside the shadow stage; this is the solve.
-            t_fit = t1.elapsed().as_secs_f64();
-            t1 = Instant::now();
-            for w in &fit.warnings {
-                eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
-            }
-            crate::fit::print_logistic("ptm bake", &fit);
-            let summary = json::BakeFit {
-                basis: fit.basis.map(|b| b.name()),
-                link: ptm.link.name(),
-                uv: ptm.uv.name(),
-                mip_levels: fit.mip_levels,
-                logistic: json::Logistic::of(&fit),
-                solver: fit.solver.clone(),
-                rank: fit.rank,
-                condition_number: json::finite(fit.cond),
-                rms_error_mean: fit.rms.mean,
-                rms_error_p99: fit.rms.p99,
-                warnings: crate::errors::fit_warnings(&fit.warnings),
-                stages: json::Stages(fit.seconds.clone()),
-            };
-            match part {
-                // The part takes the fit itself: no copy of its planes.
-                Some((meta, path)) => crate::shard::write_ptm(
-                    path,
-                    meta,
-                    ptm,
-                    fit,
-                    coverage.clone(),
-                    lights,
-                    shard_mips,
-                    levels,
-                )
-                .with_context(writing)?,
-                None => {
-                    let save = SaveOptions {
-                        half: false,
-                        report: Some(&fit),
-                        error_map: false,
-                    };
-                    let encoded = ptm_format::layout::encode(&ptm, &output, &save, layout)
-                        .with_context(writing)?;
-                    for (p, bytes) in &encoded {
-                        tx.add(p).with_context(writing)?;
-                        tx.stage_bytes(p, bytes).with_context(writing)?;
-                    }
-                    files = encoded.into_iter().map(|(p, _)| p).collect();
-                }
-            }
-            Some(summary)
-        }
-        Samples::Stack(planes) => {
-            let stack = SampleStack {
-                width: size[0],
-                height: size[1],
-                tile: swatch.tile,
-                lights: lights.clone(),
-                k: planes.k,
-                coverage: coverage.clone(),
-                uv: planes.uv,
-            };
-            match part {
-                Some((meta, path)) => {
-                    crate::shard::write_stack(path, meta, stack).with_context(writing)?
-                }
-                None => {
-                    let bytes = stack.encode_into(&output).with_context(writing)?;
-                    tx.stage_bytes(&output, &bytes).with_context(writing)?;
-                }
-            }
-            None
-        }
+    let t0 = Instant::now();
+    let to = WriteTo {
+        swatch,
+        lights,
+        coverage: &coverage,
+        size,
+        part,
+        shard_mips,
+        output: &output,
+        layout,
     };
+    let (mut files, mut fit_json, mut t_fit) = (Vec::new(), None, 0.0);
+    for p in products {
+        let w = p.write(&to, &mut tx)?;
+        files.extend(w.files);
+        fit_json = fit_json.or(w.fit);
+        t_fit += w.t_fit;
+    }
     if part.is_none() {
         if let Some(lp) = &lp {
             tx.stage_bytes(lp, lights.to_lp().as_bytes())
@@ -611,7 +720,7 @@ fn write_outputs(
         lp,
         lights_file: if part.is_none() { lights_file } else { None },
         t_fit,
-        t_write: t1.elapsed().as_secs_f64(),
+        t_write: t0.elapsed().as_secs_f64() - t_fit,
     })
 }
 
@@ -726,38 +835,22 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
     // In f64: absurd requests must be measured, not overflow.
     let baker = ptm_bake::baker_bytes(res, args.spp);
     let dome = lights as f64 * 64.0;
-    let (sink, what) = match args.fit {
-        // What the accumulator will hold (its sums, or the logistic link's counts).
-        Some(f) => {
-            let counts = Accumulator::count_bytes(args.model.link, args.spp) as f64;
-            let bytes = Accumulator::memory_bytes(
-                res[0].saturating_mul(res[1]),
-                lights,
-                &fit_options(args, f),
-                args.spp,
-                args.light_distance.is_some(),
-            );
-            (
-                bytes as f64,
-                if counts > 0.0 {
-                    "the streaming fit's sums and the logistic link's exact sample counts"
-                } else {
-                    "the streaming fit's sums"
-                },
-            )
-        }
-        // K per light (handed to the EXR writer, not copied); for point lights also (u, v).
-        None => (
-            SampleStack::memory_bytes(res[0], res[1], lights, args.light_distance.is_some()),
-            "the sample stack (K of every light, written as samples.exr)",
-        ),
-    };
+    let products: Vec<(f64, &str)> = ProductKind::of(args)
+        .into_iter()
+        .map(|p| p.memory(args, res, lights))
+        .collect();
+    let sink: f64 = products.iter().map(|p| p.0).sum();
+    let what: String = products
+        .iter()
+        .map(|(bytes, what)| format!("{what}: {:.1} GiB", bytes / (1u64 << 30) as f64))
+        .collect::<Vec<_>>()
+        .join("; ");
     let need = baker + dome + sink;
     if need > 0.9 * available as f64 {
         let gib = |b: f64| b / (1u64 << 30) as f64;
         bail!(
             "this bake needs about {:.1} GiB ({}×{} texels × {} spp of primary samples: {:.1} GiB; \
-             {} lights: {:.1} GiB; {}: {:.1} GiB) but only {:.1} GiB of memory is available: lower \
+             {} lights: {:.1} GiB; {}) but only {:.1} GiB of memory is available: lower \
              --res, --spp or the number of lights{}",
             gib(need),
             res[0],
@@ -767,7 +860,6 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
             lights,
             gib(dome),
             what,
-            gib(sink),
             gib(available as f64),
             if args.fit.is_none() {
                 ", or fit while baking (--fit ptm6 -o out.ptm.exr) so no stack is stored"

@@ -28,10 +28,12 @@ use ptm_format::ptm::channel_name;
 use ptm_format::{Basis, LightSet, Link, Ptm, UvMap};
 
 mod chunks;
+mod identity;
 mod merge;
 pub(crate) mod partition;
 mod write;
 
+pub use identity::BakeIdentity;
 pub use merge::{check_set, merge_encode, merge_into, parts_in, Merged};
 pub use partition::{PartLevels, Shard, ROW_BLOCK};
 pub use write::{write_ptm_part, write_stack_part};
