@@ -78,6 +78,15 @@ pub struct Args {
     /// Output: samples.exr, or NAME.ptm.exr with --fit. The dome is written beside it (.lp).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
+    /// Also write the companion maps from the same rays beside the output: NAME.maps.exr with
+    /// height, tangent-space normal (MikkTSpace of the flat tile, +Y up), ambient occlusion,
+    /// bent normal and coverage (docs/FORMAT.md, "Companion maps").
+    #[arg(long)]
+    pub maps: bool,
+    /// With the maps, also 16-bit PNGs for painting tools: NAME.height.png, NAME.normal.png,
+    /// NAME.ao.png, NAME.bent.png (normals as n·0.5 + 0.5, +Y up). Implies --maps.
+    #[arg(long)]
+    pub maps_png: bool,
     /// Farm bake: trace only shard I of N (0-based; a block of texel rows) and write the part
     /// file OUTPUT-stem.part-IIII-of-NNNN.exr for `ptm merge`; a complete, valid part is kept.
     #[arg(long, value_name = "I/N", allow_hyphen_values = true)]
@@ -180,6 +189,18 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
     }
+    if wants_maps(args) && args.shard.is_some() {
+        bail!(
+            "--maps with --shard is not supported yet: bake the maps in one run (they cost no \
+             extra rays), or shard without --maps"
+        );
+    }
+    if wants_maps(args) && args.light_distance.is_some() {
+        bail!(
+            "--maps with --light-distance is not supported: ambient occlusion and the bent normal \
+             integrate distant light over the dome; bake the maps with distant lights"
+        );
+    }
     if args.shard.is_some() && args.layout != Layout::Channels {
         bail!("--shard writes part files: merge them, then `ptm convert` to --layout rgba");
     }
@@ -266,6 +287,25 @@ struct Destinations {
     lights_file: Option<PathBuf>,
     /// The PTM's file layout (`--layout`; the renderer layout writes parts beside `output`).
     layout: Layout,
+    /// `--output`, beside which the companion maps go.
+    maps_of: PathBuf,
+}
+
+/// The companion maps' files beside `--output` (none without `--maps`): the EXR, then with
+/// `--maps-png` the PNGs.
+fn maps_files(args: &Args) -> Vec<PathBuf> {
+    if !wants_maps(args) {
+        return Vec::new();
+    }
+    let mut files = vec![ptm_bake::maps::maps_path(&args.output)];
+    if args.maps_png {
+        files.extend(
+            ptm_bake::maps::PNG_MAPS
+                .iter()
+                .map(|n| ptm_bake::maps::png_path(&args.output, n)),
+        );
+    }
+    files
 }
 
 /// Refuses an output that is an input (the swatch OBJ, its draft, the `--lights` file) and checks
@@ -299,6 +339,8 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
     };
     let mut outputs: Vec<&Path> = rgba.iter().map(PathBuf::as_path).collect();
     outputs.extend(lp.as_deref());
+    let maps = maps_files(args);
+    outputs.extend(maps.iter().map(PathBuf::as_path));
     crate::outputs::refuse_inputs(&outputs, &inputs)?;
     let tx = Transaction::new(&outputs)?;
     Ok(Destinations {
@@ -307,6 +349,7 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
         lp,
         lights_file: beside,
         layout: args.layout,
+        maps_of: args.output.clone(),
     })
 }
 
@@ -345,15 +388,22 @@ enum ProductKind {
     Stack,
     /// K streamed into the per-texel fit and written as the PTM.
     Fit(Basis),
+    /// The companion maps: height and normal from the primary hits, AO and bent normal from
+    /// every light's K.
+    Maps,
 }
 
 impl ProductKind {
     /// The products `args` ask for, in the order they are fed and written.
     fn of(args: &Args) -> Vec<ProductKind> {
-        vec![match args.fit {
+        let mut kinds = vec![match args.fit {
             Some(f) => ProductKind::Fit(f),
             None => ProductKind::Stack,
-        }]
+        }];
+        if wants_maps(args) {
+            kinds.push(ProductKind::Maps);
+        }
+        kinds
     }
 
     /// Bytes this product holds for a bake of `res` texels and `lights` lights, and its
@@ -384,8 +434,46 @@ impl ProductKind {
                 SampleStack::memory_bytes(res[0], res[1], lights, args.light_distance.is_some()),
                 "the sample stack (K of every light, written as samples.exr)",
             ),
+            ProductKind::Maps => {
+                let texels = res[0] as f64 * res[1] as f64;
+                let spp = args.spp as f64;
+                (
+                    ptm_bake::maps::Surface::memory_bytes(texels)
+                        + ptm_bake::maps::Occlusion::memory_bytes(texels)
+                        + ptm_bake::maps::Maps::memory_bytes(texels)
+                        // Each primary sample's hit, kept until the per-texel sums are made.
+                        + texels * spp * std::mem::size_of::<Option<ptm_bake::maps::SurfaceHit>>() as f64,
+                    "the companion maps (height, normal, AO, bent normal)",
+                )
+            }
         }
     }
+}
+
+/// Whether the bake writes the companion maps (`--maps`, or `--maps-png`).
+fn wants_maps(args: &Args) -> bool {
+    args.maps || args.maps_png
+}
+
+/// The dome's quadrature rule: how its lights share the hemisphere (the maps' AO weights).
+fn quadrature(args: &Args) -> dome::Quadrature {
+    match (&args.lights, &args.dome) {
+        (Some(_), _) => dome::Quadrature::Equal,
+        (None, Some(spec)) if spec.starts_with("rings:") => dome::Quadrature::Rings,
+        _ => dome::Quadrature::Fibonacci {
+            min_elevation_deg: args.min_elevation,
+        },
+    }
+}
+
+/// The companion maps being made: the primary hits' sums (handed over by the baker once its
+/// primary pass is done) and the occlusion integrated light by light.
+struct MapsProduct {
+    surface: Option<ptm_bake::maps::Surface>,
+    occlusion: ptm_bake::maps::Occlusion,
+    quadrature: dome::Quadrature,
+    /// Also the 16-bit PNGs.
+    png: bool,
 }
 
 /// One product of the bake, being made: fed the texels' coverage, then every light's K plane
@@ -395,6 +483,8 @@ enum Product {
     Stack(ptm_bake::Planes),
     /// K streamed into the per-texel fit (boxed: its fields are large beside a `Planes`).
     Fit(Box<Accumulator>),
+    /// The companion maps.
+    Maps(Box<MapsProduct>),
 }
 
 impl Product {
@@ -417,13 +507,29 @@ impl Product {
                 }
                 Product::Fit(Box::new(acc))
             }
+            ProductKind::Maps => {
+                let q = quadrature(args);
+                let occlusion =
+                    ptm_bake::maps::Occlusion::new(lights, &q.weights(lights), width * height)?;
+                Product::Maps(Box::new(MapsProduct {
+                    surface: None,
+                    occlusion,
+                    quadrature: q,
+                    png: args.maps_png,
+                }))
+            }
         })
+    }
+
+    /// Whether the product needs the primary hits' per-texel sums.
+    fn needs_surface(&self) -> bool {
+        matches!(self, Product::Maps(_))
     }
 
     /// Takes the traced texels' coverage, before any light.
     fn set_coverage(&mut self, coverage: &[f32]) -> anyhow::Result<()> {
         match self {
-            Product::Stack(_) => {}
+            Product::Stack(_) | Product::Maps(_) => {}
             Product::Fit(acc) => acc.set_coverage(coverage)?,
         }
         Ok(())
@@ -438,6 +544,7 @@ impl Product {
                 None => acc.add_light(i, k),
             }
             .map_err(ptm_bake::Error::sink),
+            Product::Maps(m) => m.occlusion.add_light(i, k),
         }
     }
 }
@@ -468,8 +575,18 @@ fn trace(
         packets: !args.single_rays,
         threads: args.threads,
     };
-    let mut baker = Baker::new_rows(swatch, &cfg, rows.clone())?;
+    let mut baker = if products.iter().any(Product::needs_surface) {
+        Baker::with_surface(swatch, &cfg, rows.clone())?
+    } else {
+        Baker::new_rows(swatch, &cfg, rows.clone())?
+    };
     let coverage = baker.coverage().to_vec();
+    let mut surface = baker.take_surface();
+    for p in &mut products {
+        if let Product::Maps(m) = p {
+            m.surface = surface.take();
+        }
+    }
     for p in &mut products {
         p.set_coverage(&coverage)?;
     }
@@ -527,6 +644,8 @@ fn trace(
 struct Written {
     /// The fit's summary for the JSON (none without `--fit`).
     fit: Option<json::BakeFit>,
+    /// The companion maps written (none without `--maps`).
+    maps: Option<json::BakeMaps>,
     /// The file written (the part, for a farm shard).
     output: PathBuf,
     /// Every file of the sample stack or PTM written: `output`, or the renderer layout's parts.
@@ -550,6 +669,8 @@ struct WriteTo<'a> {
     /// A farm part defers the MIP levels to the merge.
     shard_mips: bool,
     output: &'a Path,
+    /// `--output`, beside which the companion maps go.
+    maps_of: &'a Path,
     layout: Layout,
 }
 
@@ -559,6 +680,7 @@ struct WriteTo<'a> {
 struct ProductWritten {
     files: Vec<PathBuf>,
     fit: Option<json::BakeFit>,
+    maps: Option<json::BakeMaps>,
     t_fit: f64,
 }
 
@@ -635,6 +757,49 @@ impl Product {
                     files,
                     fit: Some(summary),
                     t_fit,
+                    ..Default::default()
+                })
+            }
+            Product::Maps(m) => {
+                let MapsProduct {
+                    surface,
+                    occlusion,
+                    quadrature,
+                    png,
+                } = *m;
+                let surface = surface.context("the baker kept no primary hits for the maps")?;
+                let b = &to.swatch.bounds;
+                let maps = ptm_bake::maps::Maps::finish(
+                    &surface,
+                    &occlusion,
+                    to.coverage,
+                    [b.min[2], b.max[2]],
+                    quadrature,
+                )?;
+                let path = ptm_bake::maps::maps_path(to.maps_of);
+                let named = |p: &Path| crate::outputs::Named::new("writing", p);
+                let bytes = maps.encode(&path).with_context(|| named(&path))?;
+                tx.stage_bytes(&path, &bytes)
+                    .with_context(|| named(&path))?;
+                let mut pngs = Vec::new();
+                if png {
+                    for (name, channels, data) in maps.png16() {
+                        let p = ptm_bake::maps::png_path(to.maps_of, name);
+                        let bytes = png16(maps.width, maps.height, channels, data)
+                            .with_context(|| named(&p))?;
+                        tx.stage_bytes(&p, &bytes).with_context(|| named(&p))?;
+                        pngs.push(p);
+                    }
+                }
+                let info = json::BakeMaps {
+                    file: json::path(&path),
+                    png: json::paths(&pngs),
+                    dome_fraction: occlusion.dome_fraction(),
+                };
+                Ok(ProductWritten {
+                    files: Vec::new(),
+                    maps: Some(info),
+                    ..Default::default()
                 })
             }
             Product::Stack(planes) => {
@@ -687,7 +852,9 @@ fn write_outputs(
         lp,
         lights_file,
         layout,
+        maps_of,
     } = dest;
+    let maps_of = maps_of.as_path();
     let t0 = Instant::now();
     let to = WriteTo {
         swatch,
@@ -697,13 +864,15 @@ fn write_outputs(
         part,
         shard_mips,
         output: &output,
+        maps_of,
         layout,
     };
-    let (mut files, mut fit_json, mut t_fit) = (Vec::new(), None, 0.0);
+    let (mut files, mut fit_json, mut maps, mut t_fit) = (Vec::new(), None, None, 0.0);
     for p in products {
         let w = p.write(&to, &mut tx)?;
         files.extend(w.files);
         fit_json = fit_json.or(w.fit);
+        maps = maps.or(w.maps);
         t_fit += w.t_fit;
     }
     if part.is_none() {
@@ -715,6 +884,7 @@ fn write_outputs(
     }
     Ok(Written {
         fit: fit_json,
+        maps,
         output,
         files,
         lp,
@@ -722,6 +892,22 @@ fn write_outputs(
         t_fit,
         t_write: t0.elapsed().as_secs_f64() - t_fit,
     })
+}
+
+/// A 16-bit grey (`channels` 1) or RGB (3) PNG of `width × height` samples, top row first.
+fn png16(width: usize, height: usize, channels: u8, data: Vec<u16>) -> anyhow::Result<Vec<u8>> {
+    let (w, h) = (width as u32, height as u32);
+    let mut out = std::io::Cursor::new(Vec::new());
+    let bad = || anyhow::anyhow!("{width}×{height} image of {channels} channels");
+    match channels {
+        1 => image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, data)
+            .ok_or_else(bad)?
+            .write_to(&mut out, image::ImageFormat::Png)?,
+        _ => image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(w, h, data)
+            .ok_or_else(bad)?
+            .write_to(&mut out, image::ImageFormat::Png)?,
+    }
+    Ok(out.into_inner())
 }
 
 /// The closing lines on stderr: ray throughput, then what was written.
@@ -738,11 +924,16 @@ fn print_summary(report: &BakeReport, written: &Written) {
         2 * max_rings + 1,
         2 * max_rings + 1
     );
-    let files = crate::outputs::list(&written.files);
+    let mut all = written.files.clone();
+    if let Some(m) = &written.maps {
+        all.push(PathBuf::from(&m.file));
+        all.extend(m.png.iter().map(PathBuf::from));
+    }
+    let files = crate::outputs::list(&all);
     match (&written.lp, &written.lights_file) {
         (Some(lp), _) => eprintln!(
             "ptm bake: wrote {}",
-            crate::outputs::list(&[&written.files[..], std::slice::from_ref(lp)].concat())
+            crate::outputs::list(&[&all[..], std::slice::from_ref(lp)].concat())
         ),
         (None, Some(user)) => eprintln!(
             "ptm bake: wrote {files}; its lights are in {} (the --lights file, left as it is)",
@@ -806,6 +997,7 @@ fn bake_json(
         below_horizon: report.below_horizon.clone(),
         capped: report.capped.clone(),
         fit: written.fit,
+        maps: written.maps,
         seconds: t_all.elapsed().as_secs_f64(),
         seconds_load: t_load,
         seconds_scene: report.seconds_scene,

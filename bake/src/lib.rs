@@ -10,6 +10,7 @@
 
 pub mod dome;
 pub mod embree;
+pub mod maps;
 pub mod swatch;
 pub mod tiling;
 pub mod visibility;

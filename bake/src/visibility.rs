@@ -15,6 +15,7 @@ use ptm_format::LightSet;
 use rayon::prelude::*;
 
 use crate::embree::{self, Device, Packet, Scene, Valid};
+use crate::maps::{Surface, SurfaceHit};
 use crate::swatch::PreparedMesh;
 use crate::tiling;
 use crate::{Error, Result};
@@ -186,6 +187,11 @@ pub struct Baker {
     /// ([`Device::packet_width`]), 1 for single rays.
     width: usize,
     coverage: Vec<f32>,
+    /// The primary hits' per-texel sums for the companion maps, when asked for
+    /// ([`Baker::with_surface`]).
+    surface: Option<Surface>,
+    /// Mesh units per baker unit (the inverse of the power of two the swatch was scaled by).
+    to_mesh: f64,
     report: BakeReport,
 }
 
@@ -200,6 +206,31 @@ impl Baker {
     /// global texel index, so these rows are bit-identical to the same rows of a whole bake.
     /// `rows.start` must be a multiple of 4 (the tracer's texel blocks).
     pub fn new_rows(swatch: &PreparedMesh, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
+        Self::build(swatch, cfg, rows, false)
+    }
+
+    /// As [`Baker::new_rows`], also summing the primary hits per texel for the companion maps
+    /// (height and normal, [`Baker::take_surface`]). Tracing is the same: no ray is added.
+    pub fn with_surface(
+        swatch: &PreparedMesh,
+        cfg: &BakeConfig,
+        rows: Range<usize>,
+    ) -> Result<Self> {
+        Self::build(swatch, cfg, rows, true)
+    }
+
+    /// The per-texel sums of the primary hits ([`Baker::with_surface`]; none otherwise),
+    /// in mesh units.
+    pub fn take_surface(&mut self) -> Option<Surface> {
+        self.surface.take()
+    }
+
+    fn build(
+        swatch: &PreparedMesh,
+        cfg: &BakeConfig,
+        rows: Range<usize>,
+        surface: bool,
+    ) -> Result<Self> {
         let [nx, ny] = cfg.res;
         if nx == 0 || ny == 0 || cfg.spp == 0 {
             return Err(Error::Config(format!(
@@ -271,6 +302,8 @@ impl Baker {
             rows,
             samples: Vec::new(),
             coverage: Vec::new(),
+            surface: surface.then(Surface::default),
+            to_mesh: 1.0 / unit,
             report: BakeReport::default(),
         };
         let primary_copies = tiling::copies_meeting(baker.tile, &baker.bounds, &[], baker.margin);
@@ -340,11 +373,21 @@ impl Baker {
         // The camera sits on the clamp plane, above all geometry.
         let (z_top, t_far) = (self.z_cap as f32, f32::INFINITY);
         let mut samples = vec![Lanes::default(); bx * by * spp];
+        // With the companion maps, each sample's hit too (lane-major within its block).
+        let keep = self.surface.is_some();
+        let mut hits: Vec<Option<SurfaceHit>> =
+            vec![None; if keep { bx * by * spp * 16 } else { 0 }];
+        let hit_blocks = hits
+            .chunks_mut(16 * spp)
+            .map(Some)
+            .chain(std::iter::repeat_with(|| None));
+        let blocks: Vec<_> = samples.chunks_mut(spp).zip(hit_blocks).collect();
+        let to_mesh = self.to_mesh;
         self.pool.install(|| {
-            samples
-                .par_chunks_mut(spp)
+            blocks
+                .into_par_iter()
                 .enumerate()
-                .for_each(|(b, out)| {
+                .for_each(|(b, (out, mut kept))| {
                     let (bi, bj) = (b % bx, b / bx);
                     for lane in 0..16 {
                         let (i, j) = (bi * 4 + lane % 4, row0 + bj * 4 + lane / 4);
@@ -370,6 +413,13 @@ impl Baker {
                                         ln.n[a][lane] = n[a] as f32;
                                     }
                                     ln.hit |= 1 << lane;
+                                    if let Some(k) = kept.as_deref_mut() {
+                                        k[lane * spp + s] = Some(SurfaceHit {
+                                            z: p[2] * to_mesh,
+                                            n,
+                                            prim: h.prim,
+                                        });
+                                    }
                                 }
                             }
                         }
@@ -389,6 +439,19 @@ impl Baker {
                 coverage[j * nx + i] = hits as f32 / spp as f32;
                 uncovered += (hits == 0) as usize;
             }
+        }
+        if keep {
+            let mut surface = Surface::new(nx, ny);
+            for j in 0..ny {
+                for i in 0..nx {
+                    let (b, lane) = ((j / 4) * bx + i / 4, (j % 4) * 4 + i % 4);
+                    let at = (b * 16 + lane) * spp;
+                    for h in hits[at..at + spp].iter().flatten() {
+                        surface.add(j * nx + i, h);
+                    }
+                }
+            }
+            self.surface = Some(surface);
         }
         self.report.primary_rays = (nx * ny * spp) as u64;
         self.report.uncovered_texels = uncovered;

@@ -167,6 +167,7 @@ impl Sample for Baked {
             below_horizon: s(),
             capped: s(),
             fit: s(),
+            maps: s(),
             seconds: s(),
             seconds_load: s(),
             seconds_scene: s(),
@@ -174,6 +175,16 @@ impl Sample for Baked {
             seconds_shadow: s(),
             seconds_fit: s(),
             seconds_write: s(),
+        }
+    }
+}
+
+impl Sample for BakeMaps {
+    fn sample() -> Self {
+        BakeMaps {
+            file: s(),
+            png: s(),
+            dome_fraction: s(),
         }
     }
 }
