@@ -102,7 +102,7 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
     let destinations = destinations(args)?;
     let (swatch, t_load) = resolve_swatch(args)?;
     let (res, rows) = resolve_rows(args, swatch.tile)?;
-    let lights = build_dome(args, [res[0], rows.len()])?;
+    let lights = build_dome(args, [res[0], rows.len()], swatch.material_names.len())?;
     let part = match check_outputs(args, res, &swatch, &lights)? {
         Output::Complete(path) => {
             return Ok(json::Bake::Skipped(json::SkippedPart {
@@ -208,20 +208,21 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
 }
 
 /// The light directions (`--lights`, `--dome` or `--dirs` Fibonacci), each refused before it
-/// is built when the bake of `mem_res` texels would not fit in memory.
-fn build_dome(args: &Args, mem_res: [usize; 2]) -> anyhow::Result<LightSet> {
+/// is built when the bake of `mem_res` texels (of a swatch of `materials` materials, for the
+/// maps' masks) would not fit in memory.
+fn build_dome(args: &Args, mem_res: [usize; 2], materials: usize) -> anyhow::Result<LightSet> {
     let lights: LightSet = match (&args.lights, &args.dome) {
         (Some(p), _) => LightSet::read_lp(p)?,
         (None, Some(spec)) => dome::parse(spec, args.min_elevation)?,
         (None, None) => {
             // Checked before the dome exists: --dirs 100000000 must not exhaust memory first.
             let n = args.dirs.unwrap_or(32);
-            check_memory(args, mem_res, n)?;
+            check_memory(args, mem_res, n, materials)?;
             dome::fibonacci(n, args.min_elevation)?
         }
     };
     if args.lights.is_some() || args.dome.is_some() {
-        check_memory(args, mem_res, lights.len())?;
+        check_memory(args, mem_res, lights.len(), materials)?;
     }
     Ok(lights)
 }
@@ -408,7 +409,13 @@ impl ProductKind {
 
     /// Bytes this product holds for a bake of `res` texels and `lights` lights, and its
     /// buffers in words. In f64: absurd requests must be measured, not overflow.
-    fn memory(self, args: &Args, res: [usize; 2], lights: usize) -> (f64, &'static str) {
+    fn memory(
+        self,
+        args: &Args,
+        res: [usize; 2],
+        lights: usize,
+        materials: usize,
+    ) -> (f64, &'static str) {
         match self {
             // What the accumulator will hold (its sums, or the logistic link's counts).
             ProductKind::Fit(f) => {
@@ -438,12 +445,12 @@ impl ProductKind {
                 let texels = res[0] as f64 * res[1] as f64;
                 let spp = args.spp as f64;
                 (
-                    ptm_bake::maps::Surface::memory_bytes(texels)
+                    ptm_bake::maps::Surface::memory_bytes(texels, spp)
                         + ptm_bake::maps::Occlusion::memory_bytes(texels)
-                        + ptm_bake::maps::Maps::memory_bytes(texels)
+                        + ptm_bake::maps::Maps::memory_bytes(texels, materials as f64)
                         // Each primary sample's hit, kept until the per-texel sums are made.
                         + texels * spp * std::mem::size_of::<Option<ptm_bake::maps::SurfaceHit>>() as f64,
-                    "the companion maps (height, normal, AO, bent normal)",
+                    "the companion maps (height, normal, AO, bent normal, ids and masks)",
                 )
             }
         }
@@ -775,6 +782,7 @@ impl Product {
                     to.coverage,
                     [b.min[2], b.max[2]],
                     quadrature,
+                    &to.swatch.material_names,
                 )?;
                 let path = ptm_bake::maps::maps_path(to.maps_of);
                 let named = |p: &Path| crate::outputs::Named::new("writing", p);
@@ -784,7 +792,11 @@ impl Product {
                 let mut pngs = Vec::new();
                 if png {
                     for (name, channels, data) in maps.png16() {
-                        let p = ptm_bake::maps::png_path(to.maps_of, name);
+                        let p = ptm_bake::maps::png_path(to.maps_of, &name);
+                        if name.starts_with("mask.") {
+                            // The masks' names come with the swatch: checked here.
+                            tx.add(&p).with_context(|| named(&p))?;
+                        }
                         let bytes = png16(maps.width, maps.height, channels, data)
                             .with_context(|| named(&p))?;
                         tx.stage_bytes(&p, &bytes).with_context(|| named(&p))?;
@@ -1020,7 +1032,12 @@ fn fit_options(args: &Args, f: Basis) -> FitOptions {
 
 /// Refuses a bake whose buffers cannot fit in the memory this machine has available, naming
 /// the parts and what to change, instead of being killed by the kernel half-way.
-fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<()> {
+fn check_memory(
+    args: &Args,
+    res: [usize; 2],
+    lights: usize,
+    materials: usize,
+) -> anyhow::Result<()> {
     let Some(available) = available_memory() else {
         return Ok(());
     };
@@ -1029,7 +1046,7 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
     let dome = lights as f64 * 64.0;
     let products: Vec<(f64, &str)> = ProductKind::of(args)
         .into_iter()
-        .map(|p| p.memory(args, res, lights))
+        .map(|p| p.memory(args, res, lights, materials))
         .collect();
     let sink: f64 = products.iter().map(|p| p.0).sum();
     let what: String = products

@@ -38,13 +38,22 @@ pub struct Surface {
     z_min: Vec<f64>,
     z_max: Vec<f64>,
     n_sum: Vec<[f64; 3]>,
+    /// Footprint samples per texel.
+    spp: usize,
+    /// Per texel and sample, the material hit ([`NO_HIT`] where the sample saw nothing).
+    ids: Vec<u32>,
 }
 
+/// A sample that hit nothing, in [`Surface`]'s material ids.
+pub const NO_HIT: u32 = u32::MAX;
+
 impl Surface {
-    /// No hits yet over `width × height` texels.
-    pub fn new(width: usize, height: usize) -> Surface {
+    /// No hits yet over `width × height` texels of `spp` footprint samples each.
+    pub fn new(width: usize, height: usize, spp: usize) -> Surface {
         let n = width * height;
         Surface {
+            spp,
+            ids: vec![NO_HIT; n * spp],
             width,
             height,
             hits: vec![0; n],
@@ -55,14 +64,16 @@ impl Surface {
         }
     }
 
-    /// Bytes a surface of `texels` texels holds.
-    pub fn memory_bytes(texels: f64) -> f64 {
-        texels * (4.0 + 3.0 * 8.0 + 3.0 * 8.0)
+    /// Bytes a surface of `texels` texels of `spp` samples holds.
+    pub fn memory_bytes(texels: f64, spp: f64) -> f64 {
+        texels * (4.0 + 3.0 * 8.0 + 3.0 * 8.0 + 4.0 * spp)
     }
 
-    /// Adds a sample's hit to texel `texel` (row-major). Sums run in the order samples come;
-    /// callers add each texel's samples in sample order, so the maps are deterministic.
-    pub fn add(&mut self, texel: usize, hit: &SurfaceHit) {
+    /// Adds footprint sample `sample`'s hit of material `material` to texel `texel`
+    /// (row-major). Sums run in the order samples come; callers add each texel's samples in
+    /// sample order, so the maps are deterministic.
+    pub fn add(&mut self, texel: usize, sample: usize, hit: &SurfaceHit, material: u32) {
+        self.ids[texel * self.spp + sample] = material;
         self.hits[texel] += 1;
         self.z_sum[texel] += hit.z;
         self.z_min[texel] = self.z_min[texel].min(hit.z);
@@ -79,6 +90,7 @@ impl Surface {
         self.z_min.extend(other.z_min);
         self.z_max.extend(other.z_max);
         self.n_sum.extend(other.n_sum);
+        self.ids.extend(other.ids);
         self.height += other.height;
     }
 }
@@ -171,7 +183,7 @@ pub struct Maps {
     /// Rows.
     pub height: usize,
     /// Channels in file order: `height`, `height.min`, `height.max`, `normal.{X,Y,Z}`, `ao`,
-    /// `bent.{X,Y,Z}`, `coverage`.
+    /// `bent.{X,Y,Z}`, `coverage`, `id`, then `mask.NAME` per material.
     pub channels: Vec<(String, Vec<f32>)>,
     /// Header attributes (`maps:*`), equal for every row block of one bake.
     pub attrs: Vec<(&'static str, Attr)>,
@@ -198,6 +210,7 @@ impl Maps {
         coverage: &[f32],
         z_range: [f64; 2],
         quadrature: crate::dome::Quadrature,
+        material_names: &[String],
     ) -> Result<Maps> {
         let n = surface.width * surface.height;
         if occlusion.open.len() != n || coverage.len() != n {
@@ -255,6 +268,30 @@ impl Maps {
                 bent[a][t] = b[a] as f32;
             }
         }
+        // Ids: the majority material over each texel's samples (ties to the lower id; −1 where
+        // nothing was hit) and per material its share of the footprint.
+        let m = material_names.len();
+        let mut id = vec![-1.0f32; n];
+        let mut masks = vec![vec![0.0f32; n]; m];
+        let mut counts = vec![0u32; m];
+        for t in 0..n {
+            counts.iter_mut().for_each(|c| *c = 0);
+            for &s in &surface.ids[t * surface.spp..(t + 1) * surface.spp] {
+                if (s as usize) < m {
+                    counts[s as usize] += 1;
+                }
+            }
+            let mut best = None;
+            for (i, &c) in counts.iter().enumerate() {
+                if c > 0 && best.is_none_or(|b: usize| c > counts[b]) {
+                    best = Some(i);
+                }
+                masks[i][t] = c as f32 / surface.spp as f32;
+            }
+            if let Some(b) = best {
+                id[t] = b as f32;
+            }
+        }
         let [nx, ny, nz] = normal;
         let [bx, by, bz] = bent;
         let channels = vec![
@@ -269,7 +306,12 @@ impl Maps {
             ("bent.Y".to_string(), by),
             ("bent.Z".to_string(), bz),
             ("coverage".to_string(), coverage.to_vec()),
+            ("id".to_string(), id),
         ];
+        let mut channels = channels;
+        for (name, mask) in material_names.iter().zip(masks) {
+            channels.push((format!("mask.{}", channel_word(name)), mask));
+        }
         let attrs = vec![
             ("maps:version", Attr::Text(MAPS_VERSION.into())),
             ("maps:settings", Attr::Text(words(quadrature))),
@@ -296,6 +338,7 @@ impl Maps {
                 ),
             ),
             ("maps:domeFraction", Attr::F64(occlusion.dome_fraction())),
+            ("maps:materials", Attr::Texts(material_names.to_vec())),
         ];
         Ok(Maps {
             width: surface.width,
@@ -306,9 +349,9 @@ impl Maps {
         })
     }
 
-    /// Bytes the finished maps hold over `texels` texels.
-    pub fn memory_bytes(texels: f64) -> f64 {
-        texels * 11.0 * 4.0
+    /// Bytes the finished maps hold over `texels` texels of `materials` materials.
+    pub fn memory_bytes(texels: f64, materials: f64) -> f64 {
+        texels * (12.0 + materials) * 4.0
     }
 
     /// The plane of channel `name`.
@@ -336,11 +379,11 @@ impl Maps {
         )?)
     }
 
-    /// 16-bit images for painting tools: (name suffix, channels per pixel, samples row-major
-    /// from the top row). `height`: (z − heightMin)/(heightMax − heightMin); `normal` and
-    /// `bent`: RGB = n·0.5 + 0.5 (+Y up, the OpenGL convention Blender and Substance read);
-    /// `ao`: grey.
-    pub fn png16(&self) -> Vec<(&'static str, u8, Vec<u16>)> {
+    /// 16-bit images for painting tools: (name, channels per pixel, samples row-major from
+    /// the top row). `height`: (z − heightMin)/(heightMax − heightMin); `normal` and `bent`:
+    /// RGB = n·0.5 + 0.5 (+Y up, the OpenGL convention Blender and Substance read); `ao`:
+    /// grey; then `mask.NAME` per material: its share of the footprint, grey.
+    pub fn png16(&self) -> Vec<(String, u8, Vec<u16>)> {
         let get = |n: &str| self.channel(n).unwrap_or(&[]);
         let q = |x: f64| (x.clamp(0.0, 1.0) * 65535.0).round() as u16;
         let [lo, hi] = self.z_range;
@@ -355,17 +398,38 @@ impl Maps {
                 .flat_map(|t| [x[t], y[t], z[t]].map(|c| q(c as f64 * 0.5 + 0.5)))
                 .collect()
         };
-        let ao = get("ao").iter().map(|&a| q(a as f64)).collect();
-        vec![
-            ("height", 1, height),
-            ("normal", 3, rgb("normal")),
-            ("ao", 1, ao),
-            ("bent", 3, rgb("bent")),
-        ]
+        let grey = |v: &[f32]| v.iter().map(|&a| q(a as f64)).collect::<Vec<u16>>();
+        let mut out = vec![
+            ("height".to_string(), 1, height),
+            ("normal".to_string(), 3, rgb("normal")),
+            ("ao".to_string(), 1, grey(get("ao"))),
+            ("bent".to_string(), 3, rgb("bent")),
+        ];
+        for (name, v) in &self.channels {
+            if name.starts_with("mask.") {
+                out.push((name.clone(), 1, grey(v)));
+            }
+        }
+        out
     }
 }
 
-/// The maps written as 16-bit PNGs ([`Maps::png16`], [`png_path`]), in that order.
+/// A material name as a channel name's last part: characters other than letters, digits, `-`
+/// and `_` (a `.` would start a layer) become `_`.
+pub fn channel_word(name: &str) -> String {
+    name.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// The maps written as 16-bit PNGs whatever the swatch ([`Maps::png16`], [`png_path`]), in
+/// that order; the masks (`mask.NAME`) follow, one per material.
 pub const PNG_MAPS: [&str; 4] = ["height", "normal", "ao", "bent"];
 
 /// Where the maps of a bake whose output is `output` go: `NAME.maps.exr` beside it, NAME being

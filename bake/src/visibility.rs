@@ -192,6 +192,8 @@ pub struct Baker {
     surface: Option<Surface>,
     /// Mesh units per baker unit (the inverse of the power of two the swatch was scaled by).
     to_mesh: f64,
+    /// Each triangle's material, for the surface's ids (empty without a surface).
+    materials: Vec<u32>,
     report: BakeReport,
 }
 
@@ -304,6 +306,11 @@ impl Baker {
             coverage: Vec::new(),
             surface: surface.then(Surface::default),
             to_mesh: 1.0 / unit,
+            materials: if surface {
+                swatch.materials.clone()
+            } else {
+                Vec::new()
+            },
             report: BakeReport::default(),
         };
         let primary_copies = tiling::copies_meeting(baker.tile, &baker.bounds, &[], baker.margin);
@@ -441,13 +448,16 @@ impl Baker {
             }
         }
         if keep {
-            let mut surface = Surface::new(nx, ny);
+            let mut surface = Surface::new(nx, ny, spp);
             for j in 0..ny {
                 for i in 0..nx {
                     let (b, lane) = ((j / 4) * bx + i / 4, (j % 4) * 4 + i % 4);
                     let at = (b * 16 + lane) * spp;
-                    for h in hits[at..at + spp].iter().flatten() {
-                        surface.add(j * nx + i, h);
+                    for (s, h) in hits[at..at + spp].iter().enumerate() {
+                        if let Some(h) = h {
+                            let m = self.materials.get(h.prim as usize).copied().unwrap_or(0);
+                            surface.add(j * nx + i, s, h, m);
+                        }
                     }
                 }
             }

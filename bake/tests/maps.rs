@@ -178,7 +178,7 @@ fn bake_maps(mesh: Mesh, lights: &LightSet, q: Quadrature) -> Maps {
         .trace(lights, &mut |i, k, _| occ.add_light(i, k))
         .unwrap();
     let z = [s.bounds.min[2], s.bounds.max[2]];
-    Maps::finish(&surface, &occ, &coverage, z, q).unwrap()
+    Maps::finish(&surface, &occ, &coverage, z, q, &s.material_names).unwrap()
 }
 
 /// The reference maps from per-sample closed forms `hit(x, y) → (p, n)` and `vis(p, n, l)`.
