@@ -189,10 +189,10 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
     }
-    if wants_maps(args) && args.shard.is_some() {
+    if args.maps_png && args.shard.is_some() {
         bail!(
-            "--maps with --shard is not supported yet: bake the maps in one run (they cost no \
-             extra rays), or shard without --maps"
+            "--maps-png with --shard: a part carries the maps as EXR; merge the parts, then bake \
+             or convert the PNGs from the merged NAME.maps.exr (or shard with --maps)"
         );
     }
     if wants_maps(args) && args.light_distance.is_some() {
@@ -239,7 +239,7 @@ fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet) -> 
         lights,
         light_distance: args.light_distance,
         fit: fit.as_ref(),
-        maps: None,
+        maps: wants_maps(args).then(|| ptm_bake::maps::words(quadrature(args))),
     }
     .settings()
 }
@@ -267,7 +267,13 @@ fn check_outputs(
     };
     let meta = crate::shard::meta(s, res, settings(args, res, swatch.tile, lights), swatch)?;
     let path = s.part_path(&args.output);
-    if crate::shard::is_complete(&path, &meta) {
+    // Every product's part: the maps' beside K's.
+    let maps = wants_maps(args).then(|| s.part_path(&ptm_bake::maps::maps_path(&args.output)));
+    if crate::shard::is_complete(&path, &meta)
+        && maps
+            .as_deref()
+            .is_none_or(|m| crate::shard::is_complete(m, &meta))
+    {
         eprintln!("ptm bake: {} is complete; skipped", path.display());
         return Ok(Output::Complete(path));
     }
@@ -298,7 +304,11 @@ fn maps_files(args: &Args) -> Vec<PathBuf> {
     if !wants_maps(args) {
         return Vec::new();
     }
-    let mut files = vec![ptm_bake::maps::maps_path(&args.output)];
+    let exr = ptm_bake::maps::maps_path(&args.output);
+    if let Some(s) = args.shard {
+        return vec![s.part_path(&exr)];
+    }
+    let mut files = vec![exr];
     if args.maps_png {
         files.extend(
             ptm_bake::maps::PNG_MAPS
@@ -786,6 +796,28 @@ impl Product {
                 )?;
                 let path = ptm_bake::maps::maps_path(to.maps_of);
                 let named = |p: &Path| crate::outputs::Named::new("writing", p);
+                if let Some((meta, _)) = to.part {
+                    // A farm part of its own, beside K's; `ptm merge` joins the rows.
+                    let part = meta.shard.part_path(&path);
+                    let attrs = maps.attrs.clone();
+                    ptm_fit::shard::write_rows_part(
+                        &part,
+                        meta,
+                        "maps",
+                        maps.width,
+                        maps.channels,
+                        &attrs,
+                    )
+                    .with_context(|| named(&part))?;
+                    return Ok(ProductWritten {
+                        maps: Some(json::BakeMaps {
+                            file: json::path(&part),
+                            png: Vec::new(),
+                            dome_fraction: occlusion.dome_fraction(),
+                        }),
+                        ..Default::default()
+                    });
+                }
                 let bytes = maps.encode(&path).with_context(|| named(&path))?;
                 tx.stage_bytes(&path, &bytes)
                     .with_context(|| named(&path))?;

@@ -648,6 +648,9 @@ pub struct Merge {
     pub kind: String,
     /// The part files read.
     pub parts: Vec<String>,
+    /// The companion maps merged beside the output (absent where no maps parts were given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub maps: Option<String>,
     /// Texels per row.
     pub width: usize,
     /// Rows.

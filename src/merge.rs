@@ -43,17 +43,21 @@ pub fn part_files(args: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
 /// its `.lp` together; returns what `--json` prints.
 pub fn run(args: &Args) -> anyhow::Result<json::Merge> {
     let t0 = Instant::now();
-    let files = part_files(&args.parts)?;
+    let all = part_files(&args.parts)?;
+    // Each product's parts merge into its own file: the companion maps' (kind `maps`) beside
+    // the output, K's (the stack or the PTM) into it.
+    let (maps_parts, files) = split_maps(&all)?;
+    let maps_out = (!maps_parts.is_empty()).then(|| ptm_bake::maps::maps_path(&args.output));
     // No .lp beside a device (-o /dev/null).
     let lp = crate::outputs::lp_beside(&args.output);
     let mut outputs = vec![args.output.as_path()];
     outputs.extend(lp.as_deref());
-    let parts: Vec<(&str, &std::path::Path)> =
-        files.iter().map(|p| ("part", p.as_path())).collect();
+    outputs.extend(maps_out.as_deref());
+    let parts: Vec<(&str, &std::path::Path)> = all.iter().map(|p| ("part", p.as_path())).collect();
     crate::outputs::refuse_inputs(&outputs, &parts).context("give the merged file another name")?;
     // Both destinations are checked before the merge and published together after it.
     let mut tx = Transaction::new(&outputs)?;
-    let bytes: u64 = files
+    let bytes: u64 = all
         .iter()
         .filter_map(|p| std::fs::metadata(p).ok())
         .map(|m| m.len())
@@ -61,8 +65,19 @@ pub fn run(args: &Args) -> anyhow::Result<json::Merge> {
     let (merged, encoded) = shard::merge_encode(&files, &args.output)
         .with_context(|| format!("merging into {}", args.output.display()))?;
     let (lights, width, height, kind) = (&merged.lights, merged.width, merged.height, &merged.kind);
+    let maps = match &maps_out {
+        Some(out) => {
+            let (_, maps) = shard::merge_encode(&maps_parts, out)
+                .with_context(|| format!("merging into {}", out.display()))?;
+            Some(maps)
+        }
+        None => None,
+    };
     let t1 = Instant::now();
     tx.stage_bytes(&args.output, &encoded)?;
+    if let (Some(out), Some(maps)) = (&maps_out, &maps) {
+        tx.stage_bytes(out, maps)?;
+    }
     if let Some(lp) = &lp {
         tx.stage_bytes(lp, lights.to_lp().as_bytes())?;
     }
@@ -76,15 +91,17 @@ pub fn run(args: &Args) -> anyhow::Result<json::Merge> {
         bytes as f64 / 1e6,
         args.output.display(),
         lights.len(),
-        lp.as_ref()
+        lp.iter()
+            .chain(&maps_out)
             .map(|p| format!(" and {}", p.display()))
-            .unwrap_or_default()
+            .collect::<String>()
     );
     Ok(json::Merge {
         output: json::path(&args.output),
         lights_file: lp.as_deref().map(json::path),
         kind: kind.clone(),
-        parts: json::paths(&files),
+        parts: json::paths(&all),
+        maps: maps_out.as_deref().map(json::path),
         width,
         height,
         lights: lights.len(),
@@ -95,4 +112,62 @@ pub fn run(args: &Args) -> anyhow::Result<json::Merge> {
         seconds_merge: total - t_write,
         seconds_write: t_write,
     })
+}
+
+/// Splits the parts into the companion maps' (kind `maps`) and the rest (K's), and checks that
+/// both are parts of one bake: the same settings, swatch, software and size. Reads headers
+/// only.
+fn split_maps(parts: &[PathBuf]) -> anyhow::Result<(Vec<PathBuf>, Vec<PathBuf>)> {
+    let (mut maps, mut k) = (Vec::new(), Vec::new());
+    let mut first: [Option<(PathBuf, shard::PartMeta)>; 2] = [None, None];
+    for p in parts {
+        // A missing or unreadable part is the merge's to report, in its words.
+        let Ok((meta, kind)) = shard::read_meta(p) else {
+            k.push(p.clone());
+            continue;
+        };
+        let slot = usize::from(kind == "maps");
+        if slot == 1 {
+            maps.push(p.clone());
+        } else {
+            k.push(p.clone());
+        }
+        first[slot].get_or_insert((p.clone(), meta));
+    }
+    if let [Some((pk, mk)), Some((pm, mm))] = &first {
+        let same = |a: &shard::PartMeta, b: &shard::PartMeta| {
+            (
+                &a.settings,
+                &a.swatch,
+                &a.software,
+                a.width,
+                a.height,
+                a.shard.count,
+            ) == (
+                &b.settings,
+                &b.swatch,
+                &b.software,
+                b.width,
+                b.height,
+                b.shard.count,
+            )
+        };
+        if !same(mk, mm) {
+            bail!(
+                "{} and {} are parts of different bakes (settings {:?} against {:?})",
+                pk.display(),
+                pm.display(),
+                mk.settings,
+                mm.settings
+            );
+        }
+    }
+    if k.is_empty() && !maps.is_empty() {
+        bail!(
+            "only companion-map parts given ({}): give the stack or PTM parts of the same bake \
+             too",
+            maps[0].display()
+        );
+    }
+    Ok((maps, k))
 }

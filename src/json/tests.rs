@@ -421,6 +421,7 @@ impl Sample for Merge {
             lights_file: s(),
             kind: s(),
             parts: s(),
+            maps: s(),
             width: s(),
             height: s(),
             lights: s(),
