@@ -558,6 +558,7 @@ fn nested() -> BTreeMap<&'static str, Value> {
         ("Stats", none::<Stats>()),
         ("Rays", none::<Rays>()),
         ("BakeFit", none::<BakeFit>()),
+        ("BakeMaps", none::<BakeMaps>()),
         ("HpExport", none::<HpExport>()),
         ("Images", none::<Images>()),
         ("KUnclamped", none::<KUnclamped>()),
