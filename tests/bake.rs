@@ -504,7 +504,7 @@ fn maps_beside_the_stack_and_the_fit() {
         assert_eq!(id[t], want);
         assert!((0.0..=1.0).contains(&ao[t]) && nz[t] >= 0.0);
     }
-    assert!(warp.iter().any(|&m| m == 1.0) && weft.iter().any(|&m| m == 1.0));
+    assert!(warp.contains(&1.0) && weft.contains(&1.0));
     // An OBJ's usemtl groups: the box's top face (its second face) is `lid`.
     let obj = BOX_OBJ.replacen("f 5 6 7 8\n", "usemtl lid\nf 5 6 7 8\nusemtl walls\n", 1);
     std::fs::write(d.join("box.obj"), obj).unwrap();

@@ -222,14 +222,14 @@ fn reference(
                 let [x, y] = sample_xy([RES, RES], [1.0, 1.0], SPP as usize, SEED, [i, j], s);
                 let (p, nn) = hit(x, y);
                 r.height[t] += p[2] / SPP as f64;
-                for a in 0..3 {
-                    nsum[a] += nn[a];
+                for (s, c) in nsum.iter_mut().zip(nn) {
+                    *s += c;
                 }
                 for (l, wl) in lights.dirs.iter().zip(&w) {
                     if vis(p, nn, *l) {
                         r.ao[t] += wl / norm / SPP as f64;
-                        for a in 0..3 {
-                            r.bent[t][a] += wl * l[a];
+                        for (b, c) in r.bent[t].iter_mut().zip(l) {
+                            *b += wl * c;
                         }
                     }
                 }
