@@ -531,11 +531,18 @@ fn maps_refuse_what_they_cannot_bake() {
     let dir = tempfile::tempdir().unwrap();
     let e = common::refused(
         [
-            "bake", "--res", "32", "--maps", "--shard", "0/2", "-o", "s.exr",
+            "bake",
+            "--res",
+            "32",
+            "--maps-png",
+            "--shard",
+            "0/2",
+            "-o",
+            "s.exr",
         ],
         dir.path(),
     );
-    assert!(e.contains("--maps with --shard"), "{e}");
+    assert!(e.contains("--maps-png with --shard"), "{e}");
     let e = common::refused(
         [
             "bake",
