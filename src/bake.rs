@@ -458,8 +458,8 @@ impl ProductKind {
                     ptm_bake::maps::Surface::memory_bytes(texels, spp)
                         + ptm_bake::maps::Occlusion::memory_bytes(texels)
                         + ptm_bake::maps::Maps::memory_bytes(texels, materials as f64)
-                        // Each primary sample's hit, kept until the per-texel sums are made.
-                        + texels * spp * std::mem::size_of::<Option<ptm_bake::maps::SurfaceHit>>() as f64,
+                        // The per-block sums of the primary pass, gathered into the image's.
+                        + ptm_bake::maps::Surface::memory_bytes(texels, spp),
                     "the companion maps (height, normal, AO, bent normal, ids and masks)",
                 )
             }

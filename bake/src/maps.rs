@@ -83,6 +83,17 @@ impl Surface {
         }
     }
 
+    /// Sets texel `to` to texel `at` of `from` (of the same samples per texel).
+    pub fn copy_texel(&mut self, to: usize, from: &Surface, at: usize) {
+        self.hits[to] = from.hits[at];
+        self.z_sum[to] = from.z_sum[at];
+        self.z_min[to] = from.z_min[at];
+        self.z_max[to] = from.z_max[at];
+        self.n_sum[to] = from.n_sum[at];
+        let s = self.spp;
+        self.ids[to * s..(to + 1) * s].copy_from_slice(&from.ids[at * s..(at + 1) * s]);
+    }
+
     /// Appends `other`'s rows below this surface's (for assembling row blocks).
     pub fn append_rows(&mut self, other: Surface) {
         self.hits.extend(other.hits);

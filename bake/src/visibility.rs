@@ -380,16 +380,20 @@ impl Baker {
         // The camera sits on the clamp plane, above all geometry.
         let (z_top, t_far) = (self.z_cap as f32, f32::INFINITY);
         let mut samples = vec![Lanes::default(); bx * by * spp];
-        // With the companion maps, each sample's hit too (lane-major within its block).
+        // With the companion maps, each block's per-texel sums of its hits too (its 16 lanes
+        // as 16 texels, samples in order), gathered into the image's after the pass.
         let keep = self.surface.is_some();
-        let mut hits: Vec<Option<SurfaceHit>> =
-            vec![None; if keep { bx * by * spp * 16 } else { 0 }];
-        let hit_blocks = hits
-            .chunks_mut(16 * spp)
+        let mut sums: Vec<Surface> = if keep {
+            (0..bx * by).map(|_| Surface::new(16, 1, spp)).collect()
+        } else {
+            Vec::new()
+        };
+        let sum_blocks = sums
+            .iter_mut()
             .map(Some)
             .chain(std::iter::repeat_with(|| None));
-        let blocks: Vec<_> = samples.chunks_mut(spp).zip(hit_blocks).collect();
-        let to_mesh = self.to_mesh;
+        let blocks: Vec<_> = samples.chunks_mut(spp).zip(sum_blocks).collect();
+        let (to_mesh, materials) = (self.to_mesh, &self.materials);
         self.pool.install(|| {
             blocks
                 .into_par_iter()
@@ -421,11 +425,13 @@ impl Baker {
                                     }
                                     ln.hit |= 1 << lane;
                                     if let Some(k) = kept.as_deref_mut() {
-                                        k[lane * spp + s] = Some(SurfaceHit {
+                                        let hit = SurfaceHit {
                                             z: p[2] * to_mesh,
                                             n,
                                             prim: h.prim,
-                                        });
+                                        };
+                                        let m = materials.get(h.prim as usize).copied();
+                                        k.add(lane, s, &hit, m.unwrap_or(0));
                                     }
                                 }
                             }
@@ -452,13 +458,7 @@ impl Baker {
             for j in 0..ny {
                 for i in 0..nx {
                     let (b, lane) = ((j / 4) * bx + i / 4, (j % 4) * 4 + i % 4);
-                    let at = (b * 16 + lane) * spp;
-                    for (s, h) in hits[at..at + spp].iter().enumerate() {
-                        if let Some(h) = h {
-                            let m = self.materials.get(h.prim as usize).copied().unwrap_or(0);
-                            surface.add(j * nx + i, s, h, m);
-                        }
-                    }
+                    surface.copy_texel(j * nx + i, &sums[b], lane);
                 }
             }
             self.surface = Some(surface);
