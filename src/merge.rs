@@ -47,6 +47,8 @@ pub fn run(args: &Args) -> anyhow::Result<json::Merge> {
     // Each product's parts merge into its own file: the companion maps' (kind `maps`) beside
     // the output, K's (the stack or the PTM) into it.
     let (maps_parts, files) = split_maps(&all)?;
+    // With the maps parts found beside K's.
+    let all: Vec<PathBuf> = files.iter().chain(&maps_parts).cloned().collect();
     let maps_out = (!maps_parts.is_empty()).then(|| ptm_bake::maps::maps_path(&args.output));
     // No .lp beside a device (-o /dev/null).
     let lp = crate::outputs::lp_beside(&args.output);
@@ -162,6 +164,28 @@ fn split_maps(parts: &[PathBuf]) -> anyhow::Result<(Vec<PathBuf>, Vec<PathBuf>)>
             );
         }
     }
+    // Maps parts not given are found beside K's (`w.ptm.part-0000-of-0004.exr` →
+    // `w.maps.part-0000-of-0004.exr`), so the K parts' glob or a batch merges them too; where
+    // some of them exist, the set's check names those missing.
+    if maps.is_empty() {
+        if let Some((pk, mk)) = &first[0] {
+            let beside: Vec<PathBuf> = k
+                .iter()
+                .filter_map(|p| maps_part_beside(p))
+                .filter(|m| m.exists())
+                .collect();
+            if !beside.is_empty() {
+                let want = (0..mk.shard.count).map(|index| {
+                    shard::Shard {
+                        index,
+                        count: mk.shard.count,
+                    }
+                    .part_path(&ptm_bake::maps::maps_path(&output_of(pk)))
+                });
+                maps = want.collect();
+            }
+        }
+    }
     if k.is_empty() && !maps.is_empty() {
         bail!(
             "only companion-map parts given ({}): give the stack or PTM parts of the same bake \
@@ -170,4 +194,27 @@ fn split_maps(parts: &[PathBuf]) -> anyhow::Result<(Vec<PathBuf>, Vec<PathBuf>)>
         );
     }
     Ok((maps, k))
+}
+
+/// The output a part `NAME.part-IIII-of-NNNN.exr` is a shard of: `NAME.exr`.
+fn output_of(part: &std::path::Path) -> PathBuf {
+    let name = part
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stem = match name.rfind(".part-") {
+        Some(i) => &name[..i],
+        None => name.strip_suffix(".exr").unwrap_or(&name),
+    };
+    part.with_file_name(format!("{stem}.exr"))
+}
+
+/// The companion maps' part of the same shard as K's part `part`.
+fn maps_part_beside(part: &std::path::Path) -> Option<PathBuf> {
+    let name = part.file_name()?.to_string_lossy().into_owned();
+    let suffix = &name[name.rfind(".part-")?..];
+    let maps = ptm_bake::maps::maps_path(&output_of(part));
+    let stem = maps.file_name()?.to_string_lossy().into_owned();
+    let stem = stem.strip_suffix(".exr")?;
+    Some(part.with_file_name(format!("{stem}{suffix}")))
 }

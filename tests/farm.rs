@@ -450,6 +450,22 @@ fn sharded_maps_are_byte_identical() {
             );
         }
     }
+    // Given K's parts alone, the merge finds the maps' beside them (the documented glob, and
+    // what `ptm batch` passes).
+    let k_only: Vec<String> = (0..3)
+        .map(|i| format!("n3-w.ptm.part-{i:04}-of-0003.exr"))
+        .collect();
+    let args: Vec<&str> = ["merge"]
+        .into_iter()
+        .chain(k_only.iter().map(String::as_str))
+        .chain(["-o", "k.ptm.exr"])
+        .collect();
+    let j = common::json(args, d);
+    assert_eq!(j["maps"], "k.maps.exr");
+    assert_eq!(
+        std::fs::read(d.join("k.maps.exr")).unwrap(),
+        std::fs::read(d.join("whole-w.maps.exr")).unwrap()
+    );
     // Maps parts alone, and maps parts of another bake, are refused.
     let e = refused(
         [
