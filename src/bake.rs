@@ -8,7 +8,7 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh};
-use ptm_fit::shard::PartMeta;
+use ptm_fit::shard::{BakeIdentity, PartMeta};
 use ptm_fit::{Accumulator, FitOptions, SampleStack};
 use ptm_format::atomic::{same_file, Transaction};
 use ptm_format::{Basis, Layout, LightSet, SaveOptions};
@@ -78,6 +78,15 @@ pub struct Args {
     /// Output: samples.exr, or NAME.ptm.exr with --fit. The dome is written beside it (.lp).
     #[arg(short, long, value_name = "FILE")]
     pub output: PathBuf,
+    /// Also write the companion maps from the same rays beside the output: NAME.maps.exr with
+    /// height, tangent-space normal (MikkTSpace of the flat tile, +Y up), ambient occlusion,
+    /// bent normal and coverage (docs/FORMAT.md, "Companion maps").
+    #[arg(long)]
+    pub maps: bool,
+    /// With the maps, also 16-bit PNGs for painting tools: NAME.height.png, NAME.normal.png,
+    /// NAME.ao.png, NAME.bent.png (normals as n·0.5 + 0.5, +Y up). Implies --maps.
+    #[arg(long)]
+    pub maps_png: bool,
     /// Farm bake: trace only shard I of N (0-based; a block of texel rows) and write the part
     /// file OUTPUT-stem.part-IIII-of-NNNN.exr for `ptm merge`; a complete, valid part is kept.
     #[arg(long, value_name = "I/N", allow_hyphen_values = true)]
@@ -93,7 +102,7 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
     let destinations = destinations(args)?;
     let (swatch, t_load) = resolve_swatch(args)?;
     let (res, rows) = resolve_rows(args, swatch.tile)?;
-    let lights = build_dome(args, [res[0], rows.len()])?;
+    let lights = build_dome(args, [res[0], rows.len()], swatch.material_names.len())?;
     let part = match check_outputs(args, res, &swatch, &lights)? {
         Output::Complete(path) => {
             return Ok(json::Bake::Skipped(json::SkippedPart {
@@ -104,9 +113,14 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
         Output::Whole => None,
         Output::Part(meta, path) => Some((meta, path)),
     };
-    let (accumulator, shard_mips) = fit_accumulator(args, &lights, res[0], rows.len())?;
+    let products = ProductKind::of(args)
+        .into_iter()
+        .map(|kind| Product::new(kind, args, &lights, res[0], rows.len()))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    // A part's MIP levels are finished by the merge (`Accumulator::finish_part`).
+    let shard_mips = args.shard.is_some() && args.fit.is_some() && !args.model.no_mips;
     announce(args, &swatch, res, &lights);
-    let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, accumulator)?;
+    let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, products)?;
     let written = write_outputs(&swatch, &lights, kept, &part, destinations, shard_mips)?;
     print_summary(&report, &written);
     Ok(json::Bake::Baked(Box::new(bake_json(
@@ -175,6 +189,18 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
     }
+    if args.maps_png && args.shard.is_some() {
+        bail!(
+            "--maps-png with --shard: a part carries the maps as EXR; merge the parts, then bake \
+             or convert the PNGs from the merged NAME.maps.exr (or shard with --maps)"
+        );
+    }
+    if wants_maps(args) && args.light_distance.is_some() {
+        bail!(
+            "--maps with --light-distance is not supported: ambient occlusion and the bent normal \
+             integrate distant light over the dome; bake the maps with distant lights"
+        );
+    }
     if args.shard.is_some() && args.layout != Layout::Channels {
         bail!("--shard writes part files: merge them, then `ptm convert` to --layout rgba");
     }
@@ -182,58 +208,40 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
 }
 
 /// The light directions (`--lights`, `--dome` or `--dirs` Fibonacci), each refused before it
-/// is built when the bake of `mem_res` texels would not fit in memory.
-fn build_dome(args: &Args, mem_res: [usize; 2]) -> anyhow::Result<LightSet> {
+/// is built when the bake of `mem_res` texels (of a swatch of `materials` materials, for the
+/// maps' masks) would not fit in memory.
+fn build_dome(args: &Args, mem_res: [usize; 2], materials: usize) -> anyhow::Result<LightSet> {
     let lights: LightSet = match (&args.lights, &args.dome) {
         (Some(p), _) => LightSet::read_lp(p)?,
         (None, Some(spec)) => dome::parse(spec, args.min_elevation)?,
         (None, None) => {
             // Checked before the dome exists: --dirs 100000000 must not exhaust memory first.
             let n = args.dirs.unwrap_or(32);
-            check_memory(args, mem_res, n)?;
+            check_memory(args, mem_res, n, materials)?;
             dome::fibonacci(n, args.min_elevation)?
         }
     };
     if args.lights.is_some() || args.dome.is_some() {
-        check_memory(args, mem_res, lights.len())?;
+        check_memory(args, mem_res, lights.len(), materials)?;
     }
     Ok(lights)
 }
 
-/// Every bake setting that changes the output, in words, as a farm part records it (parts of
-/// different settings never merge). Thread count and packet tracing do
-/// not (the output is bit-identical for any), nor does where the swatch file lies (its content
-/// hash is recorded separately). New output-changing flags must be added here.
+/// What identifies this bake in a farm part: every setting that changes the output, in the
+/// words of the library's [`BakeIdentity`] (parts of different settings never merge).
 fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet) -> String {
-    let dirs: Vec<u8> = lights
-        .dirs
-        .iter()
-        .flat_map(|d| d.iter().flat_map(|c| c.to_le_bytes()))
-        .collect();
-    let names = lights.names.join("\n");
-    let light_hash = ptm_fit::shard::fingerprint([&dirs[..], names.as_bytes()]);
-    let m = &args.model;
-    let fit = match args.fit {
-        None => "stack".to_string(),
-        Some(f) => format!(
-            "{} link={} uv={} mips={} regularize={:?} tolerance={:e} max-iterations={}",
-            f.name(),
-            m.link.name(),
-            m.uv.name(),
-            !m.no_mips,
-            args.regularize,
-            m.tolerance,
-            m.max_iterations
-        ),
-    };
-    let distance = match args.light_distance {
-        None => "distant".to_string(),
-        Some(r) => format!("{r:e}"),
-    };
-    format!(
-        "res={}x{} tile={:e}x{:e} spp={} seed={} lights={} ({light_hash}) light-distance={distance} fit={fit}",
-        res[0], res[1], tile[0], tile[1], args.spp, args.seed, lights.len()
-    )
+    let fit = args.fit.map(|f| fit_options(args, f));
+    BakeIdentity {
+        res,
+        tile,
+        spp: args.spp,
+        seed: args.seed,
+        lights,
+        light_distance: args.light_distance,
+        fit: fit.as_ref(),
+        maps: wants_maps(args).then(|| ptm_bake::maps::words(quadrature(args))),
+    }
+    .settings()
 }
 
 /// Where the bake goes.
@@ -259,7 +267,13 @@ fn check_outputs(
     };
     let meta = crate::shard::meta(s, res, settings(args, res, swatch.tile, lights), swatch)?;
     let path = s.part_path(&args.output);
-    if crate::shard::is_complete(&path, &meta) {
+    // Every product's part: the maps' beside K's.
+    let maps = wants_maps(args).then(|| s.part_path(&ptm_bake::maps::maps_path(&args.output)));
+    if crate::shard::is_complete(&path, &meta)
+        && maps
+            .as_deref()
+            .is_none_or(|m| crate::shard::is_complete(m, &meta))
+    {
         eprintln!("ptm bake: {} is complete; skipped", path.display());
         return Ok(Output::Complete(path));
     }
@@ -280,6 +294,29 @@ struct Destinations {
     lights_file: Option<PathBuf>,
     /// The PTM's file layout (`--layout`; the renderer layout writes parts beside `output`).
     layout: Layout,
+    /// `--output`, beside which the companion maps go.
+    maps_of: PathBuf,
+}
+
+/// The companion maps' files beside `--output` (none without `--maps`): the EXR, then with
+/// `--maps-png` the PNGs.
+fn maps_files(args: &Args) -> Vec<PathBuf> {
+    if !wants_maps(args) {
+        return Vec::new();
+    }
+    let exr = ptm_bake::maps::maps_path(&args.output);
+    if let Some(s) = args.shard {
+        return vec![s.part_path(&exr)];
+    }
+    let mut files = vec![exr];
+    if args.maps_png {
+        files.extend(
+            ptm_bake::maps::PNG_MAPS
+                .iter()
+                .map(|n| ptm_bake::maps::png_path(&args.output, n)),
+        );
+    }
+    files
 }
 
 /// Refuses an output that is an input (the swatch OBJ, its draft, the `--lights` file) and checks
@@ -313,6 +350,8 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
     };
     let mut outputs: Vec<&Path> = rgba.iter().map(PathBuf::as_path).collect();
     outputs.extend(lp.as_deref());
+    let maps = maps_files(args);
+    outputs.extend(maps.iter().map(PathBuf::as_path));
     crate::outputs::refuse_inputs(&outputs, &inputs)?;
     let tx = Transaction::new(&outputs)?;
     Ok(Destinations {
@@ -321,30 +360,8 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
         lp,
         lights_file: beside,
         layout: args.layout,
+        maps_of: args.output.clone(),
     })
-}
-
-/// With `--fit`, the streaming fit of `width × height` texels that takes each light's K as it
-/// is traced, and whether a farm part defers the MIP levels to the merge. Prints the fit's
-/// warnings about the light set.
-fn fit_accumulator(
-    args: &Args,
-    lights: &LightSet,
-    width: usize,
-    height: usize,
-) -> anyhow::Result<(Option<Accumulator>, bool)> {
-    let Some(f) = args.fit else {
-        return Ok((None, false));
-    };
-    let opts = fit_options(args, f);
-    // A part's MIP levels are finished by the merge (`Accumulator::finish_part`).
-    let shard_mips = args.shard.is_some() && opts.mips;
-    let mut acc = Accumulator::new(lights, width, height, &opts)?;
-    acc.set_spp(args.spp)?;
-    for w in acc.warnings() {
-        eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
-    }
-    Ok((Some(acc), shard_mips))
 }
 
 /// What the bake warns of its light set: lights at or below the horizon.
@@ -374,17 +391,185 @@ fn announce(args: &Args, swatch: &PreparedMesh, res: [usize; 2], lights: &LightS
     );
 }
 
-/// Where traced K planes went: the streaming fit, or planes kept for the sample stack.
-enum Samples {
-    /// Boxed: the accumulator's fields are large beside a `Planes`.
-    Fit(Box<Accumulator>),
-    Stack(ptm_bake::Planes),
+/// What the bake makes, before it is made: each kind knows the memory its buffers take (the
+/// memory check sums them) and what it says of them when they do not fit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum ProductKind {
+    /// K of every light kept and written as the sample stack.
+    Stack,
+    /// K streamed into the per-texel fit and written as the PTM.
+    Fit(Basis),
+    /// The companion maps: height and normal from the primary hits, AO and bent normal from
+    /// every light's K.
+    Maps,
 }
 
-/// What a trace keeps for the output: its K, the texels' coverage, and the traced size
-/// (width × the rows traced).
+impl ProductKind {
+    /// The products `args` ask for, in the order they are fed and written.
+    fn of(args: &Args) -> Vec<ProductKind> {
+        let mut kinds = vec![match args.fit {
+            Some(f) => ProductKind::Fit(f),
+            None => ProductKind::Stack,
+        }];
+        if wants_maps(args) {
+            kinds.push(ProductKind::Maps);
+        }
+        kinds
+    }
+
+    /// Bytes this product holds for a bake of `res` texels and `lights` lights, and its
+    /// buffers in words. In f64: absurd requests must be measured, not overflow.
+    fn memory(
+        self,
+        args: &Args,
+        res: [usize; 2],
+        lights: usize,
+        materials: usize,
+    ) -> (f64, &'static str) {
+        match self {
+            // What the accumulator will hold (its sums, or the logistic link's counts).
+            ProductKind::Fit(f) => {
+                let counts = Accumulator::count_bytes(args.model.link, args.spp) as f64;
+                let bytes = Accumulator::memory_bytes(
+                    res[0].saturating_mul(res[1]),
+                    lights,
+                    &fit_options(args, f),
+                    args.spp,
+                    args.light_distance.is_some(),
+                );
+                (
+                    bytes as f64,
+                    if counts > 0.0 {
+                        "the streaming fit's sums and the logistic link's exact sample counts"
+                    } else {
+                        "the streaming fit's sums"
+                    },
+                )
+            }
+            // K per light (handed to the EXR writer, not copied); for point lights also (u, v).
+            ProductKind::Stack => (
+                SampleStack::memory_bytes(res[0], res[1], lights, args.light_distance.is_some()),
+                "the sample stack (K of every light, written as samples.exr)",
+            ),
+            ProductKind::Maps => {
+                let texels = res[0] as f64 * res[1] as f64;
+                let spp = args.spp as f64;
+                (
+                    ptm_bake::maps::Surface::memory_bytes(texels, spp)
+                        + ptm_bake::maps::Occlusion::memory_bytes(texels)
+                        + ptm_bake::maps::Maps::memory_bytes(texels, materials as f64)
+                        // The per-block sums of the primary pass, gathered into the image's.
+                        + ptm_bake::maps::Surface::memory_bytes(texels, spp),
+                    "the companion maps (height, normal, AO, bent normal, ids and masks)",
+                )
+            }
+        }
+    }
+}
+
+/// Whether the bake writes the companion maps (`--maps`, or `--maps-png`).
+fn wants_maps(args: &Args) -> bool {
+    args.maps || args.maps_png
+}
+
+/// The dome's quadrature rule: how its lights share the hemisphere (the maps' AO weights).
+fn quadrature(args: &Args) -> dome::Quadrature {
+    match (&args.lights, &args.dome) {
+        (Some(_), _) => dome::Quadrature::Equal,
+        (None, Some(spec)) if spec.starts_with("rings:") => dome::Quadrature::Rings,
+        _ => dome::Quadrature::Fibonacci {
+            min_elevation_deg: args.min_elevation,
+        },
+    }
+}
+
+/// The companion maps being made: the primary hits' sums (handed over by the baker once its
+/// primary pass is done) and the occlusion integrated light by light.
+struct MapsProduct {
+    surface: Option<ptm_bake::maps::Surface>,
+    occlusion: ptm_bake::maps::Occlusion,
+    quadrature: dome::Quadrature,
+    /// Also the 16-bit PNGs.
+    png: bool,
+}
+
+/// One product of the bake, being made: fed the texels' coverage, then every light's K plane
+/// as it is traced, then written as a file of its own or as a farm part.
+enum Product {
+    /// K of every light, kept for the sample stack.
+    Stack(ptm_bake::Planes),
+    /// K streamed into the per-texel fit (boxed: its fields are large beside a `Planes`).
+    Fit(Box<Accumulator>),
+    /// The companion maps.
+    Maps(Box<MapsProduct>),
+}
+
+impl Product {
+    /// The product of `kind` for `width × height` traced texels. Prints the fit's warnings
+    /// about the light set.
+    fn new(
+        kind: ProductKind,
+        args: &Args,
+        lights: &LightSet,
+        width: usize,
+        height: usize,
+    ) -> anyhow::Result<Product> {
+        Ok(match kind {
+            ProductKind::Stack => Product::Stack(ptm_bake::Planes::default()),
+            ProductKind::Fit(f) => {
+                let mut acc = Accumulator::new(lights, width, height, &fit_options(args, f))?;
+                acc.set_spp(args.spp)?;
+                for w in acc.warnings() {
+                    eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
+                }
+                Product::Fit(Box::new(acc))
+            }
+            ProductKind::Maps => {
+                let q = quadrature(args);
+                let occlusion =
+                    ptm_bake::maps::Occlusion::new(lights, &q.weights(lights), width * height)?;
+                Product::Maps(Box::new(MapsProduct {
+                    surface: None,
+                    occlusion,
+                    quadrature: q,
+                    png: args.maps_png,
+                }))
+            }
+        })
+    }
+
+    /// Whether the product needs the primary hits' per-texel sums.
+    fn needs_surface(&self) -> bool {
+        matches!(self, Product::Maps(_))
+    }
+
+    /// Takes the traced texels' coverage, before any light.
+    fn set_coverage(&mut self, coverage: &[f32]) -> anyhow::Result<()> {
+        match self {
+            Product::Stack(_) | Product::Maps(_) => {}
+            Product::Fit(acc) => acc.set_coverage(coverage)?,
+        }
+        Ok(())
+    }
+
+    /// Takes light `i`'s K plane (and, for point lights, each texel's (u, v)).
+    fn add_light(&mut self, i: usize, k: &[f32], uv: Option<&[[f32; 2]]>) -> ptm_bake::Result<()> {
+        match self {
+            Product::Stack(planes) => planes.push(i, k, uv),
+            Product::Fit(acc) => match uv {
+                Some(uv) => acc.add_light_uv(i, k, uv),
+                None => acc.add_light(i, k),
+            }
+            .map_err(ptm_bake::Error::sink),
+            Product::Maps(m) => m.occlusion.add_light(i, k),
+        }
+    }
+}
+
+/// What a trace keeps for the output: its products, the texels' coverage, and the traced
+/// size (width × the rows traced).
 struct Kept {
-    samples: Samples,
+    products: Vec<Product>,
     coverage: Vec<f32>,
     size: [usize; 2],
 }
@@ -397,7 +582,7 @@ fn trace(
     res: [usize; 2],
     rows: Range<usize>,
     lights: &LightSet,
-    mut accumulator: Option<Accumulator>,
+    mut products: Vec<Product>,
 ) -> anyhow::Result<(Kept, BakeReport)> {
     let cfg = BakeConfig {
         res,
@@ -407,10 +592,20 @@ fn trace(
         packets: !args.single_rays,
         threads: args.threads,
     };
-    let mut baker = Baker::new_rows(swatch, &cfg, rows.clone())?;
+    let mut baker = if products.iter().any(Product::needs_surface) {
+        Baker::with_surface(swatch, &cfg, rows.clone())?
+    } else {
+        Baker::new_rows(swatch, &cfg, rows.clone())?
+    };
     let coverage = baker.coverage().to_vec();
-    if let Some(acc) = accumulator.as_mut() {
-        acc.set_coverage(&coverage)?;
+    let mut surface = baker.take_surface();
+    for p in &mut products {
+        if let Product::Maps(m) = p {
+            m.surface = surface.take();
+        }
+    }
+    for p in &mut products {
+        p.set_coverage(&coverage)?;
     }
     let bar = if std::io::stderr().is_terminal() {
         let b = indicatif::ProgressBar::new(lights.len() as u64);
@@ -424,18 +619,12 @@ fn trace(
     } else {
         None
     };
-    let mut planes = ptm_bake::Planes::default();
     let report = baker.trace(lights, &mut |i, k, uv| {
         if let Some(b) = &bar {
             b.inc(1);
         }
-        match accumulator.as_mut() {
-            Some(acc) => match uv {
-                Some(uv) => acc.add_light_uv(i, k, uv),
-                None => acc.add_light(i, k),
-            }
-            .map_err(ptm_bake::Error::sink)?,
-            None => planes.push(i, k, uv)?,
+        for p in &mut products {
+            p.add_light(i, k, uv)?;
         }
         Ok(())
     })?;
@@ -460,12 +649,8 @@ fn trace(
             ptm_bake::tiling::MAX_RUN_TILES
         );
     }
-    let samples = match accumulator {
-        Some(acc) => Samples::Fit(Box::new(acc)),
-        None => Samples::Stack(planes),
-    };
     let kept = Kept {
-        samples,
+        products,
         coverage,
         size: [res[0], rows.len()],
     };
@@ -476,6 +661,8 @@ fn trace(
 struct Written {
     /// The fit's summary for the JSON (none without `--fit`).
     fit: Option<json::BakeFit>,
+    /// The companion maps written (none without `--maps`).
+    maps: Option<json::BakeMaps>,
     /// The file written (the part, for a farm shard).
     output: PathBuf,
     /// Every file of the sample stack or PTM written: `output`, or the renderer layout's parts.
@@ -488,9 +675,208 @@ struct Written {
     t_write: f64,
 }
 
-/// Solves the fit (if any) and stages the PTM or sample stack for `--output` or the farm part,
-/// and the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes
-/// the `.lp` beside the merged output); publishes them together.
+/// Where and how the products of a bake are written: the swatch and lights they describe,
+/// the traced texels' coverage and size, the farm part (if any), and the output's layout.
+struct WriteTo<'a> {
+    swatch: &'a PreparedMesh,
+    lights: &'a LightSet,
+    coverage: &'a [f32],
+    size: [usize; 2],
+    part: &'a Option<(PartMeta, PathBuf)>,
+    /// A farm part defers the MIP levels to the merge.
+    shard_mips: bool,
+    output: &'a Path,
+    /// `--output`, beside which the companion maps go.
+    maps_of: &'a Path,
+    layout: Layout,
+}
+
+/// What one product wrote: its files (staged in the transaction, or a farm part written) and,
+/// for the fit, its summary and the seconds the solve took.
+#[derive(Default)]
+struct ProductWritten {
+    files: Vec<PathBuf>,
+    fit: Option<json::BakeFit>,
+    maps: Option<json::BakeMaps>,
+    t_fit: f64,
+}
+
+impl Product {
+    /// Finishes the product and stages its files for a whole bake in `tx`, or writes its farm
+    /// part.
+    fn write(self, to: &WriteTo, tx: &mut Transaction) -> anyhow::Result<ProductWritten> {
+        let output = to.output;
+        let writing = || crate::outputs::Named::new("writing", output);
+        match self {
+            Product::Fit(acc) => {
+                let t0 = Instant::now();
+                let (ptm, fit, levels) = match to.part {
+                    Some((meta, _)) => {
+                        acc.finish_part(to.swatch.tile, meta.rows.clone(), meta.height)?
+                    }
+                    None => {
+                        let (ptm, fit) = acc.finish(to.swatch.tile)?;
+                        (ptm, fit, Default::default())
+                    }
+                };
+                // The per-light accumulation ran inside the shadow stage; this is the solve.
+                let t_fit = t0.elapsed().as_secs_f64();
+                for w in &fit.warnings {
+                    eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
+                }
+                crate::fit::print_logistic("ptm bake", &fit);
+                let summary = json::BakeFit {
+                    basis: fit.basis.map(|b| b.name()),
+                    link: ptm.link.name(),
+                    uv: ptm.uv.name(),
+                    mip_levels: fit.mip_levels,
+                    logistic: json::Logistic::of(&fit),
+                    solver: fit.solver.clone(),
+                    rank: fit.rank,
+                    condition_number: json::finite(fit.cond),
+                    rms_error_mean: fit.rms.mean,
+                    rms_error_p99: fit.rms.p99,
+                    warnings: crate::errors::fit_warnings(&fit.warnings),
+                    stages: json::Stages(fit.seconds.clone()),
+                };
+                let files = match to.part {
+                    // The part takes the fit itself: no copy of its planes.
+                    Some((meta, path)) => {
+                        crate::shard::write_ptm(
+                            path,
+                            meta,
+                            ptm,
+                            fit,
+                            to.coverage.to_vec(),
+                            to.lights,
+                            to.shard_mips,
+                            levels,
+                        )
+                        .with_context(writing)?;
+                        vec![output.to_path_buf()]
+                    }
+                    None => {
+                        let save = SaveOptions {
+                            half: false,
+                            report: Some(&fit),
+                            error_map: false,
+                        };
+                        let encoded = ptm_format::layout::encode(&ptm, output, &save, to.layout)
+                            .with_context(writing)?;
+                        for (p, bytes) in &encoded {
+                            tx.add(p).with_context(writing)?;
+                            tx.stage_bytes(p, bytes).with_context(writing)?;
+                        }
+                        encoded.into_iter().map(|(p, _)| p).collect()
+                    }
+                };
+                Ok(ProductWritten {
+                    files,
+                    fit: Some(summary),
+                    t_fit,
+                    ..Default::default()
+                })
+            }
+            Product::Maps(m) => {
+                let MapsProduct {
+                    surface,
+                    occlusion,
+                    quadrature,
+                    png,
+                } = *m;
+                let surface = surface.context("the baker kept no primary hits for the maps")?;
+                let b = &to.swatch.bounds;
+                let maps = ptm_bake::maps::Maps::finish(
+                    &surface,
+                    &occlusion,
+                    to.coverage,
+                    [b.min[2], b.max[2]],
+                    quadrature,
+                    &to.swatch.material_names,
+                )?;
+                let path = ptm_bake::maps::maps_path(to.maps_of);
+                let named = |p: &Path| crate::outputs::Named::new("writing", p);
+                if let Some((meta, _)) = to.part {
+                    // A farm part of its own, beside K's; `ptm merge` joins the rows.
+                    let part = meta.shard.part_path(&path);
+                    let attrs = maps.attrs.clone();
+                    ptm_fit::shard::write_rows_part(
+                        &part,
+                        meta,
+                        "maps",
+                        maps.width,
+                        maps.channels,
+                        &attrs,
+                    )
+                    .with_context(|| named(&part))?;
+                    return Ok(ProductWritten {
+                        maps: Some(json::BakeMaps {
+                            file: json::path(&part),
+                            png: Vec::new(),
+                            dome_fraction: occlusion.dome_fraction(),
+                        }),
+                        ..Default::default()
+                    });
+                }
+                let bytes = maps.encode(&path).with_context(|| named(&path))?;
+                tx.stage_bytes(&path, &bytes)
+                    .with_context(|| named(&path))?;
+                let mut pngs = Vec::new();
+                if png {
+                    for (name, channels, data) in maps.png16() {
+                        let p = ptm_bake::maps::png_path(to.maps_of, &name);
+                        if name.starts_with("mask.") {
+                            // The masks' names come with the swatch: checked here.
+                            tx.add(&p).with_context(|| named(&p))?;
+                        }
+                        let bytes = png16(maps.width, maps.height, channels, data)
+                            .with_context(|| named(&p))?;
+                        tx.stage_bytes(&p, &bytes).with_context(|| named(&p))?;
+                        pngs.push(p);
+                    }
+                }
+                let info = json::BakeMaps {
+                    file: json::path(&path),
+                    png: json::paths(&pngs),
+                    dome_fraction: occlusion.dome_fraction(),
+                };
+                Ok(ProductWritten {
+                    files: Vec::new(),
+                    maps: Some(info),
+                    ..Default::default()
+                })
+            }
+            Product::Stack(planes) => {
+                let stack = SampleStack {
+                    width: to.size[0],
+                    height: to.size[1],
+                    tile: to.swatch.tile,
+                    lights: to.lights.clone(),
+                    k: planes.k,
+                    coverage: to.coverage.to_vec(),
+                    uv: planes.uv,
+                };
+                match to.part {
+                    Some((meta, path)) => {
+                        crate::shard::write_stack(path, meta, stack).with_context(writing)?
+                    }
+                    None => {
+                        let bytes = stack.encode_into(output).with_context(writing)?;
+                        tx.stage_bytes(output, &bytes).with_context(writing)?;
+                    }
+                }
+                Ok(ProductWritten {
+                    files: vec![output.to_path_buf()],
+                    ..Default::default()
+                })
+            }
+        }
+    }
+}
+
+/// Finishes every product and stages its files for `--output` (or writes the farm part), and
+/// the dome's `.lp` beside a whole bake (a part carries its lights; `ptm merge` writes the
+/// `.lp` beside the merged output); publishes them together.
 fn write_outputs(
     swatch: &PreparedMesh,
     lights: &LightSet,
@@ -500,7 +886,7 @@ fn write_outputs(
     shard_mips: bool,
 ) -> anyhow::Result<Written> {
     let Kept {
-        samples,
+        products,
         coverage,
         size,
     } = kept;
@@ -510,93 +896,29 @@ fn write_outputs(
         lp,
         lights_file,
         layout,
+        maps_of,
     } = dest;
-    let mut t_fit = 0.0;
-    let mut t1 = Instant::now();
-    let writing = || crate::outputs::Named::new("writing", &output);
-    let mut files = vec![output.clone()];
-    let fit_json = match samples {
-        Samples::Fit(acc) => {
-            let (ptm, fit, levels) = match part {
-                Some((meta, _)) => acc.finish_part(swatch.tile, meta.rows.clone(), meta.height)?,
-                None => {
-                    let (ptm, fit) = acc.finish(swatch.tile)?;
-                    (ptm, fit, Default::default())
-                }
-            };
-            // The per-light accumulation ran inside the shadow stage; this is the solve.
-            t_fit = t1.elapsed().as_secs_f64();
-            t1 = Instant::now();
-            for w in &fit.warnings {
-                eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
-            }
-            crate::fit::print_logistic("ptm bake", &fit);
-            let summary = json::BakeFit {
-                basis: fit.basis.map(|b| b.name()),
-                link: ptm.link.name(),
-                uv: ptm.uv.name(),
-                mip_levels: fit.mip_levels,
-                logistic: json::Logistic::of(&fit),
-                solver: fit.solver.clone(),
-                rank: fit.rank,
-                condition_number: json::finite(fit.cond),
-                rms_error_mean: fit.rms.mean,
-                rms_error_p99: fit.rms.p99,
-                warnings: crate::errors::fit_warnings(&fit.warnings),
-                stages: json::Stages(fit.seconds.clone()),
-            };
-            match part {
-                // The part takes the fit itself: no copy of its planes.
-                Some((meta, path)) => crate::shard::write_ptm(
-                    path,
-                    meta,
-                    ptm,
-                    fit,
-                    coverage.clone(),
-                    lights,
-                    shard_mips,
-                    levels,
-                )
-                .with_context(writing)?,
-                None => {
-                    let save = SaveOptions {
-                        half: false,
-                        report: Some(&fit),
-                        error_map: false,
-                    };
-                    let encoded = ptm_format::layout::encode(&ptm, &output, &save, layout)
-                        .with_context(writing)?;
-                    for (p, bytes) in &encoded {
-                        tx.add(p).with_context(writing)?;
-                        tx.stage_bytes(p, bytes).with_context(writing)?;
-                    }
-                    files = encoded.into_iter().map(|(p, _)| p).collect();
-                }
-            }
-            Some(summary)
-        }
-        Samples::Stack(planes) => {
-            let stack = SampleStack {
-                width: size[0],
-                height: size[1],
-                tile: swatch.tile,
-                lights: lights.clone(),
-                k: planes.k,
-                coverage: coverage.clone(),
-                uv: planes.uv,
-            };
-            match part {
-                Some((meta, path)) => {
-                    crate::shard::write_stack(path, meta, stack).with_context(writing)?
-                }
-                None => {
-                    let bytes = stack.encode_into(&output).with_context(writing)?;
-                    tx.stage_bytes(&output, &bytes).with_context(writing)?;
-                }
-            }
-            None
-        }
+    let maps_of = maps_of.as_path();
+    let t0 = Instant::now();
+    let to = WriteTo {
+        swatch,
+        lights,
+        coverage: &coverage,
+        size,
+        part,
+        shard_mips,
+        output: &output,
+        maps_of,
+        layout,
     };
+    let (mut files, mut fit_json, mut maps, mut t_fit) = (Vec::new(), None, None, 0.0);
+    for p in products {
+        let w = p.write(&to, &mut tx)?;
+        files.extend(w.files);
+        fit_json = fit_json.or(w.fit);
+        maps = maps.or(w.maps);
+        t_fit += w.t_fit;
+    }
     if part.is_none() {
         if let Some(lp) = &lp {
             tx.stage_bytes(lp, lights.to_lp().as_bytes())
@@ -606,13 +928,30 @@ fn write_outputs(
     }
     Ok(Written {
         fit: fit_json,
+        maps,
         output,
         files,
         lp,
         lights_file: if part.is_none() { lights_file } else { None },
         t_fit,
-        t_write: t1.elapsed().as_secs_f64(),
+        t_write: t0.elapsed().as_secs_f64() - t_fit,
     })
+}
+
+/// A 16-bit grey (`channels` 1) or RGB (3) PNG of `width × height` samples, top row first.
+fn png16(width: usize, height: usize, channels: u8, data: Vec<u16>) -> anyhow::Result<Vec<u8>> {
+    let (w, h) = (width as u32, height as u32);
+    let mut out = std::io::Cursor::new(Vec::new());
+    let bad = || anyhow::anyhow!("{width}×{height} image of {channels} channels");
+    match channels {
+        1 => image::ImageBuffer::<image::Luma<u16>, _>::from_raw(w, h, data)
+            .ok_or_else(bad)?
+            .write_to(&mut out, image::ImageFormat::Png)?,
+        _ => image::ImageBuffer::<image::Rgb<u16>, _>::from_raw(w, h, data)
+            .ok_or_else(bad)?
+            .write_to(&mut out, image::ImageFormat::Png)?,
+    }
+    Ok(out.into_inner())
 }
 
 /// The closing lines on stderr: ray throughput, then what was written.
@@ -629,11 +968,16 @@ fn print_summary(report: &BakeReport, written: &Written) {
         2 * max_rings + 1,
         2 * max_rings + 1
     );
-    let files = crate::outputs::list(&written.files);
+    let mut all = written.files.clone();
+    if let Some(m) = &written.maps {
+        all.push(PathBuf::from(&m.file));
+        all.extend(m.png.iter().map(PathBuf::from));
+    }
+    let files = crate::outputs::list(&all);
     match (&written.lp, &written.lights_file) {
         (Some(lp), _) => eprintln!(
             "ptm bake: wrote {}",
-            crate::outputs::list(&[&written.files[..], std::slice::from_ref(lp)].concat())
+            crate::outputs::list(&[&all[..], std::slice::from_ref(lp)].concat())
         ),
         (None, Some(user)) => eprintln!(
             "ptm bake: wrote {files}; its lights are in {} (the --lights file, left as it is)",
@@ -697,6 +1041,7 @@ fn bake_json(
         below_horizon: report.below_horizon.clone(),
         capped: report.capped.clone(),
         fit: written.fit,
+        maps: written.maps,
         seconds: t_all.elapsed().as_secs_f64(),
         seconds_load: t_load,
         seconds_scene: report.seconds_scene,
@@ -719,45 +1064,34 @@ fn fit_options(args: &Args, f: Basis) -> FitOptions {
 
 /// Refuses a bake whose buffers cannot fit in the memory this machine has available, naming
 /// the parts and what to change, instead of being killed by the kernel half-way.
-fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<()> {
+fn check_memory(
+    args: &Args,
+    res: [usize; 2],
+    lights: usize,
+    materials: usize,
+) -> anyhow::Result<()> {
     let Some(available) = available_memory() else {
         return Ok(());
     };
     // In f64: absurd requests must be measured, not overflow.
     let baker = ptm_bake::baker_bytes(res, args.spp);
     let dome = lights as f64 * 64.0;
-    let (sink, what) = match args.fit {
-        // What the accumulator will hold (its sums, or the logistic link's counts).
-        Some(f) => {
-            let counts = Accumulator::count_bytes(args.model.link, args.spp) as f64;
-            let bytes = Accumulator::memory_bytes(
-                res[0].saturating_mul(res[1]),
-                lights,
-                &fit_options(args, f),
-                args.spp,
-                args.light_distance.is_some(),
-            );
-            (
-                bytes as f64,
-                if counts > 0.0 {
-                    "the streaming fit's sums and the logistic link's exact sample counts"
-                } else {
-                    "the streaming fit's sums"
-                },
-            )
-        }
-        // K per light (handed to the EXR writer, not copied); for point lights also (u, v).
-        None => (
-            SampleStack::memory_bytes(res[0], res[1], lights, args.light_distance.is_some()),
-            "the sample stack (K of every light, written as samples.exr)",
-        ),
-    };
+    let products: Vec<(f64, &str)> = ProductKind::of(args)
+        .into_iter()
+        .map(|p| p.memory(args, res, lights, materials))
+        .collect();
+    let sink: f64 = products.iter().map(|p| p.0).sum();
+    let what: String = products
+        .iter()
+        .map(|(bytes, what)| format!("{what}: {:.1} GiB", bytes / (1u64 << 30) as f64))
+        .collect::<Vec<_>>()
+        .join("; ");
     let need = baker + dome + sink;
     if need > 0.9 * available as f64 {
         let gib = |b: f64| b / (1u64 << 30) as f64;
         bail!(
             "this bake needs about {:.1} GiB ({}×{} texels × {} spp of primary samples: {:.1} GiB; \
-             {} lights: {:.1} GiB; {}: {:.1} GiB) but only {:.1} GiB of memory is available: lower \
+             {} lights: {:.1} GiB; {}) but only {:.1} GiB of memory is available: lower \
              --res, --spp or the number of lights{}",
             gib(need),
             res[0],
@@ -767,7 +1101,6 @@ fn check_memory(args: &Args, res: [usize; 2], lights: usize) -> anyhow::Result<(
             lights,
             gib(dome),
             what,
-            gib(sink),
             gib(available as f64),
             if args.fit.is_none() {
                 ", or fit while baking (--fit ptm6 -o out.ptm.exr) so no stack is stored"

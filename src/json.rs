@@ -169,6 +169,18 @@ pub struct SkippedPart {
     pub skipped: bool,
 }
 
+/// `ptm bake --maps`: the companion maps written beside the output.
+#[derive(Serialize, Debug, Default)]
+pub struct BakeMaps {
+    /// The maps' EXR (`NAME.maps.exr`: height, normal, ao, bent, coverage).
+    pub file: String,
+    /// The 16-bit PNGs (`--maps-png`; empty without).
+    pub png: Vec<String>,
+    /// Fraction of the cosine-weighted hemisphere the dome samples (Σ w·cos θ / π): what the
+    /// elevation cut-off leaves out of the ambient occlusion.
+    pub dome_fraction: f64,
+}
+
 /// `ptm bake`: what was traced and written.
 #[derive(Serialize, Debug, Default)]
 pub struct Baked {
@@ -227,6 +239,9 @@ pub struct Baked {
     pub capped: Vec<usize>,
     /// The streaming fit (null without `--fit`).
     pub fit: Option<BakeFit>,
+    /// The companion maps written (absent without `--maps`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub maps: Option<BakeMaps>,
     /// The whole run.
     pub seconds: f64,
     /// Loading the swatch.
@@ -633,6 +648,9 @@ pub struct Merge {
     pub kind: String,
     /// The part files read.
     pub parts: Vec<String>,
+    /// The companion maps merged beside the output (absent where no maps parts were given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub maps: Option<String>,
     /// Texels per row.
     pub width: usize,
     /// Rows.

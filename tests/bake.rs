@@ -437,3 +437,125 @@ fn lights_below_the_horizon_are_named_and_left_out_of_the_fit() {
         other => panic!("ptm:warnings is {other:?}"),
     }
 }
+
+/// `--maps` writes NAME.maps.exr beside the output with the same texels, whether K is kept as
+/// a stack or streamed into a fit, leaves the stack or PTM byte for byte as a bake without
+/// maps writes it, and names the yarns of a builtin weave (warp, weft) and an OBJ's `usemtl`
+/// groups; `--maps-png` adds the 16-bit PNGs.
+#[test]
+fn maps_beside_the_stack_and_the_fit() {
+    use ptm_format::exrio;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = ["bake", "--res", "16", "--dirs", "12", "--spp", "4"];
+    let run = |extra: &[&str]| {
+        let args: Vec<&str> = base.iter().chain(extra).copied().collect();
+        common::json(args, d)
+    };
+    run(&["-o", "plain.exr"]);
+    let j = run(&["-o", "samples.exr", "--maps"]);
+    assert_eq!(j["maps"]["file"], "samples.maps.exr");
+    assert_eq!(
+        std::fs::read(d.join("plain.exr")).unwrap(),
+        std::fs::read(d.join("samples.exr")).unwrap(),
+        "--maps changed the stack"
+    );
+    let fit = ["--fit", "ptm6", "--link", "identity"];
+    run(&[&fit[..], &["-o", "a.ptm.exr"]].concat());
+    let j = run(&[&fit[..], &["-o", "b.ptm.exr", "--maps-png"]].concat());
+    assert_eq!(j["maps"]["file"], "b.maps.exr");
+    assert_eq!(j["maps"]["png"].as_array().unwrap().len(), 4 + 2);
+    for png in j["maps"]["png"].as_array().unwrap() {
+        let img = image::open(d.join(png.as_str().unwrap())).unwrap();
+        assert_eq!((img.width(), img.height()), (16, 16));
+        assert!(matches!(
+            img.color(),
+            image::ColorType::L16 | image::ColorType::Rgb16
+        ));
+    }
+    assert_eq!(
+        std::fs::read(d.join("a.ptm.exr")).unwrap(),
+        std::fs::read(d.join("b.ptm.exr")).unwrap(),
+        "--maps changed the PTM"
+    );
+    // The same rays: the maps of the stack bake and of the fit bake are the same file.
+    assert_eq!(
+        std::fs::read(d.join("samples.maps.exr")).unwrap(),
+        std::fs::read(d.join("b.maps.exr")).unwrap()
+    );
+    let mut c = exrio::read(&d.join("b.maps.exr")).unwrap();
+    assert_eq!((c.width, c.height), (16, 16));
+    assert_eq!(c.texts("maps:materials", "maps").unwrap(), ["warp", "weft"]);
+    let warp = c.take_f32("mask.warp", "maps").unwrap();
+    let weft = c.take_f32("mask.weft", "maps").unwrap();
+    let cov = c.take_f32("coverage", "maps").unwrap();
+    let id = c.take_f32("id", "maps").unwrap();
+    let ao = c.take_f32("ao", "maps").unwrap();
+    let nz = c.take_f32("normal.Z", "maps").unwrap();
+    for t in 0..256 {
+        assert_eq!(warp[t] + weft[t], cov[t], "masks share the footprint");
+        let want = if cov[t] == 0.0 {
+            -1.0
+        } else if weft[t] > warp[t] {
+            1.0
+        } else {
+            0.0
+        };
+        assert_eq!(id[t], want);
+        assert!((0.0..=1.0).contains(&ao[t]) && nz[t] >= 0.0);
+    }
+    assert!(warp.contains(&1.0) && weft.contains(&1.0));
+    // An OBJ's usemtl groups: the box's top face (its second face) is `lid`.
+    let obj = BOX_OBJ.replacen("f 5 6 7 8\n", "usemtl lid\nf 5 6 7 8\nusemtl walls\n", 1);
+    std::fs::write(d.join("box.obj"), obj).unwrap();
+    run(&["--swatch", "box.obj", "-o", "box.exr", "--maps"]);
+    let mut c = exrio::read(&d.join("box.maps.exr")).unwrap();
+    assert_eq!(
+        c.texts("maps:materials", "maps").unwrap(),
+        ["lid", "walls", "default"]
+    );
+    let lid = c.take_f32("mask.lid", "maps").unwrap();
+    let floor = c.take_f32("mask.default", "maps").unwrap();
+    let h = c.take_f32("height", "maps").unwrap();
+    // Row 8, column 8 is the box's middle, at z = 0.2; the corner texel is floor at 0.
+    // (z = z_top − t in f32: within 1e-7.)
+    assert_eq!((lid[8 * 16 + 8], floor[0]), (1.0, 1.0));
+    assert!(
+        (h[8 * 16 + 8] - 0.2).abs() < 1e-7 && h[0].abs() < 1e-7,
+        "{h:?}"
+    );
+}
+
+#[test]
+fn maps_refuse_what_they_cannot_bake() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = common::refused(
+        [
+            "bake",
+            "--res",
+            "32",
+            "--maps-png",
+            "--shard",
+            "0/2",
+            "-o",
+            "s.exr",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("--maps-png with --shard"), "{e}");
+    let e = common::refused(
+        [
+            "bake",
+            "--res",
+            "16",
+            "--maps",
+            "--light-distance",
+            "10",
+            "-o",
+            "s.exr",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("--light-distance"), "{e}");
+    assert!(std::fs::read_dir(dir.path()).unwrap().next().is_none());
+}

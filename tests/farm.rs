@@ -374,3 +374,130 @@ fn batch_runs_a_manifest_here_and_writes_a_slurm_job() {
         "{e}"
     );
 }
+
+/// `--maps` on a farm: each shard writes a maps part beside its K part
+/// (`NAME.maps.part-IIII-of-NNNN.exr`), and `ptm merge` joins them into `NAME.maps.exr`, byte
+/// for byte the one-machine file, beside the merged stack or PTM (also byte-identical); a set
+/// of maps parts without K's, or from another bake, is refused; a resubmitted shard whose
+/// maps part is missing is baked again.
+#[test]
+fn sharded_maps_are_byte_identical() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let bake = [
+        "bake",
+        "--swatch",
+        "builtin:velvet",
+        "--res",
+        "48",
+        "--dirs",
+        "12",
+        "--maps",
+    ];
+    for (fit, out, maps) in [
+        (&[][..], "samples.exr", "samples.maps.exr"),
+        (
+            &["--fit", "ptm6", "--link", "identity"][..],
+            "w.ptm.exr",
+            "w.maps.exr",
+        ),
+    ] {
+        let whole = format!("whole-{out}");
+        ok([&bake[..], fit, &["-o", &whole]].concat(), d);
+        for n in [1, 3] {
+            let name = format!("n{n}-{out}");
+            for i in 0..n {
+                let s = format!("{i}/{n}");
+                ok([&bake[..], fit, &["-o", &name, "--shard", &s]].concat(), d);
+            }
+            let stem = name.strip_suffix(".exr").unwrap();
+            let mstem = stem.trim_end_matches(".ptm").to_string() + ".maps";
+            let mut parts = Vec::new();
+            for i in 0..n {
+                parts.push(format!("{stem}.part-{i:04}-of-{n:04}.exr"));
+                parts.push(format!("{mstem}.part-{i:04}-of-{n:04}.exr"));
+            }
+            let merged = format!("m{n}-{out}");
+            let j = common::json(
+                [
+                    &["merge"][..],
+                    &[&parts[..], &["-o".into(), merged.clone()]]
+                        .concat()
+                        .iter()
+                        .map(String::as_str)
+                        .collect::<Vec<_>>(),
+                ]
+                .concat(),
+                d,
+            );
+            let mmaps = merged
+                .strip_suffix(".exr")
+                .unwrap()
+                .trim_end_matches(".ptm")
+                .to_string()
+                + ".maps.exr";
+            assert_eq!(j["maps"], mmaps.as_str());
+            assert_eq!(
+                std::fs::read(d.join(&merged)).unwrap(),
+                std::fs::read(d.join(&whole)).unwrap(),
+                "{merged}: K differs"
+            );
+            let wmaps = format!("whole-{maps}");
+            assert_eq!(
+                std::fs::read(d.join(&mmaps)).unwrap(),
+                std::fs::read(d.join(&wmaps)).unwrap(),
+                "{mmaps}: the maps differ from the one-machine bake's"
+            );
+        }
+    }
+    // Given K's parts alone, the merge finds the maps' beside them (the documented glob, and
+    // what `ptm batch` passes).
+    let k_only: Vec<String> = (0..3)
+        .map(|i| format!("n3-w.ptm.part-{i:04}-of-0003.exr"))
+        .collect();
+    let args: Vec<&str> = ["merge"]
+        .into_iter()
+        .chain(k_only.iter().map(String::as_str))
+        .chain(["-o", "k.ptm.exr"])
+        .collect();
+    let j = common::json(args, d);
+    assert_eq!(j["maps"], "k.maps.exr");
+    assert_eq!(
+        std::fs::read(d.join("k.maps.exr")).unwrap(),
+        std::fs::read(d.join("whole-w.maps.exr")).unwrap()
+    );
+    // Maps parts alone, and maps parts of another bake, are refused.
+    let e = refused(
+        [
+            "merge",
+            "n3-samples.maps.part-0000-of-0003.exr",
+            "n3-samples.maps.part-0001-of-0003.exr",
+            "n3-samples.maps.part-0002-of-0003.exr",
+            "-o",
+            "x.exr",
+        ],
+        d,
+    );
+    assert!(e.contains("only companion-map parts"), "{e}");
+    let e = refused(
+        [
+            "merge",
+            "n1-samples.part-0000-of-0001.exr",
+            "n1-w.maps.part-0000-of-0001.exr",
+            "-o",
+            "y.exr",
+        ],
+        d,
+    );
+    assert!(e.contains("different bakes"), "{e}");
+    // A shard whose maps part is gone is baked again, not skipped.
+    std::fs::remove_file(d.join("n3-samples.maps.part-0001-of-0003.exr")).unwrap();
+    let Run {
+        stderr, ok: done, ..
+    } = ptm(
+        [&bake[..], &["-o", "n3-samples.exr", "--shard", "1/3"]].concat(),
+        d,
+    );
+    assert!(done && !stderr.contains("skipped"), "{stderr}");
+    assert!(d.join("n3-samples.maps.part-0001-of-0003.exr").exists());
+}

@@ -95,6 +95,107 @@ pub fn parse(spec: &str, min_elevation_deg: f64) -> Result<LightSet> {
     }
 }
 
+/// How a dome's lights share the hemisphere: the solid angle each stands for, as the
+/// quadrature weights of integrals over the dome (the companion maps' ambient occlusion and
+/// bent normal: `crate::maps`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Quadrature {
+    /// Spherical Fibonacci above `min_elevation_deg` (equal-area in z): each light stands for
+    /// 2π(1 − sin e_min)/n sr of the cap it samples.
+    Fibonacci {
+        /// The dome's lowest elevation, degrees.
+        min_elevation_deg: f64,
+    },
+    /// Rings: a ring at elevation eᵢ stands for the band between the midpoints to its
+    /// neighbours' elevations (the lowest ring's band reaches as far below it as half the gap
+    /// to the next, at most to the horizon; the highest's as far above, at most to the zenith;
+    /// a single ring the whole hemisphere), shared equally by its lights.
+    Rings,
+    /// Lights of a file (`.lp`), whose cells are unknown: equal weights of 2π/n sr each.
+    Equal,
+}
+
+impl Quadrature {
+    /// The solid angle (sr) each light of `lights` stands for; 0 for lights at or below the
+    /// horizon.
+    pub fn weights(self, lights: &LightSet) -> Vec<f64> {
+        let n = lights.len().max(1) as f64;
+        let above = |d: &[f64; 3]| d[2] > 0.0;
+        match self {
+            Quadrature::Fibonacci { min_elevation_deg } => {
+                let w = 2.0 * PI * (1.0 - min_elevation_deg.to_radians().sin()) / n;
+                lights
+                    .dirs
+                    .iter()
+                    .map(|d| if above(d) { w } else { 0.0 })
+                    .collect()
+            }
+            Quadrature::Equal => {
+                let w = 2.0 * PI / n;
+                lights
+                    .dirs
+                    .iter()
+                    .map(|d| if above(d) { w } else { 0.0 })
+                    .collect()
+            }
+            Quadrature::Rings => {
+                // Rings by their z (equal to rounding: a light set normalises its directions).
+                const SAME: f64 = 1e-9;
+                let mut zs: Vec<f64> = lights
+                    .dirs
+                    .iter()
+                    .map(|d| d[2])
+                    .filter(|z| *z > 0.0)
+                    .collect();
+                zs.sort_by(f64::total_cmp);
+                zs.dedup_by(|a, b| (*a - *b).abs() < SAME);
+                let e: Vec<f64> = zs.iter().map(|z| z.clamp(-1.0, 1.0).asin()).collect();
+                let half = PI / 2.0;
+                let band = |i: usize| -> f64 {
+                    let lo = match i {
+                        0 if e.len() > 1 => (e[0] - (e[1] - e[0]) / 2.0).max(0.0),
+                        0 => 0.0,
+                        _ => (e[i - 1] + e[i]) / 2.0,
+                    };
+                    let last = e.len() - 1;
+                    let hi = match i {
+                        _ if i == last && last > 0 => (e[i] + (e[i] - e[i - 1]) / 2.0).min(half),
+                        _ if i == last => half,
+                        _ => (e[i] + e[i + 1]) / 2.0,
+                    };
+                    2.0 * PI * (hi.sin() - lo.sin())
+                };
+                let ring = |z: f64| zs.iter().position(|r| (r - z).abs() < SAME);
+                let mut count = vec![0usize; zs.len()];
+                for d in &lights.dirs {
+                    if let Some(i) = ring(d[2]).filter(|_| above(d)) {
+                        count[i] += 1;
+                    }
+                }
+                lights
+                    .dirs
+                    .iter()
+                    .map(|d| match ring(d[2]) {
+                        Some(i) if above(d) => band(i) / count[i] as f64,
+                        _ => 0.0,
+                    })
+                    .collect()
+            }
+        }
+    }
+
+    /// The rule in words, as the maps' file records it.
+    pub fn words(self) -> String {
+        match self {
+            Quadrature::Fibonacci { min_elevation_deg } => {
+                format!("fibonacci equal-area above {min_elevation_deg}°")
+            }
+            Quadrature::Rings => "rings: per-ring band solid angles".into(),
+            Quadrature::Equal => "equal weights (light file)".into(),
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -155,5 +256,30 @@ mod tests {
             parse("fibonacci:7", 5.0).unwrap(),
             fibonacci(7, 5.0).unwrap()
         );
+    }
+
+    #[test]
+    fn quadrature_weights_sum_to_the_sampled_solid_angle() {
+        let f = fibonacci(100, 10.0).unwrap();
+        let w = Quadrature::Fibonacci {
+            min_elevation_deg: 10.0,
+        }
+        .weights(&f);
+        let cap = 2.0 * PI * (1.0 - 10f64.to_radians().sin());
+        assert!((w.iter().sum::<f64>() - cap).abs() < 1e-12);
+        // Rings 15, 45, 75 (8 lights each) and the zenith: bands 0–30, 30–60, 60–82.5, 82.5–90.
+        let r = rings("15x8,45x8,75x8,90x1").unwrap();
+        let w = Quadrature::Rings.weights(&r);
+        let s = |d: f64| d.to_radians().sin();
+        let band = |lo: f64, hi: f64| 2.0 * PI * (s(hi) - s(lo));
+        assert!(
+            (w[0] - band(0.0, 30.0) / 8.0).abs() < 1e-12,
+            "{w:?} {}",
+            band(0.0, 30.0) / 8.0
+        );
+        assert!((w[8] - band(30.0, 60.0) / 8.0).abs() < 1e-12);
+        assert!((w[16] - band(60.0, 82.5) / 8.0).abs() < 1e-12);
+        assert!((w[24] - band(82.5, 90.0)).abs() < 1e-12);
+        assert!((w.iter().sum::<f64>() - 2.0 * PI).abs() < 1e-12);
     }
 }

@@ -253,6 +253,9 @@ pub struct Hit {
     pub t: f32,
     /// Geometric normal, unnormalised, world space.
     pub ng: [f32; 3],
+    /// The triangle hit: its index in the geometry (of the instanced tile scene, for a hit
+    /// through an instance).
+    pub prim: u32,
 }
 
 /// Lanes of `RTCHitN` in Embree 4.4 built with instance arrays: `Ng_x`, `Ng_y`, `Ng_z`, `u`,
@@ -392,6 +395,7 @@ impl Scene {
         (rh.rh.hit.geomID != sys::RTC_INVALID_GEOMETRY_ID).then_some(Hit {
             t: rh.rh.ray.tfar,
             ng: [rh.rh.hit.Ng_x, rh.rh.hit.Ng_y, rh.rh.hit.Ng_z],
+            prim: rh.rh.hit.primID,
         })
     }
 

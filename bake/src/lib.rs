@@ -3,13 +3,16 @@
 //! Data flow: [`PreparedMesh`] (checked mesh and tile) → [`Baker::new`] (Embree scene of the tile,
 //! instanced copies, primary hits of an orthographic camera over the central tile) →
 //! [`Baker::trace`] (per light, the occluded fraction K of every texel, handed to a sink light
-//! by light, so a fitter can stream without holding the whole sample stack).
+//! by light, so a fitter can stream without holding the whole sample stack). With
+//! [`Baker::with_surface`] the primary hits are also summed per texel for the companion maps
+//! ([`maps`]: height, tangent-space normal, AO and bent normal, ids and masks; no new rays).
 //!
 //! Conventions (docs/FORMAT.md): tile [0, W]×[0, H], z up; image row 0 at y = H; K = 0 lit,
 //! 1 occluded; lights are unit vectors towards the light.
 
 pub mod dome;
 pub mod embree;
+pub mod maps;
 pub mod swatch;
 pub mod tiling;
 pub mod visibility;

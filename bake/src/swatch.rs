@@ -54,6 +54,11 @@ pub struct PreparedMesh {
     /// The tile is the mesh's x/y bounding box: none was given and the OBJ has no
     /// `# tile W H` header.
     pub tile_from_bounds: bool,
+    /// Per kept triangle, its material: an index into `material_names` (a builtin's yarn
+    /// kinds, an OBJ's `usemtl` groups; `default` for a mesh that names none).
+    pub materials: Vec<u32>,
+    /// The materials' names.
+    pub material_names: Vec<String>,
 }
 
 impl PreparedMesh {
@@ -62,17 +67,23 @@ impl PreparedMesh {
     pub fn load(spec: &str, tile: Option<[f64; 2]>) -> Result<Self> {
         match spec.strip_prefix("builtin:") {
             Some(name) => {
-                let mesh = ptm_swatches::builtin(name).map_err(|e| Error::InvalidMesh {
+                let s = ptm_swatches::build(name).map_err(|e| Error::InvalidMesh {
                     path: spec.to_string(),
                     reason: e.to_string(),
                 })?;
-                Self::from_mesh(mesh, tile, spec)
+                Self::from_parts(s.mesh, Some((s.materials, s.material_names)), tile, spec)
             }
             None => {
-                let obj = obj::read_obj(Path::new(spec)).map_err(|e| obj_error(e, spec))?;
+                let mut obj = obj::read_obj(Path::new(spec)).map_err(|e| obj_error(e, spec))?;
                 let tile = tile.or(obj.tile);
+                let materials = (!obj.material_names.is_empty()).then(|| {
+                    (
+                        std::mem::take(&mut obj.materials),
+                        std::mem::take(&mut obj.material_names),
+                    )
+                });
                 let (mesh, shift) = obj.recentred(tile);
-                let mut swatch = Self::from_mesh(mesh, tile, spec)?;
+                let mut swatch = Self::from_parts(mesh, materials, tile, spec)?;
                 swatch.shift = [0, 1].map(|a| swatch.shift[a] + shift[a]);
                 Ok(swatch)
             }
@@ -81,6 +92,17 @@ impl PreparedMesh {
 
     /// Checks `mesh`; `origin` names it in errors. A zero `mesh.tile` means "not given".
     pub fn from_mesh(mesh: Mesh, tile: Option<[f64; 2]>, origin: &str) -> Result<Self> {
+        Self::from_parts(mesh, None, tile, origin)
+    }
+
+    /// As [`PreparedMesh::from_mesh`], with each triangle's material (an index into the names)
+    /// where the mesh has them.
+    pub fn from_parts(
+        mesh: Mesh,
+        materials: Option<(Vec<u32>, Vec<String>)>,
+        tile: Option<[f64; 2]>,
+        origin: &str,
+    ) -> Result<Self> {
         let bad = |reason: String| Error::InvalidMesh {
             path: origin.to_string(),
             reason,
@@ -188,14 +210,30 @@ impl PreparedMesh {
         let scale = tile[0].max(tile[1]).max(all.max[2] - all.min[2]);
         let min_area2 = (1e-7 * scale) * (1e-7 * scale);
         let total = mesh.triangles.len();
-        let triangles: Vec<[u32; 3]> = mesh
+        let (mats, material_names) = match materials {
+            Some((m, names))
+                if m.len() == total && m.iter().all(|&i| (i as usize) < names.len()) =>
+            {
+                (m, names)
+            }
+            Some((m, names)) => {
+                return Err(bad(format!(
+                    "{} triangle materials for {total} triangles and {} names",
+                    m.len(),
+                    names.len()
+                )))
+            }
+            None => (vec![0; total], vec!["default".to_string()]),
+        };
+        let (triangles, materials): (Vec<[u32; 3]>, Vec<u32>) = mesh
             .triangles
             .into_iter()
-            .filter(|t| {
+            .zip(mats)
+            .filter(|(t, _)| {
                 let [a, b, c] = t.map(|k| positions[k as usize].map(f64::from));
                 norm(cross(sub(b, a), sub(c, a))) > min_area2
             })
-            .collect();
+            .unzip();
         if triangles.is_empty() {
             let size = extent[0].max(extent[1]).max(extent[2]);
             if size < 1e-6 * scale {
@@ -227,6 +265,8 @@ impl PreparedMesh {
             shift,
             seams,
             tile_from_bounds: given.is_none(),
+            materials,
+            material_names,
         })
     }
 
@@ -257,6 +297,8 @@ impl PreparedMesh {
                 mismatch: s.mismatch.map(|m| m * k),
             }),
             tile_from_bounds: self.tile_from_bounds,
+            materials: self.materials.clone(),
+            material_names: self.material_names.clone(),
         }
     }
 

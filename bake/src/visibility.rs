@@ -15,6 +15,7 @@ use ptm_format::LightSet;
 use rayon::prelude::*;
 
 use crate::embree::{self, Device, Packet, Scene, Valid};
+use crate::maps::{Surface, SurfaceHit};
 use crate::swatch::PreparedMesh;
 use crate::tiling;
 use crate::{Error, Result};
@@ -186,6 +187,13 @@ pub struct Baker {
     /// ([`Device::packet_width`]), 1 for single rays.
     width: usize,
     coverage: Vec<f32>,
+    /// The primary hits' per-texel sums for the companion maps, when asked for
+    /// ([`Baker::with_surface`]).
+    surface: Option<Surface>,
+    /// Mesh units per baker unit (the inverse of the power of two the swatch was scaled by).
+    to_mesh: f64,
+    /// Each triangle's material, for the surface's ids (empty without a surface).
+    materials: Vec<u32>,
     report: BakeReport,
 }
 
@@ -200,6 +208,31 @@ impl Baker {
     /// global texel index, so these rows are bit-identical to the same rows of a whole bake.
     /// `rows.start` must be a multiple of 4 (the tracer's texel blocks).
     pub fn new_rows(swatch: &PreparedMesh, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
+        Self::build(swatch, cfg, rows, false)
+    }
+
+    /// As [`Baker::new_rows`], also summing the primary hits per texel for the companion maps
+    /// (height and normal, [`Baker::take_surface`]). Tracing is the same: no ray is added.
+    pub fn with_surface(
+        swatch: &PreparedMesh,
+        cfg: &BakeConfig,
+        rows: Range<usize>,
+    ) -> Result<Self> {
+        Self::build(swatch, cfg, rows, true)
+    }
+
+    /// The per-texel sums of the primary hits ([`Baker::with_surface`]; none otherwise),
+    /// in mesh units.
+    pub fn take_surface(&mut self) -> Option<Surface> {
+        self.surface.take()
+    }
+
+    fn build(
+        swatch: &PreparedMesh,
+        cfg: &BakeConfig,
+        rows: Range<usize>,
+        surface: bool,
+    ) -> Result<Self> {
         let [nx, ny] = cfg.res;
         if nx == 0 || ny == 0 || cfg.spp == 0 {
             return Err(Error::Config(format!(
@@ -271,6 +304,13 @@ impl Baker {
             rows,
             samples: Vec::new(),
             coverage: Vec::new(),
+            surface: surface.then(Surface::default),
+            to_mesh: 1.0 / unit,
+            materials: if surface {
+                swatch.materials.clone()
+            } else {
+                Vec::new()
+            },
             report: BakeReport::default(),
         };
         let primary_copies = tiling::copies_meeting(baker.tile, &baker.bounds, &[], baker.margin);
@@ -340,11 +380,25 @@ impl Baker {
         // The camera sits on the clamp plane, above all geometry.
         let (z_top, t_far) = (self.z_cap as f32, f32::INFINITY);
         let mut samples = vec![Lanes::default(); bx * by * spp];
+        // With the companion maps, each block's per-texel sums of its hits too (its 16 lanes
+        // as 16 texels, samples in order), gathered into the image's after the pass.
+        let keep = self.surface.is_some();
+        let mut sums: Vec<Surface> = if keep {
+            (0..bx * by).map(|_| Surface::new(16, 1, spp)).collect()
+        } else {
+            Vec::new()
+        };
+        let sum_blocks = sums
+            .iter_mut()
+            .map(Some)
+            .chain(std::iter::repeat_with(|| None));
+        let blocks: Vec<_> = samples.chunks_mut(spp).zip(sum_blocks).collect();
+        let (to_mesh, materials) = (self.to_mesh, &self.materials);
         self.pool.install(|| {
-            samples
-                .par_chunks_mut(spp)
+            blocks
+                .into_par_iter()
                 .enumerate()
-                .for_each(|(b, out)| {
+                .for_each(|(b, (out, mut kept))| {
                     let (bi, bj) = (b % bx, b / bx);
                     for lane in 0..16 {
                         let (i, j) = (bi * 4 + lane % 4, row0 + bj * 4 + lane / 4);
@@ -370,6 +424,15 @@ impl Baker {
                                         ln.n[a][lane] = n[a] as f32;
                                     }
                                     ln.hit |= 1 << lane;
+                                    if let Some(k) = kept.as_deref_mut() {
+                                        let hit = SurfaceHit {
+                                            z: p[2] * to_mesh,
+                                            n,
+                                            prim: h.prim,
+                                        };
+                                        let m = materials.get(h.prim as usize).copied();
+                                        k.add(lane, s, &hit, m.unwrap_or(0));
+                                    }
                                 }
                             }
                         }
@@ -389,6 +452,16 @@ impl Baker {
                 coverage[j * nx + i] = hits as f32 / spp as f32;
                 uncovered += (hits == 0) as usize;
             }
+        }
+        if keep {
+            let mut surface = Surface::new(nx, ny, spp);
+            for j in 0..ny {
+                for i in 0..nx {
+                    let (b, lane) = ((j / 4) * bx + i / 4, (j % 4) * 4 + i % 4);
+                    surface.copy_texel(j * nx + i, &sums[b], lane);
+                }
+            }
+            self.surface = Some(surface);
         }
         self.report.primary_rays = (nx * ny * spp) as u64;
         self.report.uncovered_texels = uncovered;

@@ -28,13 +28,42 @@ use ptm_format::ptm::channel_name;
 use ptm_format::{Basis, LightSet, Link, Ptm, UvMap};
 
 mod chunks;
+mod identity;
 mod merge;
 pub(crate) mod partition;
 mod write;
 
+pub use identity::BakeIdentity;
 pub use merge::{check_set, merge_encode, merge_into, parts_in, Merged};
 pub use partition::{PartLevels, Shard, ROW_BLOCK};
-pub use write::{write_ptm_part, write_stack_part};
+pub use write::{write_ptm_part, write_rows_part, write_stack_part};
+
+/// How the parts of one product of a bake (its `part:kind`) join into the file one machine
+/// writes. A new product chooses one here; the merge dispatches on it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MergeRule {
+    /// The sample stack: the parts' compressed chunks copied under the whole image's header.
+    CopyChunks,
+    /// The PTM: rows decoded and concatenated, the file-level facts (error statistics,
+    /// coverage, MIP levels) recomputed from the per-texel maps the parts carry.
+    Refit,
+    /// Per-texel maps with no file-level figure (the companion maps): rows concatenated and
+    /// the product's own attributes, equal in every part, kept.
+    ConcatRows,
+}
+
+impl MergeRule {
+    /// The rule of the parts of kind `kind` (`stack`, `ptm`, `maps`), or none for a kind this
+    /// version does not know.
+    pub fn of(kind: &str) -> Option<MergeRule> {
+        match kind {
+            "stack" => Some(MergeRule::CopyChunks),
+            "ptm" => Some(MergeRule::Refit),
+            "maps" => Some(MergeRule::ConcatRows),
+            _ => None,
+        }
+    }
+}
 
 /// Value of `part:version`.
 pub const PART_VERSION: &str = "ptm-part/1";

@@ -167,6 +167,7 @@ impl Sample for Baked {
             below_horizon: s(),
             capped: s(),
             fit: s(),
+            maps: s(),
             seconds: s(),
             seconds_load: s(),
             seconds_scene: s(),
@@ -174,6 +175,16 @@ impl Sample for Baked {
             seconds_shadow: s(),
             seconds_fit: s(),
             seconds_write: s(),
+        }
+    }
+}
+
+impl Sample for BakeMaps {
+    fn sample() -> Self {
+        BakeMaps {
+            file: s(),
+            png: s(),
+            dome_fraction: s(),
         }
     }
 }
@@ -410,6 +421,7 @@ impl Sample for Merge {
             lights_file: s(),
             kind: s(),
             parts: s(),
+            maps: s(),
             width: s(),
             height: s(),
             lights: s(),
@@ -546,6 +558,7 @@ fn nested() -> BTreeMap<&'static str, Value> {
         ("Stats", none::<Stats>()),
         ("Rays", none::<Rays>()),
         ("BakeFit", none::<BakeFit>()),
+        ("BakeMaps", none::<BakeMaps>()),
         ("HpExport", none::<HpExport>()),
         ("Images", none::<Images>()),
         ("KUnclamped", none::<KUnclamped>()),

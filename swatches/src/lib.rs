@@ -163,6 +163,12 @@ pub struct Swatch {
     pub cloth: Cloth,
     /// The yarns' closest approach (negative gap: overlap).
     pub clearance: yarn::Clearance,
+    /// Per triangle of `mesh`, its material: an index into `material_names`.
+    pub materials: Vec<u32>,
+    /// What the yarns are, for an artist's id map and masks: `warp`, `weft` (weaves and the
+    /// ground of pile cloth), `loop` (knits, terry's loops), `pile` (velvet's tufts), `wale`
+    /// (corduroy), `ground` (non-yarn geometry), in order of first appearance.
+    pub material_names: Vec<String>,
 }
 
 /// [`builtin`], keeping the yarns and the clearance (for reports and tests).
@@ -238,12 +244,55 @@ pub fn generate(name: &str, p: &Params) -> Result<Swatch> {
     };
     p.finish()?;
     let clearance = check_clearance(canonical, &cloth)?;
+    let (mesh, parts) = cloth.mesh_parts(segments);
+    let (materials, material_names) = materials(canonical, &cloth, &parts);
     Ok(Swatch {
         name: canonical.to_string(),
-        mesh: cloth.mesh(segments),
+        mesh,
         cloth,
         clearance,
+        materials,
+        material_names,
     })
+}
+
+/// What each part of a generated cloth is, by generator and how its yarn runs: a yarn that
+/// crosses the tile along y is a warp, along x a weft (a knit's course: `loop`), a capped one
+/// a pile tuft (`pile`, or terry's `loop`); the non-yarn geometry is the `ground`. Returns the
+/// material of each triangle (`parts`: its yarn, or `yarns.len()` for the ground) and the names.
+fn materials(generator: &str, cloth: &Cloth, parts: &[u32]) -> (Vec<u32>, Vec<String>) {
+    let kind = |part: u32| -> &'static str {
+        let Some(y) = cloth.yarns.get(part as usize) else {
+            return "ground";
+        };
+        match (generator, &y.ends) {
+            ("corduroy", _) => "wale",
+            ("jersey" | "rib", _) => "loop",
+            ("terry", yarn::Ends::Capped) => "loop",
+            (_, yarn::Ends::Capped) => "pile",
+            (_, yarn::Ends::Periodic { shift }) if shift[1] != 0.0 => "warp",
+            (_, yarn::Ends::Periodic { .. }) => "weft",
+        }
+    };
+    let mut present = vec![false; cloth.yarns.len() + 1];
+    for &p in parts {
+        present[p as usize] = true;
+    }
+    let mut names: Vec<String> = Vec::new();
+    let mut of_part: Vec<u32> = Vec::new();
+    for part in 0..=cloth.yarns.len() as u32 {
+        let k = kind(part);
+        let i = match names.iter().position(|n| n == k) {
+            Some(i) => i,
+            None if present[part as usize] => {
+                names.push(k.to_string());
+                names.len() - 1
+            }
+            None => 0,
+        };
+        of_part.push(i as u32);
+    }
+    (parts.iter().map(|&p| of_part[p as usize]).collect(), names)
 }
 
 /// The cloth's clearance, or an error when its yarns overlap (beyond rounding: 1e-9 of the

@@ -18,6 +18,11 @@ pub struct Obj {
     pub triangles: Vec<[u32; 3]>,
     /// The `# tile W H` header `ptm swatch` writes, when present.
     pub tile: Option<[f64; 2]>,
+    /// Per triangle, its `usemtl` group: an index into `material_names`. Empty when the file
+    /// names no material; faces before the first `usemtl` are the group `default`.
+    pub materials: Vec<u32>,
+    /// The `usemtl` names, in order of first use.
+    pub material_names: Vec<String>,
 }
 
 /// Reads an OBJ file: see [`parse_obj`].
@@ -31,8 +36,9 @@ pub fn read_obj(path: &Path) -> Result<Obj> {
 
 /// Parses OBJ bytes (`origin` names them in errors): `v x y z` lines, `f` lines (polygons
 /// fan-triangulated, `/vt/vn` parts ignored, negative indices relative to the vertices so far),
-/// every object into one mesh, and a `# tile W H` comment before the first vertex. Other lines
-/// (`vt`, `vn`, `o`, `g`, `usemtl`, …) are ignored, and so are bytes that are not UTF-8
+/// every object into one mesh, a `# tile W H` comment before the first vertex, and `usemtl`
+/// groups (the materials of the faces that follow). Other lines (`vt`, `vn`, `o`, `g`, …) are
+/// ignored, and so are bytes that are not UTF-8
 /// outside `v` and `f` lines (a Latin-1 comment).
 pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
     let bad = |line: usize, reason: String| Error::InvalidMesh {
@@ -48,6 +54,8 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
     let mut obj = Obj::default();
     // Line of each triangle's face, for an index checked at the end.
     let mut face_lines: Vec<usize> = Vec::new();
+    // The current `usemtl` group (none before the first).
+    let mut material = u32::MAX;
     for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let n = n + 1;
         let line = String::from_utf8_lossy(raw);
@@ -125,8 +133,24 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
                 }
                 for k in 1..idx.len() - 1 {
                     obj.triangles.push([idx[0], idx[k], idx[k + 1]]);
+                    obj.materials.push(material);
                     face_lines.push(n);
                 }
+            }
+            Some("usemtl") => {
+                let name = it.collect::<Vec<_>>().join(" ");
+                let name = if name.is_empty() {
+                    "default".to_string()
+                } else {
+                    name
+                };
+                material = match obj.material_names.iter().position(|m| *m == name) {
+                    Some(i) => i as u32,
+                    None => {
+                        obj.material_names.push(name);
+                        obj.material_names.len() as u32 - 1
+                    }
+                };
             }
             _ => {}
         }
@@ -143,6 +167,22 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
             n,
             format!("face index {k} but the file has {nv} vertices"),
         ));
+    }
+    if obj.material_names.is_empty() {
+        obj.materials.clear();
+    } else if obj.materials.contains(&u32::MAX) {
+        let default = match obj.material_names.iter().position(|m| m == "default") {
+            Some(i) => i as u32,
+            None => {
+                obj.material_names.push("default".into());
+                obj.material_names.len() as u32 - 1
+            }
+        };
+        for m in &mut obj.materials {
+            if *m == u32::MAX {
+                *m = default;
+            }
+        }
     }
     Ok(obj)
 }

@@ -160,15 +160,24 @@ impl Yarn {
 impl Cloth {
     /// The triangle mesh: every yarn as a tube with `segments` vertices per ring.
     pub fn mesh(&self, segments: usize) -> Mesh {
+        self.mesh_parts(segments).0
+    }
+
+    /// [`Cloth::mesh`], and per triangle the part it belongs to: the index of its yarn, or
+    /// `yarns.len()` for the non-yarn geometry (`extra`).
+    pub fn mesh_parts(&self, segments: usize) -> (Mesh, Vec<u32>) {
         let mut mesh = Mesh {
             tile: self.tile.map(|v| v as f32),
             ..Mesh::default()
         };
-        for y in &self.yarns {
+        let mut parts = Vec::new();
+        for (i, y) in self.yarns.iter().enumerate() {
             y.mesh_into(segments, &mut mesh);
+            parts.resize(mesh.triangles.len(), i as u32);
         }
         mesh.append(&self.extra);
-        mesh
+        parts.resize(mesh.triangles.len(), self.yarns.len() as u32);
+        (mesh, parts)
     }
 
     /// The smallest gap between the cross-sections of two distinct yarns, copies in the 8

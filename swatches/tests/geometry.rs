@@ -547,3 +547,31 @@ fn corduroy_shadows_match_the_analytic_interval() {
         "only {shadowed_count} shadowed samples: the test is vacuous"
     );
 }
+
+/// Every builtin names what its triangles are, one material per triangle, for the bake's id
+/// map and masks; an OBJ's `usemtl` groups are read, faces before the first being `default`.
+#[test]
+fn builtins_and_obj_groups_name_their_materials() {
+    for (spec, names) in [
+        ("plain-weave", &["warp", "weft"][..]),
+        ("satin", &["warp", "weft"]),
+        ("jersey", &["loop"]),
+        ("rib", &["loop"]),
+        ("velvet", &["warp", "weft", "pile"]),
+        ("terry", &["warp", "weft", "loop"]),
+        ("corduroy", &["wale", "ground"]),
+    ] {
+        let s = ptm_swatches::build(spec).unwrap();
+        assert_eq!(s.material_names, names, "{spec}");
+        assert_eq!(s.materials.len(), s.mesh.triangles.len(), "{spec}");
+        for (i, n) in names.iter().enumerate() {
+            assert!(s.materials.contains(&(i as u32)), "{spec}: no {n}");
+        }
+    }
+    let obj = b"v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3\nusemtl wool\nf 1 3 4\nusemtl silk\nf 1 2 4\nusemtl wool\nf 2 3 4\n";
+    let o = ptm_swatches::obj::parse_obj(obj, "groups.obj").unwrap();
+    assert_eq!(o.material_names, ["wool", "silk", "default"]);
+    assert_eq!(o.materials, [2, 0, 1, 0]);
+    let plain = ptm_swatches::obj::parse_obj(b"v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\n", "p").unwrap();
+    assert!(plain.materials.is_empty() && plain.material_names.is_empty());
+}

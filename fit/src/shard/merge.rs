@@ -169,9 +169,12 @@ pub fn merge_encode(paths: &[PathBuf], out: &Path) -> Result<(Merged, Vec<u8>)> 
     let set = check_set(paths)?;
     let (_, kind) = read_meta(&set[0].0)?;
     let (width, height) = (set[0].1.width, set[0].1.height);
-    let (lights, bytes) = match kind.as_str() {
-        "stack" => merge_stack(&set)?,
-        "ptm" => {
+    let (lights, bytes) = match super::MergeRule::of(&kind) {
+        Some(super::MergeRule::CopyChunks) => merge_stack(&set)?,
+        Some(super::MergeRule::ConcatRows) => {
+            (LightSet::from_dirs(Vec::new()), merge_rows(&set, out)?)
+        }
+        Some(super::MergeRule::Refit) => {
             let (ptm, fit, lights) = merge_ptm(&set)?;
             let save = ptm_format::SaveOptions {
                 half: false,
@@ -181,7 +184,7 @@ pub fn merge_encode(paths: &[PathBuf], out: &Path) -> Result<(Merged, Vec<u8>)> 
             let bytes = ptm.encode(out, &save)?;
             (lights, bytes)
         }
-        other => return Err(err(&set[0].0, format!("unknown part kind {other:?}"))),
+        None => return Err(err(&set[0].0, format!("unknown part kind {kind:?}"))),
     };
     let merged = Merged {
         kind,
@@ -190,6 +193,73 @@ pub fn merge_encode(paths: &[PathBuf], out: &Path) -> Result<(Merged, Vec<u8>)> 
         lights,
     };
     Ok((merged, bytes))
+}
+
+/// Joins parts that merge by concatenating rows ([`super::MergeRule::ConcatRows`]): every
+/// channel's rows in shard order under the product's own attributes (all but `part:*`, which
+/// must be equal in every part), encoded by the writer a one-machine bake uses.
+fn merge_rows(set: &[(PathBuf, PartMeta)], out: &Path) -> Result<Vec<u8>> {
+    let mut channels: BTreeMap<String, Vec<f32>> = BTreeMap::new();
+    let mut own: Option<BTreeMap<String, Attr>> = None;
+    let (width, height) = (set[0].1.width, set[0].1.height);
+    for (path, meta) in set {
+        verify(path)?;
+        let mut c = ptm_format::exrio::read(path)?;
+        if c.width != width || c.height != meta.rows.len() {
+            return Err(err(
+                path,
+                format!(
+                    "holds {}×{} texels but names rows {}..{} of a {width}-wide image",
+                    c.width, c.height, meta.rows.start, meta.rows.end
+                ),
+            ));
+        }
+        let attrs: BTreeMap<String, Attr> = c
+            .attrs
+            .drain()
+            .filter(|(k, _)| !k.starts_with("part:"))
+            .collect();
+        match &own {
+            None => own = Some(attrs),
+            Some(a) if *a != attrs => {
+                return Err(err(
+                    path,
+                    format!(
+                        "its header differs from {}'s outside part:* (parts of one bake agree)",
+                        set[0].0.display()
+                    ),
+                ))
+            }
+            Some(_) => {}
+        }
+        let names: Vec<String> = {
+            let mut n: Vec<String> = c.channels.keys().cloned().collect();
+            n.sort();
+            n
+        };
+        if !channels.is_empty() && !names.iter().eq(channels.keys()) {
+            return Err(err(
+                path,
+                format!(
+                    "its channels differ from {}'s (parts of one bake agree)",
+                    set[0].0.display()
+                ),
+            ));
+        }
+        for n in names {
+            let v = c.take_f32(&n, "part")?;
+            channels.entry(n).or_default().extend(v);
+        }
+    }
+    let own = own.unwrap_or_default();
+    let attrs: Vec<(&str, Attr)> = own.iter().map(|(k, v)| (k.as_str(), v.clone())).collect();
+    let channels = channels
+        .into_iter()
+        .map(|(n, v)| (n, ptm_format::exrio::Samples::F32(v)))
+        .collect();
+    Ok(ptm_format::exrio::encode(
+        out, width, height, channels, attrs,
+    )?)
 }
 
 /// The light set recorded in a part's header.

@@ -36,7 +36,18 @@ fn write_sealed(
     width: usize,
     rows: usize,
     channels: Vec<(String, Samples)>,
-    mut attrs: Vec<(&'static str, Attr)>,
+    attrs: Vec<(&'static str, Attr)>,
+) -> Result<()> {
+    write_sealed_any(path, width, rows, channels, attrs)
+}
+
+/// [`write_sealed`] with attribute names of any lifetime.
+fn write_sealed_any(
+    path: &Path,
+    width: usize,
+    rows: usize,
+    channels: Vec<(String, Samples)>,
+    mut attrs: Vec<(&str, Attr)>,
 ) -> Result<()> {
     attrs.push(("part:checksum", Attr::Text(UNSEALED.into())));
     let mut bytes = exrio::encode(path, width, rows, channels, attrs)?;
@@ -261,4 +272,39 @@ fn logistic_channels(
         ("part:constant", Attr::I32(stats.constant as i32)),
     ]);
     Ok(())
+}
+
+/// Writes the rows of a per-texel product that merges by concatenating rows (`part:kind`
+/// `kind`, e.g. the companion maps: [`super::MergeRule::ConcatRows`]) as part `path`,
+/// atomically: its channels for the shard's rows and its own header attributes, kept as given
+/// (equal in every part of one bake), beside the `part:*` identity.
+pub fn write_rows_part(
+    path: &Path,
+    meta: &PartMeta,
+    kind: &str,
+    width: usize,
+    channels: Vec<(String, Vec<f32>)>,
+    attrs: &[(&str, Attr)],
+) -> Result<()> {
+    check_rows(meta, width, meta.rows.len())?;
+    let n = width * meta.rows.len();
+    if let Some((name, _)) = channels.iter().find(|(_, v)| v.len() != n) {
+        return Err(Error::Invalid(format!(
+            "part {}: channel {name} does not hold {n} texels",
+            meta.shard
+        )));
+    }
+    if attrs.iter().any(|(k, _)| k.starts_with("part:")) {
+        return Err(Error::Invalid(format!(
+            "part {}: a product's own attributes may not be named part:*",
+            meta.shard
+        )));
+    }
+    let channels = channels
+        .into_iter()
+        .map(|(n, v)| (n, Samples::F32(v)))
+        .collect();
+    let mut attrs: Vec<(&str, Attr)> = attrs.to_vec();
+    attrs.extend(meta_attrs(meta, kind));
+    write_sealed_any(path, width, meta.rows.len(), channels, attrs)
 }
