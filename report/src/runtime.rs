@@ -264,7 +264,7 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
             .collect();
         // Texels straddling the edge are averaged by the caster's resolution: skip the two
         // pixels whose footprint (on the caster) holds the edge texel.
-        let texel = 8.0 / (p.frame.caster_size[0] as f64);
+        let texel = 8.0 / (p.plane.size[0] as f64);
         let max_dev = xs
             .iter()
             .zip(measured.iter().zip(&analytic))
@@ -292,7 +292,7 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
             does: c.does,
             blur: c.blur,
             caster_downsample: p.caster_downsample,
-            caster_texels: p.frame.caster_size,
+            caster_texels: p.plane.size,
             analytic_width: width(width_10_90(&xs, &analytic)),
             measured_width: width(width_10_90(&xs, &measured)),
             caster_texel_on_cloth: (d_lc > 0.0).then(|| texel * lz / d_lc),

@@ -7,7 +7,8 @@ use std::f64::consts::PI;
 use ptm_format::hash::{splitmix64 as hash, unit_f64 as unit};
 use ptm_format::vec3::{cross, dot, normalize};
 
-use crate::cpu::shade::opacity_raw;
+use crate::blur::explicit::opacity_raw;
+use crate::blur::Plane;
 use crate::layout::{Frame, LightGpu};
 use crate::output::Image;
 use crate::scene::SceneBuffers;
@@ -21,7 +22,7 @@ pub fn render_reference(p: &SceneBuffers, samples: u32) -> Image {
     let opacity = |q: [f32; 2], l: &LightGpu| {
         let key =
             (q[0].to_bits() as u64) << 32 ^ q[1].to_bits() as u64 ^ l.position[0].to_bits() as u64;
-        mc_opacity(&p.frame, &p.opacity, q, l, samples, key)
+        mc_opacity(&p.frame, &p.plane, q, l, samples, key)
     };
     crate::cpu::render_with(p, Some(&opacity))
 }
@@ -33,7 +34,7 @@ pub fn render_reference(p: &SceneBuffers, samples: u32) -> Image {
 /// Deterministic: the random numbers hash (pixel key, sample).
 pub fn mc_opacity(
     frame: &Frame,
-    opacity: &[u32],
+    plane: &Plane,
     p: [f32; 2],
     light: &LightGpu,
     samples: u32,
@@ -61,7 +62,7 @@ pub fn mc_opacity(
     } else {
         (1.0 - (r / d) * (r / d)).sqrt()
     };
-    let [w, ht] = frame.caster_size;
+    let [w, ht] = plane.size;
     let rect = frame.caster_rect.map(|x| x as f64);
     let (sin_t, cos_t) = (frame.caster_sin_tilt as f64, frame.caster_cos_tilt as f64);
     let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]), h];
@@ -101,7 +102,7 @@ pub fn mc_opacity(
                 ((hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64) as f32,
                 ((rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64) as f32,
             ];
-            o = opacity_raw(opacity, [w, ht], tc).map(|x| (x as f32 / 255.0) as f64);
+            o = opacity_raw(&plane.texels, [w, ht], tc).map(|x| (x as f32 / 255.0) as f64);
         }
         sum_w += weight;
         for k in 0..3 {

@@ -6,8 +6,9 @@
 
 use ptm_format::{Link, Ptm, UvMap};
 
+pub use crate::blur::Blur;
 pub use crate::caster::{Caster, MAX_CASTER_SIDE};
-use crate::layout::{Frame, LightGpu, PtmLevel};
+use crate::layout::{Frame, LightGpu, PlaneGpu, PtmLevel};
 use crate::{Error, Result};
 
 /// Upper bound on the explicit blur's samples per axis (it grows as 4 × the radius in texels,
@@ -30,37 +31,6 @@ pub struct Light {
     pub intensity: f32,
     /// Linear RGB colour.
     pub color: [f32; 3],
-}
-
-/// How the caster opacity is averaged over the penumbra kernel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Blur {
-    /// The reference: a regular grid of samples (spacing ≤ ½ texel, ≥ 16 per axis) over the
-    /// disk of radius w (cost grows as w²).
-    Explicit,
-    /// Box of half-side w from a summed-area table of u32 counts (constant cost, exact sums).
-    Sat,
-    /// Trilinear lookup in the caster's MIP chain at level log2(2w) (constant cost; the
-    /// kernel is a blend of two power-of-two boxes on a fixed grid, so it errs most at edges).
-    Mip,
-    /// Per light, a horizontal then a vertical box pass (half-side w) over the caster with
-    /// running sums, then a bilinear lookup (cost per light ∝ caster texels, not w).
-    Separable,
-}
-
-impl Blur {
-    /// Every blur method, in the order help texts and reports list them.
-    pub const ALL: [Blur; 4] = [Blur::Explicit, Blur::Sat, Blur::Mip, Blur::Separable];
-
-    /// The method in words, as the CLI and reports spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Blur::Explicit => "explicit",
-            Blur::Sat => "sat",
-            Blur::Mip => "mip",
-            Blur::Separable => "separable",
-        }
-    }
 }
 
 /// A perspective camera (the default camera is orthographic top-down over `Scene::view`).
@@ -197,7 +167,6 @@ impl Scene {
             tile: [x1 - x0, y1 - y0],
             albedo: self.albedo,
             light_count: self.lights.len() as u32,
-            explicit_samples: MAX_EXPLICIT_SAMPLES,
             ..Frame::zeroed()
         };
         if let Some(cam) = &self.perspective {
@@ -308,10 +277,9 @@ impl Scene {
 
         let lights = self.gpu_lights();
 
-        let mut opacity = Vec::new();
-        let mut mip = Vec::new();
-        let mut mip_levels = Vec::new();
-        let mut separable = crate::separable::Plan::default();
+        let mut plane = crate::blur::Plane::default();
+        let mut plane_gpu = PlaneGpu::default();
+        let mut prepared = crate::blur::nothing();
         let mut caster_downsample = 1;
         if let Some(c) = &self.caster {
             if c.width == 0 || c.height == 0 || c.rgba.len() != c.width * c.height {
@@ -342,32 +310,23 @@ impl Scene {
                     cy1 - cy0
                 )));
             }
-            if c.tilt_deg != 0.0 && self.blur == Blur::Separable {
-                return Err(Error::SeparableNeedsParallelCaster {
-                    tilt_deg: c.tilt_deg,
-                });
-            }
+            let method = crate::blur::method(self.blur);
+            method.check(c)?;
             let (cw, ch, texels, factor) = crate::caster::fit_caster(c);
             caster_downsample = factor;
-            opacity = crate::caster::opacity_texels(&texels, self.colored_shadow);
+            // The image the blur filters: the caster's opacity (grey, or rgb for stained glass).
+            plane = crate::blur::Plane {
+                size: [cw as u32, ch as u32],
+                channels: if self.colored_shadow { 3 } else { 1 },
+                texels: crate::caster::opacity_texels(&texels, self.colored_shadow),
+            };
             frame.caster_rect = c.rect;
             frame.caster_height = c.elevation;
             frame.caster_sin_tilt = tilt.sin();
             frame.caster_cos_tilt = tilt.cos();
-            frame.caster_size = [cw as u32, ch as u32];
-            match self.blur {
-                Blur::Mip => {
-                    let (texels, levels) = crate::mip::build_chain(&opacity, cw, ch);
-                    mip = texels;
-                    mip_levels = levels;
-                }
-                Blur::Separable => {
-                    separable = crate::separable::plan(&frame, &lights);
-                    frame.sep_margin = separable.margin;
-                    frame.sep_padded = separable.padded;
-                }
-                _ => {}
-            }
+            plane_gpu.size = plane.size;
+            plane_gpu.samples = MAX_EXPLICIT_SAMPLES;
+            prepared = method.prepare(&plane, &frame, &lights, &mut plane_gpu);
         }
 
         let variant = Variant {
@@ -402,10 +361,9 @@ impl Scene {
             ptm_levels,
             coverage,
             albedo,
-            opacity,
-            mip,
-            mip_levels,
-            separable,
+            plane,
+            plane_gpu,
+            prepared,
             variant,
             caster_downsample,
             nonfinite_coeffs,
@@ -665,15 +623,13 @@ pub struct SceneBuffers {
     pub coverage: Vec<f32>,
     /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
     pub albedo: Vec<[f32; 4]>,
-    /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three
-    /// equal without `colored_shadow`.
-    pub opacity: Vec<u32>,
-    /// MIP chain of the opacity (rgb in 0..1, a unused), all levels concatenated.
-    pub mip: Vec<[f32; 4]>,
-    /// Per MIP level of `mip`: where its texels start, its size.
-    pub mip_levels: Vec<crate::layout::MipLevel>,
-    /// Separable blur: per-light radii and the padded map layout.
-    pub separable: crate::separable::Plan,
+    /// The image the blur filters: the caster's opacity per texel as packed u8 (r | g << 8 |
+    /// b << 16, each 0..=255; all three equal without `colored_shadow`); empty without a caster.
+    pub plane: crate::blur::Plane,
+    /// The image's uniform block (its size and the method's fields).
+    pub plane_gpu: PlaneGpu,
+    /// What the scene's blur method prepared from the image ([`crate::blur::Method::prepare`]).
+    pub prepared: crate::blur::Prepared,
     /// Which shader variant renders it.
     pub variant: Variant,
     /// Integer factor the caster image was box-downsampled by (1 = as given).

@@ -80,8 +80,9 @@ fn gpu_sat_equals_cpu_sat_bit_for_bit() {
         .map(|i| hash(i as u64) as u32 & 0x00FF_FFFF)
         .collect();
     for channels in [1u32, 3] {
-        let gpu_table = gpu::sat_table(&g, &op, w as u32, h as u32, channels).unwrap();
-        let cpu_table = ptm_runtime::cpu::sat::build(&op, w, h, channels as usize);
+        let gpu_table =
+            ptm_runtime::blur::sat::sat_table(&g, &op, w as u32, h as u32, channels).unwrap();
+        let cpu_table = ptm_runtime::blur::sat::build(&op, w, h, channels as usize);
         assert_eq!(gpu_table.len(), cpu_table.len());
         let first = gpu_table.iter().zip(&cpu_table).position(|(a, b)| a != b);
         assert_eq!(
