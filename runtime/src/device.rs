@@ -109,7 +109,12 @@ impl Gpu {
     }
 
     /// A storage buffer with further `usage` (e.g. `COPY_DST` to rewrite it).
-    pub(crate) fn storage_with(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    pub(crate) fn storage_with(
+        &self,
+        label: &str,
+        bytes: &[u8],
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
         // Storage bindings cannot be empty; a feature the scene lacks has no binding at all, but
         // e.g. zero lights still binds a (never read) buffer of at least one element.
         let padded;
