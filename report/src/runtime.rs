@@ -88,6 +88,7 @@ fn light(position: [f32; 3], radius: f32) -> Light {
     Light {
         position,
         radius,
+        rect: None,
         intensity: 4.0,
         color: [1.0; 3],
     }

@@ -93,8 +93,12 @@ pub struct LightGpu {
     pub radius: f32,
     /// Colour × intensity (linear rgb).
     pub color: [f32; 3],
-    /// Padding to the WGSL vec3's 16-byte stride.
-    pub pad: f32,
+    /// 0: a sphere of `radius`; 1: a rectangle of half-sides `half`, facing down.
+    pub shape: u32,
+    /// A rectangle's half-sides along X and Y (0 for a sphere).
+    pub half: [f32; 2],
+    /// Padding to 16 bytes, as the WGSL struct.
+    pub pad: [f32; 2],
 }
 
 /// One level of the PTM's MIP chain: `struct PtmLevel` in `shader/shade.wgsl`.
@@ -276,7 +280,7 @@ mod tests {
     #[test]
     fn light_and_mip_levels_match_the_wgsl_structs() {
         let m = shade_module();
-        let want = fields!(LightGpu: position, radius, color, pad);
+        let want = fields!(LightGpu: position, radius, color, shape, half, pad);
         check(&m, "Light", want, size_of::<LightGpu>());
         let want = fields!(PtmLevel: offset, width, height, pad, period, pad2);
         check(&m, "PtmLevel", want, size_of::<PtmLevel>());

@@ -25,12 +25,30 @@ pub const MAX_IMAGE_SIDE: u32 = 8192;
 pub struct Light {
     /// Centre in world space (swatch units; z above the acceptor).
     pub position: [f32; 3],
-    /// Sphere radius R in swatch units (0 = point light: a hard shadow).
+    /// Sphere radius R in swatch units (0 = point light: a hard shadow); ignored for a
+    /// rectangle.
     pub radius: f32,
+    /// `Some([a, b])`: a uniform rectangular light of sides a along X and b along Y centred at
+    /// `position`, facing straight down (parallel to the cloth), instead of a sphere. Its
+    /// penumbra kernel on a caster parallel to the cloth is that rectangle scaled by the
+    /// caster's fraction of the way to the light: a box of any aspect ratio, exact with the
+    /// summed-area table.
+    pub rect: Option<[f32; 2]>,
     /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
     pub intensity: f32,
     /// Linear RGB colour.
     pub color: [f32; 3],
+}
+
+impl Light {
+    /// The light's largest distance from its centre in the plane of the cloth: the sphere's
+    /// radius, or half the rectangle's diagonal (how far a penumbra can spread).
+    pub fn extent(&self) -> f32 {
+        match self.rect {
+            Some([a, b]) => 0.5 * (a * a + b * b).sqrt(),
+            None => self.radius,
+        }
+    }
 }
 
 /// A perspective camera (the default camera is orthographic top-down over `Scene::view`).
@@ -121,7 +139,9 @@ impl Scene {
                 position: l.position,
                 radius: l.radius.max(0.0),
                 color: l.color.map(|c| c * l.intensity),
-                pad: 0.0,
+                shape: u32::from(l.rect.is_some()),
+                half: l.rect.map_or([0.0; 2], |r| r.map(|x| 0.5 * x)),
+                pad: [0.0; 2],
             })
             .collect()
     }
@@ -152,6 +172,16 @@ impl Scene {
                      finite position and a finite radius, intensity and colour ≥ 0",
                     l.position, l.radius, l.intensity, l.color
                 )));
+            }
+        }
+        for (i, l) in self.lights.iter().enumerate() {
+            if let Some(r) = l.rect {
+                if !r.iter().all(|x| x.is_finite() && *x > 0.0) {
+                    return Err(Error::Scene(format!(
+                        "light {i} is a rectangle of sides {} × {}: both must be finite and > 0",
+                        r[0], r[1]
+                    )));
+                }
             }
         }
         let [x0, y0, x1, y1] = self.view;
@@ -342,7 +372,7 @@ impl Scene {
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
             for (i, l) in self.lights.iter().enumerate() {
-                let Some(s) = c.shadow_rect(l.position, l.radius) else {
+                let Some(s) = c.shadow_rect(l.position, l.extent()) else {
                     continue;
                 };
                 if s[2] < x0 || s[0] > x1 || s[3] < y0 || s[1] > y1 {

@@ -788,6 +788,7 @@ mod tests {
         scene.lights = vec![Light {
             position: [1.0, 0.75, 2.0],
             radius: 0.1,
+            rect: None,
             intensity: 4.0,
             color: [1.0, 1.0, 1.0],
         }];

@@ -29,8 +29,15 @@ pub fn opacity_raw(opacity: &[u32], size: [u32; 2], t: [f32; 2]) -> [u32; 3] {
 }
 
 /// Reference blur: mean over an n×n grid of samples inside the ellipse of radii wt (texels)
-/// around t, n = clamp(⌈4·max(wt)⌉, 16, `samples`); integer sums divided once.
-pub fn blur_explicit(plane: &Plane, samples: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+/// around t, or the whole grid for [`Kernel::Box`], n = clamp(⌈4·max(wt)⌉, 16, `samples`);
+/// integer sums divided once.
+pub fn blur_explicit(
+    plane: &Plane,
+    samples: u32,
+    t: [f32; 2],
+    wt: [f32; 2],
+    kernel: Kernel,
+) -> [f32; 3] {
     let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, samples);
     let mut sum = [0u32; 3];
     let mut count = 0u32;
@@ -40,7 +47,7 @@ pub fn blur_explicit(plane: &Plane, samples: u32, t: [f32; 2], wt: [f32; 2]) -> 
                 (i as f32 + 0.5) / n as f32 * 2.0 - 1.0,
                 (j as f32 + 0.5) / n as f32 * 2.0 - 1.0,
             ];
-            if o[0] * o[0] + o[1] * o[1] <= 1.0 {
+            if kernel == Kernel::Box || o[0] * o[0] + o[1] * o[1] <= 1.0 {
                 let v = opacity_raw(
                     &plane.texels,
                     plane.size,
@@ -62,7 +69,7 @@ impl Method for Explicit {
     }
 
     fn kernels(&self) -> &'static [Kernel] {
-        &[Kernel::Disc]
+        &[Kernel::Disc, Kernel::Box]
     }
 
     fn wgsl(&self) -> &'static str {
@@ -84,7 +91,14 @@ impl Method for Explicit {
         Ok(vec![(b::OPACITY.index, texels)])
     }
 
-    fn blur_lookup(&self, b: &Bound<'_>, _li: usize, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
-        blur_explicit(b.plane, b.uniform.samples, t, wt)
+    fn blur_lookup(
+        &self,
+        b: &Bound<'_>,
+        _li: usize,
+        t: [f32; 2],
+        wt: [f32; 2],
+        kernel: Kernel,
+    ) -> [f32; 3] {
+        blur_explicit(b.plane, b.uniform.samples, t, wt, kernel)
     }
 }

@@ -55,7 +55,8 @@ pub struct Plane {
 }
 
 /// The shape of the kernel a method averages the image over (half-extents `wt` along the
-/// image's axes, in texels).
+/// image's axes, in texels). A sphere light asks for [`Kernel::Disc`], a rectangular light for
+/// [`Kernel::Box`] (`KERNEL_DISC`, `KERNEL_BOX` in WGSL).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Kernel {
     /// The ellipse of radii wt (a disc light's kernel).
@@ -92,7 +93,8 @@ pub trait Method: Sync {
     /// Which method this is.
     fn blur(&self) -> Blur;
 
-    /// The kernels it applies (a spherical light's kernel is the first).
+    /// The kernels it applies exactly (any other it is asked for it approximates with the
+    /// first).
     fn kernels(&self) -> &'static [Kernel];
 
     /// Its WGSL, included into `shade.wgsl` where a scene has a caster: its bindings and
@@ -136,8 +138,16 @@ pub trait Method: Sync {
     }
 
     /// Twin of the WGSL `blur_lookup`: mean image value over the kernel of radii `wt` (texels)
-    /// around texel coordinate t, for light `li`.
-    fn blur_lookup(&self, b: &Bound<'_>, li: usize, t: [f32; 2], wt: [f32; 2]) -> [f32; 3];
+    /// around texel coordinate t, for light `li`: `kernel` exactly where [`Method::kernels`]
+    /// lists it, else the method's own kernel of that size.
+    fn blur_lookup(
+        &self,
+        b: &Bound<'_>,
+        li: usize,
+        t: [f32; 2],
+        wt: [f32; 2],
+        kernel: Kernel,
+    ) -> [f32; 3];
 
     /// Whether `lights` (moved) can be shaded with what was prepared for the scene's lights,
     /// so a renderer needs only the new light buffer.

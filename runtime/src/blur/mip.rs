@@ -111,7 +111,14 @@ impl Method for Mip {
         ])
     }
 
-    fn blur_lookup(&self, b: &Bound<'_>, _li: usize, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    fn blur_lookup(
+        &self,
+        b: &Bound<'_>,
+        _li: usize,
+        t: [f32; 2],
+        wt: [f32; 2],
+        _kernel: Kernel,
+    ) -> [f32; 3] {
         let chain: &Chain = own(b.prepared, "mip");
         blur_mip(&chain.texels, &chain.levels, t, wt)
     }

@@ -45,6 +45,6 @@ fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
 }
 
 // The method's entry point, called by `light_opacity` (see blur/explicit.wgsl).
-fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, kernel: u32) -> vec3<f32> {
     return blur_mip(t, wt);
 }

@@ -183,7 +183,14 @@ impl Method for Sat {
         Box::new(build(&plane.texels, w, h, plane.channels as usize))
     }
 
-    fn blur_lookup(&self, b: &Bound<'_>, _li: usize, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    fn blur_lookup(
+        &self,
+        b: &Bound<'_>,
+        _li: usize,
+        t: [f32; 2],
+        wt: [f32; 2],
+        _kernel: Kernel,
+    ) -> [f32; 3] {
         let table: &Vec<u32> = own(b.built, "sat");
         blur_sat(table, b.plane.size, b.plane.channels, t, wt)
     }

@@ -69,6 +69,14 @@ pub fn plan(f: &Frame, size: [u32; 2], lights: &[LightGpu]) -> Plan {
             let (lz, r) = (l.position[2], l.radius);
             let hgt = f.caster_height;
             let active = lz > hgt;
+            if l.shape == 1 {
+                // A rectangle: a box of half-sides s·half (s = d_ca/d_lc).
+                let s = if active { hgt / lz } else { 0.0 };
+                return [
+                    (l.half[0] * s / texel[0]).max(0.5),
+                    (l.half[1] * s / texel[1]).max(0.5),
+                ];
+            }
             let wl = if active { r * hgt / lz } else { 0.0 };
             [(wl / texel[0]).max(0.5), (wl / texel[1]).max(0.5)]
         })
@@ -287,7 +295,14 @@ impl Method for Separable {
         Box::new(sep_v(&params, &hmap, &plan.radii))
     }
 
-    fn blur_lookup(&self, b: &Bound<'_>, li: usize, t: [f32; 2], _wt: [f32; 2]) -> [f32; 3] {
+    fn blur_lookup(
+        &self,
+        b: &Bound<'_>,
+        li: usize,
+        t: [f32; 2],
+        _wt: [f32; 2],
+        _kernel: Kernel,
+    ) -> [f32; 3] {
         let map: &Vec<f32> = own(b.built, "separable");
         blur_separable(b.uniform, map, b.plane.channels, li, t)
     }

@@ -7,9 +7,13 @@ use ptm_format::{Link, UvMap};
 
 use std::any::Any;
 
-use crate::blur::{Bound, Method};
+use crate::blur::{Bound, Kernel, Method};
 use crate::layout::{Frame, LightGpu, PlaneGpu, PtmLevel};
 use crate::scene::{SceneBuffers, Variant};
+
+/// The least half-side of a rectangular light's box kernel, in texels (`RECT_MIN` in WGSL): a
+/// thin light's kernel is a line, which sees the texel it crosses.
+pub const RECT_MIN: f32 = 1.0 / 256.0;
 
 /// What replaces the blur method's caster opacity for (cloth point, light): the Monte Carlo
 /// reference ([`crate::reference`]) plugs in here.
@@ -297,15 +301,33 @@ impl Twin<'_> {
         }
         let off: [f32; 3] = std::array::from_fn(|k| pp[k] + s * ray[k] - centre[k]);
         let q = [centre[0] + off[0], centre[1] + dot(off, e2)];
-        let w = l.radius * s;
         let stretch = (cos_t + dot(ray, e2) * sin_t / denom).abs();
         let size = self.p.plane_gpu.size;
         let texel = [
             (r[2] - r[0]) / size[0] as f32,
             (r[3] - r[1]) / size[1] as f32,
         ];
-        let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
         let t = caster_texel_coords(f, &self.p.plane_gpu, q);
+        let (t, wt, kernel) = if l.shape == 1 {
+            // A rectangle facing down: a box of half-sides s·half, moved to the centroid of
+            // its patches' z²/r⁴ weights (see `light_opacity` in WGSL).
+            let h = l.half;
+            let k = -4.0 / (3.0 * dot(ray, ray));
+            let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
+            let tr = [
+                t[0] + shift[0] / texel[0],
+                t[1] + -shift[1] * stretch / texel[1],
+            ];
+            let wr = [
+                (h[0] * s / texel[0]).max(RECT_MIN),
+                (h[1] * s * stretch / texel[1]).max(RECT_MIN),
+            ];
+            (tr, wr, Kernel::Box)
+        } else {
+            let w = l.radius * s;
+            let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
+            (t, wt, Kernel::Disc)
+        };
         let (method, built) = self.blur.expect("light_opacity without a blur method");
         let bound = Bound {
             plane: &self.p.plane,
@@ -313,7 +335,7 @@ impl Twin<'_> {
             prepared: self.p.prepared.as_ref(),
             built,
         };
-        method.blur_lookup(&bound, li, t, wt)
+        method.blur_lookup(&bound, li, t, wt, kernel)
     }
 
     /// Linear radiance leaving acceptor point p:

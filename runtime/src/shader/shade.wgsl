@@ -37,7 +37,9 @@ struct Light {
     position: vec3<f32>, // centre
     radius: f32,         // sphere radius R
     color: vec3<f32>,    // colour × intensity
-    pad: f32,
+    shape: u32,          // 0 sphere, 1 rectangle facing down
+    half: vec2<f32>,     // rectangle: half-sides along X, Y
+    pad: vec2<f32>,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -353,13 +355,36 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
     }
     let off = pp + s * ray - centre;
     let q = centre.xy + vec2<f32>(off.x, dot(off, e2));
-    let w = l.radius * s;
     let stretch = abs(frame.caster_cos_tilt + dot(ray, e2) * frame.caster_sin_tilt / denom);
     let texel = (r.zw - r.xy) / vec2<f32>(plane.size);
-    let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
     let t = caster_texel_coords(q);
-    return blur_lookup(li, t, wt);
+    if (l.shape == 1u) {
+        // A rectangle facing down: its image from p on the plane is the rectangle scaled by s
+        // (exactly, for a caster parallel to it), a box of half-sides s·half. Its patches light
+        // p in proportion to cos·cos/r² = z²/r⁴, more on the side nearer p: to first order in
+        // the half-sides the box moves to that weighting's centroid, −(4/3)·half²·d/r² on the
+        // light (d = light − p across the cloth), s times that on the plane (rows run to −y).
+        let d = ray.xy;
+        let shift = -4.0 / (3.0 * dot(ray, ray)) * l.half * l.half * d * s;
+        let tr = t + vec2<f32>(shift.x, -shift.y * stretch) / texel;
+        // Floored at 1/256 texel, not ½ as a sphere's: a thin light's kernel is a line, which
+        // sees the texel it crosses, not the mean of two (the box stays exact down to there).
+        let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
+        return blur_lookup(li, tr, wr, KERNEL_BOX);
+    }
+    let w = l.radius * s;
+    let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
+    return blur_lookup(li, t, wt, KERNEL_DISC);
 }
+
+// The kernel `blur_lookup` is asked for (`blur::Kernel` as a number): the ellipse of radii wt
+// (a sphere's), or the box of half-sides wt (a rectangle's). A method approximates what it
+// cannot apply exactly (`blur::Method::kernels`).
+const KERNEL_DISC: u32 = 0u;
+const KERNEL_BOX: u32 = 1u;
+
+// The least half-side of a rectangle's box, in texels (`cpu::shade::RECT_MIN`).
+const RECT_MIN: f32 = 0.00390625;
 
 // The blur method's WGSL (`blur::Method::wgsl`): its bindings and `blur_lookup`.
 {{BLUR}}
