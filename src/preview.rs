@@ -39,6 +39,12 @@ pub struct Args {
     /// the view's longer side.
     #[arg(long)]
     pub light_radius: Vec<f32>,
+    /// Make the lights rectangles: sides A,B along X and Y in swatch units, facing straight
+    /// down (the last value repeats for further lights), instead of spheres of --light-radius.
+    /// The penumbra is the rectangle's own box kernel, of any aspect ratio (exact with --blur
+    /// sat and explicit; mip blurs it as a square of the longer side).
+    #[arg(long, value_name = "A,B", value_parser = parse_pair::<f32>)]
+    pub light_rect: Vec<(f32, f32)>,
     /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen
     /// so the first light gives irradiance 0.8 at the view's centre (headroom below white).
     #[arg(long)]
@@ -271,6 +277,9 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
             Light {
                 position,
                 radius: nth(&args.light_radius, i, 0.05 * extent),
+                rect: (!args.light_rect.is_empty())
+                    .then(|| nth(&args.light_rect, i, (0.0, 0.0)))
+                    .map(|(a, b)| [a, b]),
                 intensity: nth(&args.intensity, i, 0.8 * d2 / cos),
                 color: nth(&args.color, i, [1.0, 1.0, 1.0]),
             }
@@ -475,6 +484,11 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
         bail!(
             "--size {w},{h} × {frames} turntable frames is {pixels} pixels, more than the {MAX_PIXELS}              (4 GiB of linear RGBA) one run holds: lower --size or --turntable"
         );
+    }
+    for &(a, b) in &args.light_rect {
+        if !(a.is_finite() && b.is_finite() && a > 0.0 && b > 0.0) {
+            bail!("--light-rect {a},{b}: both sides must be finite and > 0 (swatch units)");
+        }
     }
     if args.mc_samples == 0 || args.mc_samples > MAX_MC_SAMPLES {
         bail!(

@@ -198,10 +198,14 @@ fn markdown(args: &Args, report: &Report, tables: &ptm_report::Tables) -> String
         "## Runtime: soft shadows\n\nOn {}. Times are wall clock around submit + wait (on lavapipe the \
          \"GPU\" is this machine's CPU; ratios carry over to a real GPU, absolute figures do not).\n\n\
          ### Each blur method against the Monte Carlo ground truth\n\nA leafy 512² caster 0.6 above a \
-         ptm11 cloth, one spherical light 2 above it; error in linear radiance (the light gives about 1 at \
-         the centre) against a CPU Monte Carlo integration over the sphere with exact ray–caster hits. \
-         `explicit` is the disk kernel the ground truth integrates (its error is sampling); `sat` and \
-         `separable` use a box of the same half-width, `mip` a blend of power-of-two boxes.\n\n{}\n\
+         ptm11 cloth, one light 2 above it: a sphere, or a rectangle facing down; error in linear \
+         radiance (the light gives about 1 at the centre) against a CPU Monte Carlo integration over \
+         the true light (the sphere, or the uniform rectangle weighted by the irradiance each patch \
+         gives) with exact ray–caster hits. A sphere asks for the disc kernel: `explicit` samples the \
+         disc the ground truth integrates (its error is sampling); `sat` and `separable` use a box of \
+         the same half-width, `mip` a blend of power-of-two boxes. A rectangle asks for the box of its \
+         own sides, which `sat` sums exactly and `explicit` samples; `mip` blurs a square of the \
+         longer side.\n\n{}\n\
          ### Extreme cases\n\nA half-plane caster edge (opaque for x < 0, 8 × 8 units) over a strip of \
          cloth; opacity = 1 − radiance/radiance without caster along the strip. The analytic profile is \
          the box (sat) or disk (explicit) average of the half-plane around the point where the ray to the \

@@ -198,6 +198,33 @@ fn compare_blur_reports_every_method_against_monte_carlo() {
 }
 
 #[test]
+fn rectangular_lights_render_and_compare_against_monte_carlo() {
+    let dir = tempfile::tempdir().unwrap();
+    let caster = write_caster(dir.path());
+    let png = dir.path().join("r.png");
+    let j = run_json(&[
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "48,48",
+        "--caster",
+        caster.to_str().unwrap(),
+        "--caster-height",
+        "0.5",
+        "--light-rect",
+        "0.8,0.1",
+        "--compare-blur",
+        "--mc-samples",
+        "256",
+    ]);
+    assert!(png.exists());
+    let rows = j["compare_blur"].as_array().unwrap();
+    let sat = rows.iter().find(|r| r["method"] == "sat").unwrap();
+    let e = sat["mean_abs_error"].as_f64().unwrap();
+    assert!(e.is_finite() && e < 0.01, "{sat}");
+}
+
+#[test]
 fn preview_errors_name_the_problem() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("x.png");
@@ -217,6 +244,15 @@ fn preview_errors_name_the_problem() {
         (
             ["--camera=0.5,0.5,-2"],
             "--camera [0.5, 0.5, -2.0]: the eye must be",
+        ),
+        (["--light-rect=0,1"], "--light-rect 0,1: both sides must be"),
+        (
+            ["--light-rect=1,-2"],
+            "--light-rect 1,-2: both sides must be",
+        ),
+        (
+            ["--light-rect=inf,1"],
+            "--light-rect inf,1: both sides must be",
         ),
     ] {
         let out = ptm(["preview", args[0], "-o", p(&png)], dir.path());

@@ -188,13 +188,32 @@ fn check_runtime(report: &Report) {
     let blur = &report.runtime.blur;
     let mean = |radius: f32, method: &str| {
         blur.iter()
-            .find(|r| r.light_radius == radius && r.measured.method == method)
+            .find(|r| {
+                r.light_radius == radius && r.light_rect.is_none() && r.measured.method == method
+            })
             .unwrap_or_else(|| panic!("no {method} row at R {radius}: {blur:?}"))
             .measured
             .mean_abs_error
     };
     for r in [0.1, 0.5] {
         assert!(mean(r, "sat") < mean(r, "mip"), "R {r}");
+    }
+    // Rectangles: the box kernel the table sums exactly beats the MIP's power-of-two square.
+    for rect in [[0.8f32, 0.2], [1.0, 0.001]] {
+        let rows: Vec<_> = blur.iter().filter(|r| r.light_rect == Some(rect)).collect();
+        let of = |m: &str| {
+            rows.iter()
+                .find(|r| r.measured.method == m)
+                .unwrap()
+                .measured
+                .mean_abs_error
+        };
+        assert_eq!(
+            rows.len(),
+            ptm_runtime::Blur::ALL.len(),
+            "rect {rect:?}: {blur:?}"
+        );
+        assert!(of("sat") < of("mip"), "rect {rect:?}");
     }
 }
 
@@ -244,7 +263,7 @@ fn expected_csv_headers(swatches: &[&str]) -> Vec<(String, String)> {
                 ),
                 (
                     "runtime_blur",
-                    "light radius R,penumbra radius on the caster (texels),method,\
+                    "light,kernel,penumbra radius on the caster (texels),method,\
                      max |err| (radiance),mean |err| (radiance),shade ms,setup ms",
                 ),
                 (

@@ -35,9 +35,12 @@ impl Runtime {
 /// One blur method's soft shadow against the Monte Carlo ground truth.
 #[derive(Clone, Debug)]
 pub struct BlurRow {
-    /// The spherical light's radius, and the penumbra radius it gives on the caster (texels).
+    /// The spherical light's radius (a rectangle's longer half-side).
     pub light_radius: f32,
-    /// The penumbra radius on the caster, texels.
+    /// A rectangular light's sides (None: a sphere); it asks the methods for the box kernel,
+    /// a sphere for the disc.
+    pub light_rect: Option<[f32; 2]>,
+    /// The penumbra radius on the caster, texels (a rectangle's longer half-side).
     pub penumbra_texels: f64,
     /// The method's errors against the ground truth and its pass times.
     pub measured: compare::BlurRow,
@@ -88,25 +91,32 @@ fn light(position: [f32; 3], radius: f32) -> Light {
     Light {
         position,
         radius,
+        rect: None,
         intensity: 4.0,
         color: [1.0; 3],
     }
 }
 
-/// Every blur method against the Monte Carlo soft shadow, for a small and a large light.
+/// Every blur method against the Monte Carlo soft shadow, for a small and a large sphere
+/// (the disc kernel) and two rectangles (the box kernel, aspects 4:1 and 1000:1).
 pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
     let (side, mc) = if quick { (96, 96) } else { (384, 512) };
     let mut rows = Vec::new();
     let caster_texels = 512;
-    for radius in [0.1f32, 0.5] {
+    let spheres = [0.1f32, 0.5].map(|r| (r, None));
+    let rects = [[0.8f32, 0.2], [1.0, 0.001]].map(|r| (0.5 * r[0].max(r[1]), Some(r)));
+    for (reach, rect) in spheres.into_iter().chain(rects) {
         let mut s = Scene::over_ptm(cloth(32), 4, [side, side]);
         s.view = [-1.0, -1.0, 1.0, 1.0];
-        s.lights = vec![light([0.3, 0.2, 2.0], radius)];
+        let mut l = light([0.3, 0.2, 2.0], reach);
+        l.rect = rect;
+        s.lights = vec![l];
         s.caster = Some(leaves(caster_texels, [-1.5, -1.5, 1.5, 1.5], 0.6));
-        let w = caster_radius(radius as f64, 2.0 - 0.6, 0.6) * caster_texels as f64 / 3.0;
+        let w = caster_radius(reach as f64, 2.0 - 0.6, 0.6) * caster_texels as f64 / 3.0;
         for measured in compare::compare_blur(g, &s, mc)? {
             rows.push(BlurRow {
-                light_radius: radius,
+                light_radius: reach,
+                light_rect: rect,
                 penumbra_texels: w,
                 measured,
             });
@@ -264,7 +274,7 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
             .collect();
         // Texels straddling the edge are averaged by the caster's resolution: skip the two
         // pixels whose footprint (on the caster) holds the edge texel.
-        let texel = 8.0 / (p.frame.caster_size[0] as f64);
+        let texel = 8.0 / (p.plane.size[0] as f64);
         let max_dev = xs
             .iter()
             .zip(measured.iter().zip(&analytic))
@@ -292,7 +302,7 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
             does: c.does,
             blur: c.blur,
             caster_downsample: p.caster_downsample,
-            caster_texels: p.frame.caster_size,
+            caster_texels: p.plane.size,
             analytic_width: width(width_10_90(&xs, &analytic)),
             measured_width: width(width_10_90(&xs, &measured)),
             caster_texel_on_cloth: (d_lc > 0.0).then(|| texel * lz / d_lc),

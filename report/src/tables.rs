@@ -406,7 +406,8 @@ fn blur(rows: &[BlurRow]) -> Table {
     let mut t = Table::new(
         "runtime_blur",
         &[
-            "light radius R",
+            "light",
+            "kernel",
             "penumbra radius on the caster (texels)",
             "method",
             "max |err| (radiance)",
@@ -418,7 +419,16 @@ fn blur(rows: &[BlurRow]) -> Table {
     for r in rows {
         let m = &r.measured;
         t.push(vec![
-            g3(r.light_radius as f64),
+            match r.light_rect {
+                Some([a, b]) => format!("rect {}×{}", g3(a as f64), g3(b as f64)),
+                None => format!("sphere R {}", g3(r.light_radius as f64)),
+            },
+            if r.light_rect.is_some() {
+                "box"
+            } else {
+                "disc"
+            }
+            .into(),
             g3(r.penumbra_texels),
             m.method.into(),
             g3(m.max_abs_error as f64),

@@ -60,6 +60,7 @@ fn main() {
     base.lights = vec![Light {
         position: [1.0, 3.0, 2.5],
         radius: 0.3,
+        rect: None,
         intensity: 8.0,
         color: [1.0; 3],
     }];

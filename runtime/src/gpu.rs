@@ -1,136 +1,19 @@
-//! Headless wgpu: device creation, buffers of a [`SceneBuffers`] scene, the SAT compute passes,
-//! the shading render pass into an `Rgba32Float` target, and readback (rows padded to 256 B).
-//!
-//! Timings are wall-clock seconds around each submission plus a blocking wait, so they include
-//! submission overhead; on lavapipe the "GPU" is the CPU.
+//! Headless rendering of a [`SceneBuffers`] scene: its buffers, the blur method's passes
+//! ([`crate::blur::Method::upload`]), the shading render pass into an `Rgba32Float` target, and
+//! readback (rows padded to 256 B). The device itself is [`crate::device`].
 
 use std::time::Instant;
 
 use wgpu::util::DeviceExt;
 
-use crate::layout::{Frame, LightGpu, SatParams};
+use crate::bindings::shade as b;
+use crate::blur::{Method, Prepared};
+use crate::device::map_read;
+pub use crate::device::{Gpu, Timings};
+use crate::layout::{Frame, LightGpu, PlaneGpu};
 use crate::output::Image;
-use crate::scene::{Blur, SceneBuffers};
+use crate::scene::SceneBuffers;
 use crate::{shader, Error, Result};
-
-/// Seconds per pass, in execution order (e.g. `upload`, `sat_build`, `shade`, `readback`).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Timings {
-    /// (pass name, seconds) in execution order.
-    pub passes: Vec<(&'static str, f64)>,
-}
-
-impl Timings {
-    /// Seconds of the pass called `name`, if it ran.
-    pub fn get(&self, name: &str) -> Option<f64> {
-        self.passes
-            .iter()
-            .find(|(n, _)| *n == name)
-            .map(|&(_, s)| s)
-    }
-}
-
-/// A headless device and queue (cloning shares them).
-#[derive(Clone)]
-pub struct Gpu {
-    /// The wgpu device.
-    pub device: wgpu::Device,
-    /// Its queue.
-    pub queue: wgpu::Queue,
-    /// Which adapter it is (name, backend, driver), for reports.
-    pub adapter: wgpu::AdapterInfo,
-}
-
-impl Gpu {
-    /// Opens the default adapter (honours `WGPU_BACKEND`, `WGPU_ADAPTER_NAME`,
-    /// `WGPU_POWER_PREF`); on a machine without a GPU that is lavapipe ("llvmpipe").
-    pub fn new() -> Result<Gpu> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
-            &instance, None,
-        ))
-        .map_err(|e| Error::NoAdapter(e.to_string()))?;
-        Gpu::from_adapter(&adapter)
-    }
-
-    /// Opens a device on `adapter` with the same features and limits as [`Gpu::new`]. For a
-    /// window, pick the adapter with the window's surface as `compatible_surface` (see
-    /// [`Gpu::adapter_for_surface`]) so one device both renders and presents.
-    pub fn from_adapter(adapter: &wgpu::Adapter) -> Result<Gpu> {
-        let info = adapter.get_info();
-        // The adapter's own limits: large casters need storage buffers beyond the defaults.
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("ptm-runtime"),
-            required_features: wgpu::Features::empty(),
-            required_limits: adapter.limits(),
-            ..Default::default()
-        }))
-        .map_err(|e| Error::Device {
-            adapter: info.name.clone(),
-            reason: e.to_string(),
-        })?;
-        Ok(Gpu {
-            device,
-            queue,
-            adapter: info,
-        })
-    }
-
-    /// The default adapter (same environment variables as [`Gpu::new`]) that can present to
-    /// `surface`.
-    pub fn adapter_for_surface(
-        instance: &wgpu::Instance,
-        surface: &wgpu::Surface<'_>,
-    ) -> Result<wgpu::Adapter> {
-        pollster::block_on(wgpu::util::initialize_adapter_from_env_or_default(
-            instance,
-            Some(surface),
-        ))
-        .map_err(|e| Error::NoAdapter(format!("none can present to the window: {e}")))
-    }
-
-    /// "name (backend, device type)".
-    pub fn describe(&self) -> String {
-        format!(
-            "{} ({:?}, {:?})",
-            self.adapter.name, self.adapter.backend, self.adapter.device_type
-        )
-    }
-
-    fn wait(&self, stage: &'static str) -> Result<()> {
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map(|_| ())
-            .map_err(|e| Error::Gpu {
-                stage,
-                reason: e.to_string(),
-            })
-    }
-
-    fn storage(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-        self.storage_with(label, bytes, wgpu::BufferUsages::empty())
-    }
-
-    /// A storage buffer with further `usage` (e.g. `COPY_DST` to rewrite it).
-    fn storage_with(&self, label: &str, bytes: &[u8], usage: wgpu::BufferUsages) -> wgpu::Buffer {
-        // Storage bindings cannot be empty; a feature the scene lacks has no binding at all, but
-        // e.g. zero lights still binds a (never read) buffer of at least one element.
-        let padded;
-        let contents = if bytes.len() < 64 {
-            padded = [bytes, &[0u8; 64][bytes.len()..]].concat();
-            &padded[..]
-        } else {
-            bytes
-        };
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE | usage,
-            })
-    }
-}
 
 /// A scene uploaded to the GPU with its pipeline: render repeatedly with [`Renderer::frame`];
 /// [`Renderer::set_lights`] moves the lights without rebuilding anything.
@@ -140,10 +23,10 @@ pub struct Renderer {
     /// The light buffer (`COPY_DST`: rewritten by `set_lights`) and its light count.
     lights: wgpu::Buffer,
     light_count: usize,
-    /// The uniform block, and the blur radius per light a separable variant's pre-blurred maps
-    /// were made with (empty for other variants).
+    /// The uniform block, and with a caster the blur method with what it prepared (asked
+    /// whether moved lights keep it valid).
     frame: Frame,
-    separable_radii: Vec<[f32; 2]>,
+    blur: Option<(&'static dyn Method, Prepared, PlaneGpu)>,
     bind_group: wgpu::BindGroup,
     target: wgpu::Texture,
     size: [u32; 2],
@@ -206,62 +89,46 @@ impl Renderer {
             bytemuck::cast_slice(&p.lights),
             wgpu::BufferUsages::COPY_DST,
         );
-        let mut entries = vec![(0u32, uniform), (1, lights.clone())];
+        let mut entries = vec![(b::FRAME.index, uniform), (b::LIGHTS.index, lights.clone())];
         if v.basis.is_some() {
-            entries.push((2, gpu.storage("coeffs", bytemuck::cast_slice(&p.coeffs))));
+            entries.push((
+                b::COEFFS.index,
+                gpu.storage("coeffs", bytemuck::cast_slice(&p.coeffs)),
+            ));
         }
         if v.albedo_texture {
-            entries.push((3, gpu.storage("albedo", bytemuck::cast_slice(&p.albedo))));
+            entries.push((
+                b::ALBEDO.index,
+                gpu.storage("albedo", bytemuck::cast_slice(&p.albedo)),
+            ));
         }
-        let mut opacity = None;
-        if v.caster.is_some() {
-            let b = gpu.storage_copyable("opacity", bytemuck::cast_slice(&p.opacity));
-            opacity = Some(b.clone());
-            // The SAT variant reads only the table built from it.
-            if v.caster == Some(Blur::Explicit) {
-                entries.push((4, b));
-            }
-        }
-        gpu.wait("upload")?;
-        setup.passes.push(("upload", t.elapsed().as_secs_f64()));
-
-        if v.caster == Some(Blur::Sat) {
-            let t = Instant::now();
-            let table = build_sat(
-                gpu,
-                opacity.as_ref().expect("caster without opacity"),
-                p.frame.caster_size[0],
-                p.frame.caster_size[1],
-                v.sat_channels(),
-            )?;
-            setup.passes.push(("sat_build", t.elapsed().as_secs_f64()));
-            entries.push((5, table));
-        }
-
         if v.basis.is_some() && v.coverage {
             entries.push((
-                10,
+                b::COVERAGE.index,
                 gpu.storage("coverage", bytemuck::cast_slice(&p.coverage)),
             ));
         }
         if v.ptm_mip {
             entries.push((
-                9,
+                b::PTM_LEVELS.index,
                 gpu.storage("ptm levels", bytemuck::cast_slice(&p.ptm_levels)),
             ));
         }
-        if v.caster == Some(Blur::Mip) {
-            entries.push((6, gpu.storage("mip", bytemuck::cast_slice(&p.mip))));
-            entries.push((
-                7,
-                gpu.storage("mip levels", bytemuck::cast_slice(&p.mip_levels)),
-            ));
-        }
-        if v.caster == Some(Blur::Separable) {
-            let t = Instant::now();
-            let map = separable_passes(gpu, p, opacity.as_ref().expect("caster without opacity"))?;
-            setup.passes.push(("separable", t.elapsed().as_secs_f64()));
-            entries.push((8, map));
+        gpu.wait("upload")?;
+        setup.passes.push(("upload", t.elapsed().as_secs_f64()));
+
+        if let Some(blur) = v.caster {
+            // The filtered image's uniform block, then whatever the method uploads and builds.
+            let plane = gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("plane"),
+                    contents: bytemuck::bytes_of(&p.plane_gpu),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+            entries.push((b::PLANE.index, plane));
+            let method = crate::blur::method(blur);
+            entries.extend(method.upload(gpu, &p.plane, p.prepared.as_ref(), &mut setup)?);
         }
 
         let layout = pipeline.get_bind_group_layout(0);
@@ -304,7 +171,9 @@ impl Renderer {
             lights,
             light_count: p.lights.len(),
             frame: p.frame,
-            separable_radii: p.separable.radii.clone(),
+            blur: v
+                .caster
+                .map(|m| (crate::blur::method(m), p.prepared.clone(), p.plane_gpu)),
             bind_group,
             target,
             size,
@@ -317,9 +186,10 @@ impl Renderer {
     /// rebuilt, so it refuses what would need more: another number of lights, or (separable
     /// blur) other blur radii, which follow from the lights' heights and sizes.
     pub fn set_lights(&self, lights: &[LightGpu]) -> Result<()> {
-        let radii_kept = self.separable_radii.is_empty()
-            || crate::separable::plan(&self.frame, lights).radii == self.separable_radii;
-        if lights.len() != self.light_count || !radii_kept {
+        let kept = self.blur.as_ref().is_none_or(|(m, prepared, uniform)| {
+            m.keeps(prepared.as_ref(), &self.frame, uniform, lights)
+        });
+        if lights.len() != self.light_count || !kept {
             return Err(Error::Scene(format!(
                 "moving {} lights in place needs the same number of lights ({} here) and, for \
                  the separable blur, the same heights and radii: rebuild the renderer",
@@ -392,23 +262,6 @@ impl Renderer {
     }
 }
 
-impl Gpu {
-    /// A storage buffer that can also be copied from (inputs to compute passes, tests).
-    fn storage_copyable(&self, label: &str, bytes: &[u8]) -> wgpu::Buffer {
-        let contents = if bytes.is_empty() {
-            &[0u8; 16][..]
-        } else {
-            bytes
-        };
-        self.device
-            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            })
-    }
-}
-
 fn read_texture(
     gpu: &Gpu,
     texture: &wgpu::Texture,
@@ -442,181 +295,6 @@ fn read_texture(
     );
     gpu.queue.submit([enc.finish()]);
     map_read(gpu, &staging)
-}
-
-fn map_read(gpu: &Gpu, staging: &wgpu::Buffer) -> Result<Vec<u8>> {
-    let slice = staging.slice(..);
-    slice.map_async(wgpu::MapMode::Read, |_| {});
-    gpu.wait("readback")?;
-    let data = slice.get_mapped_range().map_err(|e| Error::Gpu {
-        stage: "readback",
-        reason: e.to_string(),
-    })?;
-    let out = data.to_vec();
-    drop(data);
-    staging.unmap();
-    Ok(out)
-}
-
-/// Records one compute pass of `entry` in `module` over `threads` invocations (64 per
-/// workgroup, at least one workgroup) with storage/uniform `bindings` of group 0, whose
-/// layout wgpu derives from what the entry point uses.
-fn dispatch(
-    gpu: &Gpu,
-    enc: &mut wgpu::CommandEncoder,
-    module: &wgpu::ShaderModule,
-    entry: &str,
-    bindings: &[(u32, &wgpu::Buffer)],
-    threads: u32,
-) {
-    let pipeline = gpu
-        .device
-        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-            label: Some(entry),
-            layout: None,
-            module,
-            entry_point: Some(entry),
-            compilation_options: Default::default(),
-            cache: None,
-        });
-    let entries: Vec<wgpu::BindGroupEntry> = bindings
-        .iter()
-        .map(|&(binding, buffer)| wgpu::BindGroupEntry {
-            binding,
-            resource: buffer.as_entire_binding(),
-        })
-        .collect();
-    let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some(entry),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &entries,
-    });
-    let mut pass = enc.begin_compute_pass(&Default::default());
-    pass.set_pipeline(&pipeline);
-    pass.set_bind_group(0, &bind_group, &[]);
-    pass.dispatch_workgroups(threads.div_ceil(64).max(1), 1, 1);
-}
-
-/// Builds the u32 summed-area table of a packed-opacity buffer on the GPU (`sat.wgsl`).
-pub fn build_sat(
-    gpu: &Gpu,
-    opacity: &wgpu::Buffer,
-    w: u32,
-    h: u32,
-    channels: u32,
-) -> Result<wgpu::Buffer> {
-    let module = gpu
-        .device
-        .create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("sat.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shader::SAT_WGSL.into()),
-        });
-    let params = gpu
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("sat params"),
-            contents: bytemuck::bytes_of(&SatParams {
-                size: [w, h],
-                channels,
-                pad: 0,
-            }),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-    // wgpu zero-initialises buffers: row 0 and column 0 of the table stay 0.
-    let table = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("sat"),
-        size: ((w + 1) as u64 * (h + 1) as u64 * channels as u64 * 4).max(16),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    });
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
-    for (entry, threads) in [("sat_rows", h * channels), ("sat_columns", w * channels)] {
-        // Auto layouts hold only what the entry point uses: the column pass reads no opacity.
-        let mut bindings = vec![(0, &params), (2, &table)];
-        if entry == "sat_rows" {
-            bindings.push((1, opacity));
-        }
-        dispatch(gpu, &mut enc, &module, entry, &bindings, threads);
-    }
-    gpu.queue.submit([enc.finish()]);
-    gpu.wait("sat_build")?;
-    Ok(table)
-}
-
-/// Runs the separable blur passes (`separable.wgsl`) for every light; returns the padded maps.
-pub fn separable_passes(
-    gpu: &Gpu,
-    p: &SceneBuffers,
-    opacity: &wgpu::Buffer,
-) -> Result<wgpu::Buffer> {
-    let plan = &p.separable;
-    let sep = plan.params(p.frame.caster_size, p.variant.sat_channels());
-    let (h, channels, lights) = (sep.size[1], sep.channels, sep.lights);
-    let [pw, ph] = sep.padded;
-    let module = gpu
-        .device
-        .create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("separable.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(shader::SEPARABLE_WGSL.into()),
-        });
-    let params = gpu
-        .device
-        .create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("separable params"),
-            contents: bytemuck::bytes_of(&sep),
-            usage: wgpu::BufferUsages::UNIFORM,
-        });
-    let radii = gpu.storage("separable radii", bytemuck::cast_slice(&plan.radii));
-    let scratch = |label: &str, n: u64| {
-        gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some(label),
-            size: (n * 4).max(64),
-            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        })
-    };
-    let hmap = scratch(
-        "separable h",
-        lights as u64 * h as u64 * pw as u64 * channels as u64,
-    );
-    let vmap = scratch(
-        "separable v",
-        lights as u64 * ph as u64 * pw as u64 * channels as u64,
-    );
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
-    for (entry, threads) in [
-        ("sep_h", lights * h * channels),
-        ("sep_v", lights * pw * channels),
-    ] {
-        // Auto layouts hold only what the entry point uses.
-        let mut bindings = vec![(0, &params), (2, &radii), (3, &hmap)];
-        if entry == "sep_h" {
-            bindings.push((1, opacity));
-        } else {
-            bindings.push((4, &vmap));
-        }
-        dispatch(gpu, &mut enc, &module, entry, &bindings, threads);
-    }
-    gpu.queue.submit([enc.finish()]);
-    gpu.wait("separable")?;
-    Ok(vmap)
-}
-
-/// Builds the SAT of `opacity` on the GPU and reads it back (for tests and benchmarks).
-pub fn sat_table(gpu: &Gpu, opacity: &[u32], w: u32, h: u32, channels: u32) -> Result<Vec<u32>> {
-    let input = gpu.storage_copyable("opacity", bytemuck::cast_slice(opacity));
-    let table = build_sat(gpu, &input, w, h, channels)?;
-    let n = (w + 1) as u64 * (h + 1) as u64 * channels as u64 * 4;
-    let staging = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some("sat readback"),
-        size: n,
-        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        mapped_at_creation: false,
-    });
-    let mut enc = gpu.device.create_command_encoder(&Default::default());
-    enc.copy_buffer_to_buffer(&table, 0, &staging, 0, n);
-    gpu.queue.submit([enc.finish()]);
-    Ok(bytemuck::pod_collect_to_vec(&map_read(gpu, &staging)?))
 }
 
 /// Renders a prepared scene once: setup timings, then `shade` and `readback`.

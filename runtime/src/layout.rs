@@ -27,23 +27,19 @@ pub struct Frame {
     pub caster_sin_tilt: f32,
     /// cos of the tilt (see `caster_sin_tilt`).
     pub caster_cos_tilt: f32,
-    /// Explicit blur: the cap on samples per axis.
-    pub explicit_samples: u32,
+    /// Padding (the plane's own fields are in [`PlaneGpu`]).
+    pub pad3: u32,
     /// PTM texels (level 0) nx, ny.
     pub ptm_size: [u32; 2],
     /// Albedo texture texels nx, ny.
     pub albedo_size: [u32; 2],
-    /// Caster texels w, h (after downsampling).
-    pub caster_size: [u32; 2],
-    /// Separable blur: margins mx, my (texels) around the caster in the pre-blurred map.
-    pub sep_margin: [u32; 2],
-    /// Separable blur: the padded map's w, h (texels).
-    pub sep_padded: [u32; 2],
     /// PTM texels under one pixel (at unit depth along the view direction for a perspective
     /// camera): the level of detail's base.
     pub ptm_texels_per_pixel: f32,
     /// Levels of the PTM's MIP chain (0 without a chain).
     pub ptm_level_count: u32,
+    /// Padding to the WGSL vec3's 16-byte alignment.
+    pub pad4: [u32; 2],
     /// Perspective camera eye (world).
     pub eye: [f32; 3],
     /// 1 for the perspective camera, 0 for the orthographic top view of `view`.
@@ -69,6 +65,24 @@ impl Frame {
     }
 }
 
+/// The filtered planar image's uniform block (`struct Plane` in `shader/shade.wgsl`): what the
+/// blur methods read of the image they convolve, apart from its texels and tables. Bound only
+/// in variants with a caster ([`crate::bindings`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct PlaneGpu {
+    /// Image texels w, h (after downsampling).
+    pub size: [u32; 2],
+    /// Separable blur: margins mx, my (texels) around the image in the pre-blurred map.
+    pub margin: [u32; 2],
+    /// Separable blur: the padded map's w, h (texels).
+    pub padded: [u32; 2],
+    /// Explicit blur: the cap on samples per axis.
+    pub samples: u32,
+    /// Padding to 32 bytes, as the WGSL struct.
+    pub pad: u32,
+}
+
 /// One light as the shader reads it: `struct Light` in `shader/shade.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -79,8 +93,12 @@ pub struct LightGpu {
     pub radius: f32,
     /// Colour × intensity (linear rgb).
     pub color: [f32; 3],
-    /// Padding to the WGSL vec3's 16-byte stride.
-    pub pad: f32,
+    /// 0: a sphere of `radius`; 1: a rectangle of half-sides `half`, facing down.
+    pub shape: u32,
+    /// A rectangle's half-sides along X and Y (0 for a sphere).
+    pub half: [f32; 2],
+    /// Padding to 16 bytes, as the WGSL struct.
+    pub pad: [f32; 2],
 }
 
 /// One level of the PTM's MIP chain: `struct PtmLevel` in `shader/shade.wgsl`.
@@ -116,7 +134,7 @@ impl PtmLevel {
     }
 }
 
-/// One level of the caster opacity's MIP chain: `struct MipLevel` in `shader/shade.wgsl`.
+/// One level of the caster opacity's MIP chain: `struct MipLevel` in `blur/mip.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct MipLevel {
@@ -142,7 +160,7 @@ impl MipLevel {
     }
 }
 
-/// The summed-area table passes' uniform block: `struct SatParams` in `shader/sat.wgsl`.
+/// The summed-area table passes' uniform block: `struct SatParams` in `blur/sat_build.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SatParams {
@@ -154,7 +172,7 @@ pub struct SatParams {
     pub pad: u32,
 }
 
-/// The separable blur passes' uniform block: `struct SepParams` in `shader/separable.wgsl`.
+/// The separable blur passes' uniform block: `struct SepParams` in `blur/separable_passes.wgsl`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct SepParams {
@@ -168,6 +186,22 @@ pub struct SepParams {
     pub margin: [u32; 2],
     /// The padded map's w, h.
     pub padded: [u32; 2],
+}
+
+/// The window's blit pass's uniform block: `struct BlitParams` in `shader/blit.wgsl`.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct BlitParams {
+    /// The frame's width, height (texels).
+    pub image: [f32; 2],
+    /// The letterboxed image's top-left corner in the window (pixels).
+    pub offset: [f32; 2],
+    /// The letterboxed image's size in the window (pixels).
+    pub fit: [f32; 2],
+    /// Radiance scale, 2^exposure.
+    pub scale: f32,
+    /// 1: encode sRGB in the shader (the surface format is not sRGB); 0: the surface does.
+    pub encode: f32,
 }
 
 #[cfg(test)]
@@ -235,9 +269,9 @@ mod tests {
     #[test]
     fn frame_matches_the_wgsl_struct_field_for_field() {
         let want = fields!(Frame: view, screen, tile, albedo, light_count, caster_rect,
-            caster_height, caster_sin_tilt, caster_cos_tilt, explicit_samples, ptm_size,
-            albedo_size, caster_size, sep_margin, sep_padded, ptm_texels_per_pixel,
-            ptm_level_count, eye, perspective, cam_right, pad0, cam_up, pad1, cam_forward, pad2);
+            caster_height, caster_sin_tilt, caster_cos_tilt, pad3, ptm_size, albedo_size,
+            ptm_texels_per_pixel, ptm_level_count, pad4, eye, perspective, cam_right, pad0,
+            cam_up, pad1, cam_forward, pad2);
         check(&shade_module(), "Frame", want, size_of::<Frame>());
         // A uniform block's size is a multiple of 16 bytes.
         assert_eq!(size_of::<Frame>() % 16, 0);
@@ -246,10 +280,12 @@ mod tests {
     #[test]
     fn light_and_mip_levels_match_the_wgsl_structs() {
         let m = shade_module();
-        let want = fields!(LightGpu: position, radius, color, pad);
+        let want = fields!(LightGpu: position, radius, color, shape, half, pad);
         check(&m, "Light", want, size_of::<LightGpu>());
         let want = fields!(PtmLevel: offset, width, height, pad, period, pad2);
         check(&m, "PtmLevel", want, size_of::<PtmLevel>());
+        let want = fields!(PlaneGpu: size, margin, padded, samples, pad);
+        check(&m, "Plane", want, size_of::<PlaneGpu>());
         let m = mip_module();
         let want = fields!(MipLevel: offset, width, height, pad);
         check(&m, "MipLevel", want, size_of::<MipLevel>());
@@ -257,11 +293,15 @@ mod tests {
 
     #[test]
     fn compute_pass_params_match_the_wgsl_structs() {
-        let m = shader::validate("sat.wgsl", shader::SAT_WGSL).unwrap();
+        let m = shader::validate("sat_build.wgsl", crate::blur::sat::BUILD_WGSL).unwrap();
         let want = fields!(SatParams: size, channels, pad);
         check(&m, "SatParams", want, size_of::<SatParams>());
-        let m = shader::validate("separable.wgsl", shader::SEPARABLE_WGSL).unwrap();
+        let m =
+            shader::validate("separable_passes.wgsl", crate::blur::separable::PASSES_WGSL).unwrap();
         let want = fields!(SepParams: size, channels, lights, margin, padded);
         check(&m, "SepParams", want, size_of::<SepParams>());
+        let m = shader::validate("blit.wgsl", shader::BLIT_WGSL).unwrap();
+        let want = fields!(BlitParams: image, offset, fit, scale, encode);
+        check(&m, "BlitParams", want, size_of::<BlitParams>());
     }
 }

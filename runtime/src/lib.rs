@@ -2,24 +2,29 @@
 //! soft shadows from a planar caster and micro-occlusion from an occlusion PTM; and its CPU twin.
 //!
 //! Data flow: a [`Scene`] (public-field config) is [`Scene::prepare`]d into [`SceneBuffers`] — the
-//! uniform block, light list, texel-major PTM coefficients and caster opacity exactly as the GPU
-//! sees them ([`layout`] holds every GPU struct, field for field with its WGSL). [`gpu::render`]
+//! uniform block, light list, texel-major PTM coefficients and the filtered planar image the
+//! blur convolves (the caster's opacity), exactly as the GPU sees them ([`layout`] holds every
+//! GPU struct, field for field with its WGSL; [`bindings`] every binding, by name). [`gpu::render`]
 //! runs the WGSL variant assembled for that scene ([`shader`]); [`cpu::render`] is its twin in
 //! Rust (one module per WGSL file, same function names, same maths) and what the tests compare
-//! the GPU with. [`caster`] prepares the caster's opacity, [`mip`] and [`separable`] the blur
-//! methods' inputs; [`penumbra`] holds the blur-radius geometry and the analytic profile,
-//! [`reference`](mod@reference) the Monte Carlo ground truth.
+//! the GPU with. [`blur`] is the convolution's extension point: one module per method owning its
+//! WGSL, CPU twin, resources, passes and kernels. [`caster`] prepares the caster's opacity,
+//! [`mip`] the MIP chains; [`penumbra`] holds the blur-radius geometry and the analytic profile,
+//! [`reference`](mod@reference) the Monte Carlo ground truth; [`device`] the headless device.
 //!
-//! Imports run one way: `layout` ← `caster`, `mip`, `separable` ← `scene` ← `shader`, `cpu`,
-//! `gpu` ← `reference`, `window`.
+//! Imports run one way: `layout`, `bindings` ← `device`, `caster`, `mip` ← `blur` ← `scene` ←
+//! `shader`, `cpu`, `gpu` ← `reference`, `window`.
 
 // Per-channel loops index several parallel arrays (rgb of albedo, colour, opacity) at once, as
 // the WGSL does with vectors; iterator zips would hide that correspondence.
 #![allow(clippy::needless_range_loop)]
 
+pub mod bindings;
+pub mod blur;
 pub mod caster;
 pub mod compare;
 pub mod cpu;
+pub mod device;
 pub mod gpu;
 pub mod layout;
 pub mod mip;
@@ -27,7 +32,6 @@ pub mod output;
 pub mod penumbra;
 pub mod reference;
 pub mod scene;
-pub mod separable;
 pub mod shader;
 pub mod synthetic;
 #[cfg(feature = "window")]

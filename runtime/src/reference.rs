@@ -1,4 +1,5 @@
-//! The ground truth the blur methods are judged against: Monte Carlo over the spherical light
+//! The ground truth the blur methods are judged against: Monte Carlo over the true light (a
+//! sphere, or a uniform rectangle: [`mc_opacity_rect`])
 //! with exact ray–plane hits on the (tilted) caster, plugged into the CPU twin in place of a
 //! blur method ([`render_reference`]).
 
@@ -7,7 +8,8 @@ use std::f64::consts::PI;
 use ptm_format::hash::{splitmix64 as hash, unit_f64 as unit};
 use ptm_format::vec3::{cross, dot, normalize};
 
-use crate::cpu::shade::opacity_raw;
+use crate::blur::explicit::opacity_raw;
+use crate::blur::Plane;
 use crate::layout::{Frame, LightGpu};
 use crate::output::Image;
 use crate::scene::SceneBuffers;
@@ -21,7 +23,7 @@ pub fn render_reference(p: &SceneBuffers, samples: u32) -> Image {
     let opacity = |q: [f32; 2], l: &LightGpu| {
         let key =
             (q[0].to_bits() as u64) << 32 ^ q[1].to_bits() as u64 ^ l.position[0].to_bits() as u64;
-        mc_opacity(&p.frame, &p.opacity, q, l, samples, key)
+        mc_opacity(&p.frame, &p.plane, q, l, samples, key)
     };
     crate::cpu::render_with(p, Some(&opacity))
 }
@@ -33,12 +35,15 @@ pub fn render_reference(p: &SceneBuffers, samples: u32) -> Image {
 /// Deterministic: the random numbers hash (pixel key, sample).
 pub fn mc_opacity(
     frame: &Frame,
-    opacity: &[u32],
+    plane: &Plane,
     p: [f32; 2],
     light: &LightGpu,
     samples: u32,
     key: u64,
 ) -> [f32; 3] {
+    if light.shape == 1 {
+        return mc_opacity_rect(frame, plane, p, light, samples, key, true);
+    }
     let h = frame.caster_height as f64;
     let [lx, ly, lz] = light.position.map(|x| x as f64);
     let r = light.radius as f64;
@@ -61,7 +66,7 @@ pub fn mc_opacity(
     } else {
         (1.0 - (r / d) * (r / d)).sqrt()
     };
-    let [w, ht] = frame.caster_size;
+    let [w, ht] = plane.size;
     let rect = frame.caster_rect.map(|x| x as f64);
     let (sin_t, cos_t) = (frame.caster_sin_tilt as f64, frame.caster_cos_tilt as f64);
     let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]), h];
@@ -101,7 +106,76 @@ pub fn mc_opacity(
                 ((hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64) as f32,
                 ((rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64) as f32,
             ];
-            o = opacity_raw(opacity, [w, ht], tc).map(|x| (x as f32 / 255.0) as f64);
+            o = opacity_raw(&plane.texels, [w, ht], tc).map(|x| (x as f32 / 255.0) as f64);
+        }
+        sum_w += weight;
+        for k in 0..3 {
+            sum_o[k] += weight * o[k];
+        }
+    }
+    if sum_w <= 0.0 {
+        return [0.0; 3];
+    }
+    sum_o.map(|x| (x / sum_w) as f32)
+}
+
+/// As [`mc_opacity`] for a uniform rectangle facing down (half-sides `light.half` along X and
+/// Y): `samples` stratified points uniform in area, each weighted by cos θ at p · cos θ at the
+/// light / r² (the irradiance each patch gives; with `irradiance` false every point weighs the
+/// same, the kernel alone: the mean over the rectangle's image on the caster), the ray to each
+/// intersected exactly with the caster plane. A sample of a rectangle 1000 times longer than wide still falls in its own
+/// stratum, so thin lights need no special care.
+pub fn mc_opacity_rect(
+    frame: &Frame,
+    plane: &Plane,
+    p: [f32; 2],
+    light: &LightGpu,
+    samples: u32,
+    key: u64,
+    irradiance: bool,
+) -> [f32; 3] {
+    let h = frame.caster_height as f64;
+    let [lx, ly, lz] = light.position.map(|x| x as f64);
+    if lz <= 0.0 {
+        return [0.0; 3];
+    }
+    let half = light.half.map(|x| x as f64);
+    let [w, ht] = plane.size;
+    let rect = frame.caster_rect.map(|x| x as f64);
+    let (sin_t, cos_t) = (frame.caster_sin_tilt as f64, frame.caster_cos_tilt as f64);
+    let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]), h];
+    let (normal, along) = ([0.0, -sin_t, cos_t], [0.0, cos_t, sin_t]);
+    let below = [centre[0] - p[0] as f64, centre[1] - p[1] as f64, h];
+    // Strata in proportion to the sides (at least one each), about `samples` in all.
+    let aspect = (half[0] / half[1].max(1e-30)).clamp(1.0 / samples as f64, samples as f64);
+    let nx = ((samples as f64 * aspect).sqrt().round() as u32).clamp(1, samples);
+    let ny = (samples / nx).max(1);
+    let mut sum_w = 0.0;
+    let mut sum_o = [0.0f64; 3];
+    for s in 0..nx * ny {
+        let (si, sj) = (s % nx, s / nx);
+        let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
+        let u1 = (si as f64 + unit(hs)) / nx as f64;
+        let u2 = (sj as f64 + unit(hash(hs))) / ny as f64;
+        let q = [
+            lx + (2.0 * u1 - 1.0) * half[0],
+            ly + (2.0 * u2 - 1.0) * half[1],
+            lz,
+        ];
+        let dir = [q[0] - p[0] as f64, q[1] - p[1] as f64, lz];
+        let r2 = dot(dir, dir);
+        // cos at p = cos at the light = lz / r; the patch's solid angle ∝ cos_l / r².
+        let weight = if irradiance { lz * lz / (r2 * r2) } else { 1.0 };
+        let t_caster = dot(normal, below) / dot(normal, dir);
+        let mut o = [0.0; 3];
+        if t_caster > 0.0 && t_caster < 1.0 {
+            let off: [f64; 3] = std::array::from_fn(|k| t_caster * dir[k] - below[k]);
+            let hit = [centre[0] + off[0], centre[1] + dot(off, along)];
+            let tc = [
+                ((hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64) as f32,
+                ((rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64) as f32,
+            ];
+            o = opacity_raw(&plane.texels, [w, ht], tc).map(|x| (x as f32 / 255.0) as f64);
         }
         sum_w += weight;
         for k in 0..3 {

@@ -6,8 +6,9 @@
 
 use ptm_format::{Link, Ptm, UvMap};
 
+pub use crate::blur::Blur;
 pub use crate::caster::{Caster, MAX_CASTER_SIDE};
-use crate::layout::{Frame, LightGpu, PtmLevel};
+use crate::layout::{Frame, LightGpu, PlaneGpu, PtmLevel};
 use crate::{Error, Result};
 
 /// Upper bound on the explicit blur's samples per axis (it grows as 4 × the radius in texels,
@@ -24,41 +25,28 @@ pub const MAX_IMAGE_SIDE: u32 = 8192;
 pub struct Light {
     /// Centre in world space (swatch units; z above the acceptor).
     pub position: [f32; 3],
-    /// Sphere radius R in swatch units (0 = point light: a hard shadow).
+    /// Sphere radius R in swatch units (0 = point light: a hard shadow); ignored for a
+    /// rectangle.
     pub radius: f32,
+    /// `Some([a, b])`: a uniform rectangular light of sides a along X and b along Y centred at
+    /// `position`, facing straight down (parallel to the cloth), instead of a sphere. Its
+    /// penumbra kernel on a caster parallel to the cloth is that rectangle scaled by the
+    /// caster's fraction of the way to the light: a box of any aspect ratio, exact with the
+    /// summed-area table.
+    pub rect: Option<[f32; 2]>,
     /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
     pub intensity: f32,
     /// Linear RGB colour.
     pub color: [f32; 3],
 }
 
-/// How the caster opacity is averaged over the penumbra kernel.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Blur {
-    /// The reference: a regular grid of samples (spacing ≤ ½ texel, ≥ 16 per axis) over the
-    /// disk of radius w (cost grows as w²).
-    Explicit,
-    /// Box of half-side w from a summed-area table of u32 counts (constant cost, exact sums).
-    Sat,
-    /// Trilinear lookup in the caster's MIP chain at level log2(2w) (constant cost; the
-    /// kernel is a blend of two power-of-two boxes on a fixed grid, so it errs most at edges).
-    Mip,
-    /// Per light, a horizontal then a vertical box pass (half-side w) over the caster with
-    /// running sums, then a bilinear lookup (cost per light ∝ caster texels, not w).
-    Separable,
-}
-
-impl Blur {
-    /// Every blur method, in the order help texts and reports list them.
-    pub const ALL: [Blur; 4] = [Blur::Explicit, Blur::Sat, Blur::Mip, Blur::Separable];
-
-    /// The method in words, as the CLI and reports spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Blur::Explicit => "explicit",
-            Blur::Sat => "sat",
-            Blur::Mip => "mip",
-            Blur::Separable => "separable",
+impl Light {
+    /// The light's largest distance from its centre in the plane of the cloth: the sphere's
+    /// radius, or half the rectangle's diagonal (how far a penumbra can spread).
+    pub fn extent(&self) -> f32 {
+        match self.rect {
+            Some([a, b]) => 0.5 * (a * a + b * b).sqrt(),
+            None => self.radius,
         }
     }
 }
@@ -151,7 +139,9 @@ impl Scene {
                 position: l.position,
                 radius: l.radius.max(0.0),
                 color: l.color.map(|c| c * l.intensity),
-                pad: 0.0,
+                shape: u32::from(l.rect.is_some()),
+                half: l.rect.map_or([0.0; 2], |r| r.map(|x| 0.5 * x)),
+                pad: [0.0; 2],
             })
             .collect()
     }
@@ -184,6 +174,16 @@ impl Scene {
                 )));
             }
         }
+        for (i, l) in self.lights.iter().enumerate() {
+            if let Some(r) = l.rect {
+                if !r.iter().all(|x| x.is_finite() && *x > 0.0) {
+                    return Err(Error::Scene(format!(
+                        "light {i} is a rectangle of sides {} × {}: both must be finite and > 0",
+                        r[0], r[1]
+                    )));
+                }
+            }
+        }
         let [x0, y0, x1, y1] = self.view;
         if !(x1 > x0 && y1 > y0) {
             return Err(Error::Scene(format!(
@@ -197,7 +197,6 @@ impl Scene {
             tile: [x1 - x0, y1 - y0],
             albedo: self.albedo,
             light_count: self.lights.len() as u32,
-            explicit_samples: MAX_EXPLICIT_SAMPLES,
             ..Frame::zeroed()
         };
         if let Some(cam) = &self.perspective {
@@ -308,10 +307,9 @@ impl Scene {
 
         let lights = self.gpu_lights();
 
-        let mut opacity = Vec::new();
-        let mut mip = Vec::new();
-        let mut mip_levels = Vec::new();
-        let mut separable = crate::separable::Plan::default();
+        let mut plane = crate::blur::Plane::default();
+        let mut plane_gpu = PlaneGpu::default();
+        let mut prepared = crate::blur::nothing();
         let mut caster_downsample = 1;
         if let Some(c) = &self.caster {
             if c.width == 0 || c.height == 0 || c.rgba.len() != c.width * c.height {
@@ -342,32 +340,23 @@ impl Scene {
                     cy1 - cy0
                 )));
             }
-            if c.tilt_deg != 0.0 && self.blur == Blur::Separable {
-                return Err(Error::SeparableNeedsParallelCaster {
-                    tilt_deg: c.tilt_deg,
-                });
-            }
+            let method = crate::blur::method(self.blur);
+            method.check(c)?;
             let (cw, ch, texels, factor) = crate::caster::fit_caster(c);
             caster_downsample = factor;
-            opacity = crate::caster::opacity_texels(&texels, self.colored_shadow);
+            // The image the blur filters: the caster's opacity (grey, or rgb for stained glass).
+            plane = crate::blur::Plane {
+                size: [cw as u32, ch as u32],
+                channels: if self.colored_shadow { 3 } else { 1 },
+                texels: crate::caster::opacity_texels(&texels, self.colored_shadow),
+            };
             frame.caster_rect = c.rect;
             frame.caster_height = c.elevation;
             frame.caster_sin_tilt = tilt.sin();
             frame.caster_cos_tilt = tilt.cos();
-            frame.caster_size = [cw as u32, ch as u32];
-            match self.blur {
-                Blur::Mip => {
-                    let (texels, levels) = crate::mip::build_chain(&opacity, cw, ch);
-                    mip = texels;
-                    mip_levels = levels;
-                }
-                Blur::Separable => {
-                    separable = crate::separable::plan(&frame, &lights);
-                    frame.sep_margin = separable.margin;
-                    frame.sep_padded = separable.padded;
-                }
-                _ => {}
-            }
+            plane_gpu.size = plane.size;
+            plane_gpu.samples = MAX_EXPLICIT_SAMPLES;
+            prepared = method.prepare(&plane, &frame, &lights, &mut plane_gpu);
         }
 
         let variant = Variant {
@@ -383,7 +372,7 @@ impl Scene {
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
             for (i, l) in self.lights.iter().enumerate() {
-                let Some(s) = c.shadow_rect(l.position, l.radius) else {
+                let Some(s) = c.shadow_rect(l.position, l.extent()) else {
                     continue;
                 };
                 if s[2] < x0 || s[0] > x1 || s[3] < y0 || s[1] > y1 {
@@ -402,10 +391,9 @@ impl Scene {
             ptm_levels,
             coverage,
             albedo,
-            opacity,
-            mip,
-            mip_levels,
-            separable,
+            plane,
+            plane_gpu,
+            prepared,
             variant,
             caster_downsample,
             nonfinite_coeffs,
@@ -665,15 +653,13 @@ pub struct SceneBuffers {
     pub coverage: Vec<f32>,
     /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
     pub albedo: Vec<[f32; 4]>,
-    /// Caster opacity per texel as packed u8 (r | g << 8 | b << 16), each 0..=255; all three
-    /// equal without `colored_shadow`.
-    pub opacity: Vec<u32>,
-    /// MIP chain of the opacity (rgb in 0..1, a unused), all levels concatenated.
-    pub mip: Vec<[f32; 4]>,
-    /// Per MIP level of `mip`: where its texels start, its size.
-    pub mip_levels: Vec<crate::layout::MipLevel>,
-    /// Separable blur: per-light radii and the padded map layout.
-    pub separable: crate::separable::Plan,
+    /// The image the blur filters: the caster's opacity per texel as packed u8 (r | g << 8 |
+    /// b << 16, each 0..=255; all three equal without `colored_shadow`); empty without a caster.
+    pub plane: crate::blur::Plane,
+    /// The image's uniform block (its size and the method's fields).
+    pub plane_gpu: PlaneGpu,
+    /// What the scene's blur method prepared from the image ([`crate::blur::Method::prepare`]).
+    pub prepared: crate::blur::Prepared,
     /// Which shader variant renders it.
     pub variant: Variant,
     /// Integer factor the caster image was box-downsampled by (1 = as given).

@@ -29,9 +29,12 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{Key, NamedKey};
 use winit::window::{Window, WindowId};
 
+use crate::bindings::blit;
 use crate::gpu::{Gpu, Renderer};
+use crate::layout::BlitParams;
 use crate::output::Image;
 use crate::scene::{Blur, Scene};
+use crate::shader::BLIT_WGSL;
 use crate::{Error, Result};
 
 /// How the window behaves beyond the scene itself.
@@ -283,10 +286,10 @@ impl App {
     /// on again, the light moved to two places.
     fn scripted(step: u32) -> Action {
         match step % 7 {
-            0 => Action::SetBlur(Blur::Explicit),
+            0 => Action::SetBlur(Blur::ALL[0]),
             1 => Action::NextBlur,
-            2 => Action::SetBlur(Blur::Mip),
-            3 => Action::SetBlur(Blur::Separable),
+            2 => Action::SetBlur(Blur::ALL[2 % Blur::ALL.len()]),
+            3 => Action::SetBlur(Blur::ALL[Blur::ALL.len() - 1]),
             4 => Action::TogglePtm,
             5 => Action::LightAt([0.25, 0.25]),
             _ => Action::TogglePtm,
@@ -531,10 +534,8 @@ impl ApplicationHandler for App {
                         return;
                     }
                     Key::Character(c) => match c.to_ascii_lowercase().as_str() {
-                        "1" => Action::SetBlur(Blur::Explicit),
-                        "2" => Action::SetBlur(Blur::Sat),
-                        "3" => Action::SetBlur(Blur::Mip),
-                        "4" => Action::SetBlur(Blur::Separable),
+                        // 1, 2, …: the blur methods in the order `Blur::ALL` lists them.
+                        d if blur_key(d).is_some() => Action::SetBlur(blur_key(d).unwrap()),
                         "b" => Action::NextBlur,
                         "p" => Action::TogglePtm,
                         _ => return,
@@ -587,50 +588,15 @@ impl Letterbox {
     }
 }
 
-/// Fullscreen-triangle pass: the `Rgba32Float` frame (`textureLoad`, no filtering needed),
-/// letterboxed, × 2^exposure, clamped, sRGB-encoded (by the shader unless the surface format is
-/// sRGB already).
-const BLIT_WGSL: &str = r#"
-struct Params {
-    image: vec2<f32>,
-    offset: vec2<f32>,
-    fit: vec2<f32>,
-    scale: f32,
-    encode: f32,
+/// The blur method digit key `d` selects: `1` the first of [`Blur::ALL`], and so on.
+fn blur_key(d: &str) -> Option<Blur> {
+    let n: usize = d.parse().ok()?;
+    Blur::ALL.get(n.checked_sub(1)?).copied()
 }
 
-@group(0) @binding(0) var frame: texture_2d<f32>;
-@group(0) @binding(1) var<uniform> params: Params;
-
-@vertex
-fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
-    let uv = vec2<f32>(f32((i << 1u) & 2u), f32(i & 2u));
-    return vec4<f32>(uv * 2.0 - 1.0, 0.0, 1.0);
-}
-
-fn srgb_encode(x: f32) -> f32 {
-    let c = clamp(x, 0.0, 1.0);
-    if c <= 0.0031308 {
-        return 12.92 * c;
-    }
-    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
-}
-
-@fragment
-fn fs_main(@builtin(position) pos: vec4<f32>) -> @location(0) vec4<f32> {
-    let q = (pos.xy - params.offset) / params.fit;
-    if any(q < vec2<f32>(0.0)) || any(q >= vec2<f32>(1.0)) {
-        return vec4<f32>(0.0, 0.0, 0.0, 1.0);
-    }
-    let texel = vec2<i32>(min(q * params.image, params.image - 1.0));
-    var c = clamp(textureLoad(frame, texel, 0).rgb * params.scale, vec3<f32>(0.0), vec3<f32>(1.0));
-    if params.encode > 0.5 {
-        c = vec3<f32>(srgb_encode(c.r), srgb_encode(c.g), srgb_encode(c.b));
-    }
-    return vec4<f32>(c, 1.0);
-}
-"#;
-
+/// Fullscreen-triangle pass (`shader/blit.wgsl`, twin `cpu::blit`): the `Rgba32Float` frame
+/// (`textureLoad`, no filtering needed), letterboxed, × 2^exposure, clamped, sRGB-encoded (by
+/// the shader unless the surface format is sRGB already).
 struct Blit {
     pipeline: wgpu::RenderPipeline,
     layout: wgpu::BindGroupLayout,
@@ -652,7 +618,7 @@ impl Blit {
             label: Some("blit"),
             entries: &[
                 wgpu::BindGroupLayoutEntry {
-                    binding: 0,
+                    binding: blit::FRAME.index,
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ty: wgpu::BindingType::Texture {
                         sample_type: wgpu::TextureSampleType::Float { filterable: false },
@@ -662,7 +628,7 @@ impl Blit {
                     count: None,
                 },
                 wgpu::BindGroupLayoutEntry {
-                    binding: 1,
+                    binding: blit::PARAMS.index,
                     visibility: wgpu::ShaderStages::FRAGMENT,
                     ty: wgpu::BindingType::Buffer {
                         ty: wgpu::BufferBindingType::Uniform,
@@ -701,7 +667,7 @@ impl Blit {
         });
         let params = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("blit params"),
-            size: 32,
+            size: std::mem::size_of::<BlitParams>() as u64,
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
@@ -731,11 +697,11 @@ impl Blit {
             layout: &self.layout,
             entries: &[
                 wgpu::BindGroupEntry {
-                    binding: 0,
+                    binding: blit::FRAME.index,
                     resource: wgpu::BindingResource::TextureView(&view),
                 },
                 wgpu::BindGroupEntry {
-                    binding: 1,
+                    binding: blit::PARAMS.index,
                     resource: self.params.as_entire_binding(),
                 },
             ],
@@ -753,18 +719,15 @@ impl Blit {
         exposure: f32,
     ) {
         let fit = Letterbox::new([image.width, image.height], window);
-        let params: [f32; 8] = [
-            image.width as f32,
-            image.height as f32,
-            fit.offset[0],
-            fit.offset[1],
-            fit.size[0],
-            fit.size[1],
-            exposure.exp2(),
-            if self.encode { 1.0 } else { 0.0 },
-        ];
+        let params = BlitParams {
+            image: [image.width as f32, image.height as f32],
+            offset: fit.offset,
+            fit: fit.size,
+            scale: exposure.exp2(),
+            encode: if self.encode { 1.0 } else { 0.0 },
+        };
         gpu.queue
-            .write_buffer(&self.params, 0, bytemuck::cast_slice(&params));
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let mut enc = gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -804,17 +767,6 @@ mod tests {
         assert_eq!(f.offset, [0.0, 50.0]);
     }
 
-    #[test]
-    fn blit_shader_validates() {
-        let module = naga::front::wgsl::parse_str(BLIT_WGSL).expect("blit.wgsl parses");
-        naga::valid::Validator::new(
-            naga::valid::ValidationFlags::all(),
-            naga::valid::Capabilities::all(),
-        )
-        .validate(&module)
-        .expect("blit.wgsl validates");
-    }
-
     /// A 64×48 view of a constant-K PTM under one light with an opaque square caster.
     fn smoke_scene() -> Scene {
         let ptm = Ptm {
@@ -836,6 +788,7 @@ mod tests {
         scene.lights = vec![Light {
             position: [1.0, 0.75, 2.0],
             radius: 0.1,
+            rect: None,
             intensity: 4.0,
             color: [1.0, 1.0, 1.0],
         }];

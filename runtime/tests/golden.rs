@@ -111,3 +111,12 @@ fn golden_ptm6_sat_with_a_hole() {
     s.ptm = Some(holed_ptm(Basis::Ptm6, 12, 10, 11));
     check_golden("ptm6_sat_hole", &s);
 }
+
+#[test]
+fn golden_ptm6_sat_under_rectangular_lights() {
+    // A 4:1 panel and a 1000:1 tube: the box kernel of each, summed by the table.
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.lights[0].rect = Some([1.6, 0.4]);
+    s.lights[1].rect = Some([1.0, 0.001]);
+    check_golden("ptm6_sat_rect", &s);
+}

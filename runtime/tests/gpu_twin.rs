@@ -73,6 +73,24 @@ fn gpu_matches_twin_with_albedo_texture_and_casters() {
 }
 
 #[test]
+fn gpu_matches_twin_under_rectangular_lights_for_every_blur() {
+    let mut s = scene(Some(Basis::Ptm6), [48, 40]);
+    s.caster = Some(random_caster(40, 30, [0.3, 0.2, 2.6, 2.4], 0.6, 3));
+    // Aspect 4:1, 1:3 and 1000:1 (a tube light), beside a sphere.
+    for (l, rect) in s
+        .lights
+        .iter_mut()
+        .zip([[1.6, 0.4], [0.2, 0.6], [2.0, 0.002]])
+    {
+        l.rect = Some(rect);
+    }
+    for blur in Blur::ALL {
+        s.blur = blur;
+        check(&s, &format!("rectangular lights, {}", blur.name()));
+    }
+}
+
+#[test]
 fn gpu_sat_equals_cpu_sat_bit_for_bit() {
     let g = gpu();
     let (w, h) = (301usize, 97usize);
@@ -80,8 +98,9 @@ fn gpu_sat_equals_cpu_sat_bit_for_bit() {
         .map(|i| hash(i as u64) as u32 & 0x00FF_FFFF)
         .collect();
     for channels in [1u32, 3] {
-        let gpu_table = gpu::sat_table(&g, &op, w as u32, h as u32, channels).unwrap();
-        let cpu_table = ptm_runtime::cpu::sat::build(&op, w, h, channels as usize);
+        let gpu_table =
+            ptm_runtime::blur::sat::sat_table(&g, &op, w as u32, h as u32, channels).unwrap();
+        let cpu_table = ptm_runtime::blur::sat::build(&op, w, h, channels as usize);
         assert_eq!(gpu_table.len(), cpu_table.len());
         let first = gpu_table.iter().zip(&cpu_table).position(|(a, b)| a != b);
         assert_eq!(

@@ -103,7 +103,7 @@ fn monte_carlo_ground_truth_agrees_with_the_analytic_half_plane() {
     let mut worst = 0f64;
     for i in (0..W as usize).step_by(4) {
         let x = pixel_x(i) as f32;
-        let o = mc_opacity(&p.frame, &p.opacity, [x, 0.0], &p.lights[0], 4096, i as u64)[0];
+        let o = mc_opacity(&p.frame, &p.plane, [x, 0.0], &p.lights[0], 4096, i as u64)[0];
         let want = half_plane_fraction(-0.75 * x as f64, w);
         worst = worst.max((o as f64 - want).abs());
     }
@@ -204,7 +204,7 @@ fn casters_beyond_4096_are_downsampled_and_still_render() {
     s.caster = Some(c);
     let p = s.prepare().unwrap();
     assert_eq!(p.caster_downsample, 3);
-    assert_eq!((p.frame.caster_size[0], p.frame.caster_size[1]), (2734, 1));
+    assert_eq!((p.plane.size[0], p.plane.size[1]), (2734, 1));
     let (img, _) = gpu::render(&gpu(), &p).unwrap();
     let twin = cpu::render(&p);
     assert!(img.max_abs_diff(&twin).unwrap() < 1e-3);

@@ -1,19 +1,19 @@
 //! The CPU twin of the shaders, one module per WGSL file with the WGSL functions' names
-//! (vello's `cpu/` beside `shaders/`): [`shade`] for `shader/shade.wgsl`, [`sat`] for
-//! `shader/sat.wgsl`, [`separable`] for `shader/separable.wgsl`. [`twins`] pairs every WGSL
-//! function with its twin; a test fails when a WGSL function has none.
+//! (vello's `cpu/` beside `shaders/`): [`shade`] for `shader/shade.wgsl`, [`blit`] for
+//! `shader/blit.wgsl`; each blur method's module in [`crate::blur`] is the twin of its own WGSL
+//! files. [`twins`] pairs every WGSL function with its twin; a test fails when a WGSL function
+//! has none.
 //!
 //! [`render`] runs the whole pipeline the GPU runs (tables, then one `fs_main` per pixel) on the
 //! same [`SceneBuffers`] buffers; tests compare the GPU image with it.
 
-pub mod sat;
-pub mod separable;
+pub mod blit;
 pub mod shade;
 
 use rayon::prelude::*;
 
 use crate::output::Image;
-use crate::scene::{Blur, SceneBuffers};
+use crate::scene::SceneBuffers;
 use shade::{pixel_world, ptm_k_unclamped, ptm_lod, OpacityFn, Twin};
 
 /// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
@@ -27,24 +27,14 @@ pub fn render(p: &SceneBuffers) -> Image {
 /// [`crate::reference::render_reference`]).
 pub fn render_with(p: &SceneBuffers, opacity: Option<&OpacityFn<'_>>) -> Image {
     let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
-    let [cw, ch] = p.frame.caster_size;
-    let channels = p.variant.sat_channels();
-    let table = match p.variant.caster {
-        Some(Blur::Sat) => sat::build(&p.opacity, cw as usize, ch as usize, channels as usize),
-        _ => Vec::new(),
-    };
-    let sep = match p.variant.caster {
-        Some(Blur::Separable) => {
-            let params = p.separable.params([cw, ch], channels);
-            let hmap = separable::sep_h(&params, &p.opacity, &p.separable.radii);
-            separable::sep_v(&params, &hmap, &p.separable.radii)
-        }
-        _ => Vec::new(),
-    };
+    // What the method's passes build on the GPU (a table, the separable maps), built here.
+    let blur = p.variant.caster.map(|b| {
+        let m = crate::blur::method(b);
+        (m, m.build_twin(&p.plane, p.prepared.as_ref()))
+    });
     let twin = Twin {
         p,
-        sat: &table,
-        sep: &sep,
+        blur: blur.as_ref().map(|(m, built)| (*m, built.as_ref())),
         opacity,
     };
     let mut pixels = vec![[0f32; 4]; w * h];
@@ -80,8 +70,7 @@ pub fn k_excursion(p: &SceneBuffers) -> Option<KExcursion> {
     let basis = p.variant.basis?;
     let twin = Twin {
         p,
-        sat: &[],
-        sep: &[],
+        blur: None,
         opacity: None,
     };
     let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
@@ -127,13 +116,14 @@ pub fn k_excursion(p: &SceneBuffers) -> Option<KExcursion> {
     })
 }
 
-/// `(WGSL file, full path of the twin)` for every pair, e.g. `("sat.wgsl",
-/// "ptm_runtime::cpu::sat::sat_rows")`: the twin of a function has its name and lives in the
-/// module named after its file. Taking the function's path makes the compiler check that the
-/// twin exists.
+/// `(WGSL file, full path of the twin)` for every pair, e.g. `("blur/sat_build.wgsl",
+/// "ptm_runtime::blur::sat::sat_rows")`: the twin of a function has its name and lives in the
+/// module that owns its file ([`twin_module`]). Taking the function's path makes the compiler
+/// check that the twin exists.
 pub fn twins() -> Vec<(&'static str, &'static str)> {
+    use crate::blur::{explicit, mip, sat, separable, Method};
     macro_rules! twins {
-        ($($file:literal => $($f:path),+;)+) => {
+        ($($file:literal => $($f:expr),+;)+) => {
             vec![$($(($file, std::any::type_name_of_val(&$f))),+),+]
         };
     }
@@ -143,13 +133,33 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             shade::Twin::ptm_level, shade::Twin::ptm_coeffs, shade::ptm_hemispherical,
             shade::ptm_sigmoid, shade::ptm_k, shade::Twin::coverage_level,
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
-            shade::caster_texel_coords, shade::opacity_raw, shade::Twin::blur_explicit,
-            shade::sat_load, shade::sat_spans, shade::blur_sat, shade::mip_texel,
-            shade::mip_bilinear, shade::blur_mip, shade::sep_tap, shade::blur_separable,
-            shade::Twin::light_opacity, shade::Twin::shade, shade::Twin::fs_main;
-        "sat.wgsl" => sat::sat_rows, sat::sat_columns;
-        "separable.wgsl" => separable::texel, separable::sep_h, separable::hval,
+            shade::caster_texel_coords, shade::Twin::light_opacity, shade::Twin::shade,
+            shade::Twin::fs_main;
+        "blur/explicit.wgsl" => explicit::opacity_raw, explicit::blur_explicit,
+            <explicit::Explicit as Method>::blur_lookup;
+        "blur/sat.wgsl" => sat::sat_load, sat::sat_spans, sat::blur_sat,
+            <sat::Sat as Method>::blur_lookup;
+        "blur/sat_build.wgsl" => sat::sat_rows, sat::sat_columns;
+        "blur/mip.wgsl" => mip::mip_texel, mip::mip_bilinear, mip::blur_mip,
+            <mip::Mip as Method>::blur_lookup;
+        "blur/separable.wgsl" => separable::sep_tap, separable::blur_separable,
+            <separable::Separable as Method>::blur_lookup;
+        "blur/separable_passes.wgsl" => separable::texel, separable::sep_h, separable::hval,
             separable::sep_v;
+        "blit.wgsl" => blit::vs_main, blit::srgb_encode, blit::fs_main;
+    }
+}
+
+/// The module a WGSL file's twins live in: `cpu::shade` for `shade.wgsl`, the method's module
+/// for a blur method's files (`blur/sat.wgsl` and `blur/sat_build.wgsl`: `blur::sat`).
+pub fn twin_module(file: &str) -> String {
+    match file.strip_prefix("blur/") {
+        Some(f) => {
+            let stem = f.trim_end_matches(".wgsl");
+            let method = stem.split('_').next().unwrap_or(stem);
+            format!("::blur::{method}::")
+        }
+        None => format!("::cpu::{}::", file.trim_end_matches(".wgsl")),
     }
 }
 
@@ -171,20 +181,55 @@ mod tests {
         names
     }
 
+    /// Names of the functions a WGSL file declares, read from its text (`fn name(` at the start
+    /// of a line: a blur method's lookup file does not parse alone, it uses shade.wgsl's
+    /// globals).
+    fn declared(src: &str) -> BTreeSet<String> {
+        src.lines()
+            .filter_map(|l| l.strip_prefix("fn "))
+            .filter_map(|l| l.split('(').next())
+            .map(|n| n.trim().to_string())
+            .collect()
+    }
+
     #[test]
     fn every_wgsl_function_has_its_listed_twin_in_the_module_named_after_its_file() {
-        let shade: Vec<String> = Variant::all()
+        let variants = Variant::all();
+        let assembled: Vec<String> = variants
             .iter()
             .map(|v| shader::shade_source(v).unwrap())
             .collect();
-        let files = [
-            ("shade.wgsl", shade),
-            ("sat.wgsl", vec![shader::SAT_WGSL.to_string()]),
-            ("separable.wgsl", vec![shader::SEPARABLE_WGSL.to_string()]),
-        ];
+        // Each file with its functions: a method's lookup file from its text (and each of them
+        // must be in the variants that include it), its passes and shade.wgsl's own from naga.
+        let mut files: Vec<(String, BTreeSet<String>)> = Vec::new();
+        let mut method_fns = BTreeSet::new();
+        for b in crate::scene::Blur::ALL {
+            let m = crate::blur::method(b);
+            let own = declared(m.wgsl());
+            for (v, src) in variants.iter().zip(&assembled) {
+                if v.caster == Some(b) {
+                    let in_variant = wgsl_functions(std::slice::from_ref(src));
+                    assert!(own.is_subset(&in_variant), "{}: {own:?}", v.name());
+                }
+            }
+            method_fns.extend(own.iter().cloned());
+            files.push((format!("blur/{}.wgsl", b.name()), own));
+            for (file, pass) in m.pass_wgsl() {
+                files.push((format!("blur/{file}"), wgsl_functions(&[pass.to_string()])));
+            }
+        }
+        let shade: BTreeSet<String> = wgsl_functions(&assembled)
+            .difference(&method_fns)
+            .cloned()
+            .collect();
+        files.insert(0, ("shade.wgsl".into(), shade));
+        files.push((
+            "blit.wgsl".into(),
+            wgsl_functions(&[shader::BLIT_WGSL.to_string()]),
+        ));
         let table = twins();
-        for (file, sources) in &files {
-            let module = format!("::cpu::{}::", file.trim_end_matches(".wgsl"));
+        for (file, wgsl) in &files {
+            let module = twin_module(file);
             let mut listed = BTreeSet::new();
             for &(_, path) in table.iter().filter(|(f, _)| f == file) {
                 assert!(
@@ -194,9 +239,8 @@ mod tests {
                 let name = path.rsplit("::").next().unwrap().to_string();
                 assert!(listed.insert(name), "{file}: {path} listed twice");
             }
-            let wgsl = wgsl_functions(sources);
             let missing: Vec<_> = wgsl.difference(&listed).collect();
-            let stale: Vec<_> = listed.difference(&wgsl).collect();
+            let stale: Vec<_> = listed.difference(wgsl).collect();
             assert!(
                 missing.is_empty() && stale.is_empty(),
                 "{file}: WGSL functions without a twin in cpu::twins(): {missing:?}; listed \

@@ -5,8 +5,15 @@
 
 use ptm_format::{Link, UvMap};
 
-use crate::layout::{Frame, LightGpu, MipLevel, PtmLevel};
-use crate::scene::{Blur, SceneBuffers, Variant};
+use std::any::Any;
+
+use crate::blur::{Bound, Kernel, Method};
+use crate::layout::{Frame, LightGpu, PlaneGpu, PtmLevel};
+use crate::scene::{SceneBuffers, Variant};
+
+/// The least half-side of a rectangular light's box kernel, in texels (`RECT_MIN` in WGSL): a
+/// thin light's kernel is a line, which sees the texel it crosses.
+pub const RECT_MIN: f32 = 1.0 / 256.0;
 
 /// What replaces the blur method's caster opacity for (cloth point, light): the Monte Carlo
 /// reference ([`crate::reference`]) plugs in here.
@@ -165,169 +172,13 @@ pub fn ptm_k(v: &Variant, c: &[f32], l: [f32; 3]) -> f32 {
 }
 
 /// Continuous caster texel coordinates (column, row from the far edge) of a caster-plane point.
-pub fn caster_texel_coords(f: &Frame, q: [f32; 2]) -> [f32; 2] {
+pub fn caster_texel_coords(f: &Frame, plane: &PlaneGpu, q: [f32; 2]) -> [f32; 2] {
     let r = f.caster_rect;
-    let size = [f.caster_size[0] as f32, f.caster_size[1] as f32];
+    let size = [plane.size[0] as f32, plane.size[1] as f32];
     [
         (q[0] - r[0]) / (r[2] - r[0]) * size[0],
         (r[3] - q[1]) / (r[3] - r[1]) * size[1],
     ]
-}
-
-/// 8-bit opacity counts per channel of the caster texel containing texel coordinate t of a
-/// `size` caster; 0 outside.
-pub fn opacity_raw(opacity: &[u32], size: [u32; 2], t: [f32; 2]) -> [u32; 3] {
-    let [w, h] = size;
-    if t[0] < 0.0 || t[1] < 0.0 || t[0] >= w as f32 || t[1] >= h as f32 {
-        return [0; 3];
-    }
-    let o = opacity[t[1] as usize * w as usize + t[0] as usize];
-    [o & 255, (o >> 8) & 255, (o >> 16) & 255]
-}
-
-/// Table entry (i, j), channel `ch`, of the summed-area table of a caster `w` texels wide.
-pub fn sat_load(sat: &[u32], w: u32, channels: u32, i: u32, j: u32, ch: u32) -> u32 {
-    sat[((j * (w + 1) + i) * channels + ch) as usize]
-}
-
-/// One axis of a box [lo, hi] (texel units, within [0, n]) split into whole-texel spans:
-/// corner indices and the weights of the spans inner (c1→c2), right (c2→c3), left (c0→c1).
-pub fn sat_spans(lo: f32, hi: f32, n: u32) -> ([u32; 4], [f32; 3]) {
-    let i0 = lo.floor() as u32;
-    let i1 = hi.floor() as u32;
-    let a0 = lo - lo.floor();
-    let a1 = hi - hi.floor();
-    if i1 > i0 {
-        (
-            [i0, (i0 + 1).min(n), i1, (i1 + 1).min(n)],
-            [1.0, a1, 1.0 - a0],
-        )
-    } else {
-        ([i0, i1, i1, (i1 + 1).min(n)], [0.0, a1 - a0, 0.0])
-    }
-}
-
-/// Mean opacity (0..1 per channel) over the box t ± wt (texel units, wt > 0) of a `size`
-/// caster from its summed-area table; outside the caster counts as transparent.
-pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
-    let [w, h] = size;
-    let lo = [
-        (t[0] - wt[0]).clamp(0.0, w as f32),
-        (t[1] - wt[1]).clamp(0.0, h as f32),
-    ];
-    let hi = [
-        (t[0] + wt[0]).clamp(0.0, w as f32),
-        (t[1] + wt[1]).clamp(0.0, h as f32),
-    ];
-    let (cx, wx) = sat_spans(lo[0], hi[0], w);
-    let (cy, wy) = sat_spans(lo[1], hi[1], h);
-    // Span m of an axis runs from corner A[m] to B[m]: inner 1→2, right 2→3, left 0→1.
-    const A: [usize; 3] = [1, 2, 0];
-    const B: [usize; 3] = [2, 3, 1];
-    let mut out = [0f32; 3];
-    for ch in 0..channels {
-        let mut s = [[0u32; 4]; 4];
-        for b in 0..4 {
-            for a in 0..4 {
-                s[b][a] = sat_load(sat, w, channels, cx[a], cy[b], ch);
-            }
-        }
-        let mut total = 0f32;
-        for m in 0..3 {
-            for k in 0..3 {
-                let span_sum = s[B[k]][B[m]]
-                    .wrapping_sub(s[B[k]][A[m]])
-                    .wrapping_sub(s[A[k]][B[m]])
-                    .wrapping_add(s[A[k]][A[m]]);
-                total += wx[m] * wy[k] * span_sum as f32;
-            }
-        }
-        out[ch as usize] = total / (4.0 * wt[0] * wt[1] * 255.0);
-    }
-    if channels == 1 {
-        [out[0]; 3]
-    } else {
-        out
-    }
-}
-
-fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
-    [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
-}
-
-/// Texel (x, y) of the opacity MIP level `l`; transparent outside.
-pub fn mip_texel(mip: &[[f32; 4]], l: &MipLevel, x: i32, y: i32) -> [f32; 3] {
-    if x < 0 || y < 0 || x >= l.width as i32 || y >= l.height as i32 {
-        return [0.0; 3];
-    }
-    let t = mip[(l.offset + y as u32 * l.width + x as u32) as usize];
-    [t[0], t[1], t[2]]
-}
-
-/// Bilinear sample of `level` at level-0 texel coordinate t.
-pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 2]) -> [f32; 3] {
-    let l = &levels[level as usize];
-    let scale = (1u32 << level) as f32;
-    let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
-    let c0 = [c[0].floor(), c[1].floor()];
-    let a = [c[0] - c0[0], c[1] - c0[1]];
-    let (x, y) = (c0[0] as i32, c0[1] as i32);
-    mix3(
-        mix3(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
-        mix3(
-            mip_texel(mip, l, x, y + 1),
-            mip_texel(mip, l, x + 1, y + 1),
-            a[0],
-        ),
-        a[1],
-    )
-}
-
-/// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
-pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
-    let top = levels.len() as u32 - 1;
-    let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
-    let l0 = lod as u32;
-    let l1 = (l0 + 1).min(top);
-    mix3(
-        mip_bilinear(mip, levels, l0, t),
-        mip_bilinear(mip, levels, l1, t),
-        lod - l0 as f32,
-    )
-}
-
-/// Texel (x, y), channel `ch`, of light `li`'s pre-blurred map (`f.sep_padded` texels); 0
-/// outside.
-pub fn sep_tap(f: &Frame, map: &[f32], channels: u32, li: usize, x: i32, y: i32, ch: u32) -> f32 {
-    let (pw, ph) = (f.sep_padded[0] as i32, f.sep_padded[1] as i32);
-    if x < 0 || y < 0 || x >= pw || y >= ph {
-        return 0.0;
-    }
-    map[(((li as i32 * ph + y) * pw + x) as u32 * channels + ch) as usize]
-}
-
-/// Bilinear lookup of light `li`'s pre-blurred map ([`super::separable`]) at caster texel
-/// coordinate t.
-pub fn blur_separable(f: &Frame, map: &[f32], channels: u32, li: usize, t: [f32; 2]) -> [f32; 3] {
-    let c = [
-        t[0] + f.sep_margin[0] as f32 - 0.5,
-        t[1] + f.sep_margin[1] as f32 - 0.5,
-    ];
-    let c0 = [c[0].floor(), c[1].floor()];
-    let a = [c[0] - c0[0], c[1] - c0[1]];
-    let (x, y) = (c0[0] as i32, c0[1] as i32);
-    let tap = |x: i32, y: i32, ch: u32| sep_tap(f, map, channels, li, x, y, ch);
-    let mut out = [0f32; 3];
-    for ch in 0..channels {
-        let top = tap(x, y, ch) * (1.0 - a[0]) + tap(x + 1, y, ch) * a[0];
-        let bottom = tap(x, y + 1, ch) * (1.0 - a[0]) + tap(x + 1, y + 1, ch) * a[0];
-        out[ch as usize] = top * (1.0 - a[1]) + bottom * a[1];
-    }
-    if channels == 1 {
-        [out[0]; 3]
-    } else {
-        out
-    }
 }
 
 /// Mean of `n` values per texel at the four bilinear taps.
@@ -343,15 +194,12 @@ fn bilerp<const N: usize>(data: &[f32], n: usize, taps: &([usize; 4], [f32; 4]))
     out
 }
 
-/// The shader's storage buffers: the prepared scene and what the GPU builds from it (the
-/// summed-area table, the separable maps).
+/// The shader's storage buffers: the prepared scene and what the GPU builds from it.
 pub struct Twin<'a> {
-    /// The prepared scene (`Frame`, lights, PTM, caster buffers).
+    /// The prepared scene (`Frame`, lights, PTM, the blur's image).
     pub p: &'a SceneBuffers,
-    /// Summed-area table of the caster opacity (SAT blur), as the GPU builds it.
-    pub sat: &'a [u32],
-    /// Separable blur: the per-light blurred maps.
-    pub sep: &'a [f32],
+    /// With a caster: the blur method and what its passes built ([`crate::blur::Method`]).
+    pub blur: Option<(&'static dyn Method, &'a (dyn Any + Send + Sync))>,
     /// Replaces the blur method's estimate when set (the Monte Carlo reference).
     pub opacity: Option<&'a OpacityFn<'a>>,
 }
@@ -427,35 +275,6 @@ impl Twin<'_> {
         [a[0], a[1], a[2]]
     }
 
-    /// Reference blur: mean opacity over an n×n grid of samples inside the ellipse of radii wt
-    /// (texels) around t, n = clamp(⌈4·max(wt)⌉, 16, cap); integer sums divided once.
-    pub fn blur_explicit(&self, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
-        let f = self.f();
-        let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, f.explicit_samples);
-        let mut sum = [0u32; 3];
-        let mut count = 0u32;
-        for j in 0..n {
-            for i in 0..n {
-                let o = [
-                    (i as f32 + 0.5) / n as f32 * 2.0 - 1.0,
-                    (j as f32 + 0.5) / n as f32 * 2.0 - 1.0,
-                ];
-                if o[0] * o[0] + o[1] * o[1] <= 1.0 {
-                    let v = opacity_raw(
-                        &self.p.opacity,
-                        f.caster_size,
-                        [t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]],
-                    );
-                    for c in 0..3 {
-                        sum[c] += v[c];
-                    }
-                    count += 1;
-                }
-            }
-        }
-        sum.map(|s| s as f32 / (count as f32 * 255.0))
-    }
-
     /// Mean caster opacity seen from p towards light l: where the segment p → light meets the
     /// (tilted) caster plane, blurred with radius R·s there (see `light_opacity` in WGSL).
     pub fn light_opacity(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 3] {
@@ -482,21 +301,41 @@ impl Twin<'_> {
         }
         let off: [f32; 3] = std::array::from_fn(|k| pp[k] + s * ray[k] - centre[k]);
         let q = [centre[0] + off[0], centre[1] + dot(off, e2)];
-        let w = l.radius * s;
         let stretch = (cos_t + dot(ray, e2) * sin_t / denom).abs();
+        let size = self.p.plane_gpu.size;
         let texel = [
-            (r[2] - r[0]) / f.caster_size[0] as f32,
-            (r[3] - r[1]) / f.caster_size[1] as f32,
+            (r[2] - r[0]) / size[0] as f32,
+            (r[3] - r[1]) / size[1] as f32,
         ];
-        let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
-        let t = caster_texel_coords(f, q);
-        let channels = self.p.variant.sat_channels();
-        match self.p.variant.caster {
-            Some(Blur::Sat) => blur_sat(self.sat, f.caster_size, channels, t, wt),
-            Some(Blur::Mip) => blur_mip(&self.p.mip, &self.p.mip_levels, t, wt),
-            Some(Blur::Separable) => blur_separable(f, self.sep, channels, li, t),
-            _ => self.blur_explicit(t, wt),
-        }
+        let t = caster_texel_coords(f, &self.p.plane_gpu, q);
+        let (t, wt, kernel) = if l.shape == 1 {
+            // A rectangle facing down: a box of half-sides s·half, moved to the centroid of
+            // its patches' z²/r⁴ weights (see `light_opacity` in WGSL).
+            let h = l.half;
+            let k = -4.0 / (3.0 * dot(ray, ray));
+            let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
+            let tr = [
+                t[0] + shift[0] / texel[0],
+                t[1] + -shift[1] * stretch / texel[1],
+            ];
+            let wr = [
+                (h[0] * s / texel[0]).max(RECT_MIN),
+                (h[1] * s * stretch / texel[1]).max(RECT_MIN),
+            ];
+            (tr, wr, Kernel::Box)
+        } else {
+            let w = l.radius * s;
+            let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
+            (t, wt, Kernel::Disc)
+        };
+        let (method, built) = self.blur.expect("light_opacity without a blur method");
+        let bound = Bound {
+            plane: &self.p.plane,
+            uniform: &self.p.plane_gpu,
+            prepared: self.p.prepared.as_ref(),
+            built,
+        };
+        method.blur_lookup(&bound, li, t, wt, kernel)
     }
 
     /// Linear radiance leaving acceptor point p:
@@ -555,7 +394,6 @@ impl Twin<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cpu::sat::build;
     use ptm_format::{Basis, Ptm};
 
     #[test]
@@ -641,52 +479,6 @@ mod tests {
         for c in [-0.5, 0.0, 0.3] {
             assert_eq!(level_axis(c, 1, 1.0).0, 0);
             assert_eq!(level_axis(c, 1, 1.0).1, 0);
-        }
-    }
-
-    fn hash(i: u32) -> u32 {
-        let mut x = i.wrapping_mul(0x9E37_79B9) ^ 0x85EB_CA6B;
-        x ^= x >> 15;
-        x = x.wrapping_mul(0x2C1B_3C6D);
-        x ^ (x >> 12)
-    }
-
-    /// Exact mean of the piecewise-constant image over a box, by brute force over texels with
-    /// their overlap areas in f64.
-    fn brute(op: &[u32], w: usize, h: usize, ch: usize, t: [f32; 2], wt: [f32; 2]) -> f64 {
-        let (x0, x1) = ((t[0] - wt[0]) as f64, (t[0] + wt[0]) as f64);
-        let (y0, y1) = ((t[1] - wt[1]) as f64, (t[1] + wt[1]) as f64);
-        let mut sum = 0.0;
-        for j in 0..h {
-            for i in 0..w {
-                let ox = (x1.min(i as f64 + 1.0) - x0.max(i as f64)).max(0.0);
-                let oy = (y1.min(j as f64 + 1.0) - y0.max(j as f64)).max(0.0);
-                sum += ox * oy * ((op[j * w + i] >> (8 * ch)) & 255) as f64;
-            }
-        }
-        sum / ((x1 - x0) * (y1 - y0) * 255.0)
-    }
-
-    #[test]
-    fn blur_sat_equals_the_exact_area_weighted_mean() {
-        let (w, h) = (37, 23);
-        let op: Vec<u32> = (0..w * h).map(|i| hash(i as u32) & 0x00FF_FFFF).collect();
-        for channels in [1usize, 3] {
-            let sat = build(&op, w, h, channels);
-            for s in 0..400u32 {
-                let r = |k: u32| (hash(s * 7 + k) % 10_000) as f32 / 10_000.0;
-                let t = [r(1) * 45.0 - 4.0, r(2) * 31.0 - 4.0];
-                let wt = [0.05 + r(3) * 12.0, 0.05 + r(4) * 9.0];
-                let got = blur_sat(&sat, [w as u32, h as u32], channels as u32, t, wt);
-                for ch in 0..channels {
-                    let want = brute(&op, w, h, ch, t, wt);
-                    assert!(
-                        (got[ch] as f64 - want).abs() < 2e-5,
-                        "t {t:?} wt {wt:?} ch {ch}: {} vs {want}",
-                        got[ch]
-                    );
-                }
-            }
         }
     }
 }

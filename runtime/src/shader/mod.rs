@@ -2,19 +2,17 @@
 //! remove bindings, so what a scene lacks is cut out of the text), and naga validation.
 //!
 //! Directives are whole lines `//#if NAME`, `//#else`, `//#endif` (nestable); placeholders
-//! `{{NC}}`, `{{PTM_EVAL}}`, `{{SAT_CHANNELS}}`. The PTM polynomial is generated from the fit
+//! `{{NC}}`, `{{PTM_EVAL}}`, `{{BLUR}}` (the blur method's file), `{{CHANNELS}}` (its image's
+//! channels). The PTM polynomial is generated from the fit
 //! crate's monomial table, so the shader and `Basis::eval` cannot disagree on the order.
 
 use ptm_format::{Basis, Link, UvMap};
 
-use crate::scene::{Blur, Variant};
+use crate::scene::Variant;
 use crate::{Error, Result};
 
 /// The shading shader, with directives.
 pub const SHADE_WGSL: &str = include_str!("shade.wgsl");
-
-/// The summed-area table passes.
-pub const SAT_WGSL: &str = include_str!("sat.wgsl");
 
 /// The defines a variant switches on.
 pub fn defines(v: &Variant) -> Vec<&'static str> {
@@ -37,14 +35,8 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.albedo_texture {
         d.push("ALBEDO_TEX");
     }
-    if let Some(b) = v.caster {
+    if v.caster.is_some() {
         d.push("CASTER");
-        d.push(match b {
-            Blur::Explicit => "BLUR_EXPLICIT",
-            Blur::Sat => "BLUR_SAT",
-            Blur::Mip => "BLUR_MIP",
-            Blur::Separable => "BLUR_SEPARABLE",
-        });
     }
     d
 }
@@ -68,6 +60,9 @@ pub fn ptm_eval_expr(basis: Basis) -> String {
         .collect();
     terms.join(" + ")
 }
+
+/// The window's blit pass (cargo feature `window`; validated and twinned without it).
+pub const BLIT_WGSL: &str = include_str!("blit.wgsl");
 
 /// Keeps the lines whose enclosing `//#if` conditions hold.
 pub fn preprocess(src: &str, defined: &[&str]) -> Result<String> {
@@ -104,19 +99,22 @@ fn bad(line: usize, what: &str) -> Error {
     }
 }
 
-/// The complete WGSL source of a variant.
+/// The complete WGSL source of a variant: `shade.wgsl` with the blur method's file (its
+/// bindings and `blur_lookup`, [`crate::blur::Method::wgsl`]) in place of `{{BLUR}}`.
 pub fn shade_source(v: &Variant) -> Result<String> {
-    let src = preprocess(SHADE_WGSL, &defines(v))?;
+    let defined = defines(v);
+    let blur = match v.caster {
+        Some(b) => preprocess(crate::blur::method(b).wgsl(), &defined)?,
+        None => String::new(),
+    };
+    let src = preprocess(SHADE_WGSL, &defined)?.replace("{{BLUR}}", &blur);
     let nc = v.basis.map_or(0, |b| b.len());
     let eval = v.basis.map(ptm_eval_expr).unwrap_or_default();
     Ok(src
         .replace("{{NC}}", &nc.to_string())
         .replace("{{PTM_EVAL}}", &eval)
-        .replace("{{SAT_CHANNELS}}", &v.sat_channels().to_string()))
+        .replace("{{CHANNELS}}", &v.sat_channels().to_string()))
 }
-
-/// The separable blur passes.
-pub const SEPARABLE_WGSL: &str = include_str!("separable.wgsl");
 
 /// Parses and validates WGSL with naga (no GPU needed).
 pub fn validate(name: &str, src: &str) -> Result<naga::Module> {
@@ -162,8 +160,11 @@ mod tests {
 
     #[test]
     fn compute_shaders_validate_with_naga() {
-        validate("sat.wgsl", SAT_WGSL).unwrap();
-        validate("separable.wgsl", SEPARABLE_WGSL).unwrap();
+        for b in crate::scene::Blur::ALL {
+            for (file, src) in crate::blur::method(b).pass_wgsl() {
+                validate(file, src).unwrap();
+            }
+        }
     }
 
     #[test]

@@ -2,7 +2,8 @@
 // (1 − K) from the occlusion PTM and by (1 − opacity) from the penumbra map of a planar caster.
 //
 // Source-level variants (shader/mod.rs): `//#if NAME` … `//#else` … `//#endif` lines keep or drop
-// code and bindings; {{NC}}, {{PTM_EVAL}} and {{SAT_CHANNELS}} are filled in. The CPU twin is
+// code and bindings; {{NC}} and {{PTM_EVAL}} are filled in, and the BLUR placeholder near the end
+// by the blur method's file (blur/*.wgsl: its bindings and `blur_lookup`). The CPU twin is
 // cpu/shade.rs: same function names, same maths.
 
 // The uniform block, field for field with `layout::Frame` (tested against naga's offsets).
@@ -16,14 +17,12 @@ struct Frame {
     caster_height: f32,         // height d_ca of the caster's centre line
     caster_sin_tilt: f32,       // sin, cos of its tilt about that line (parallel to X)
     caster_cos_tilt: f32,
-    explicit_samples: u32,      // explicit blur: cap on samples per axis
+    pad3: u32,
     ptm_size: vec2<u32>,        // PTM texels nx, ny
     albedo_size: vec2<u32>,     // albedo texels nx, ny
-    caster_size: vec2<u32>,     // caster texels w, h
-    sep_margin: vec2<u32>,      // separable: margins mx, my around the caster
-    sep_padded: vec2<u32>,      // separable: padded map w, h
     ptm_texels_per_pixel: f32,  // at unit depth for the perspective camera
     ptm_level_count: u32,       // PTM MIP levels (0 without a chain)
+    pad4: vec2<u32>,
     eye: vec3<f32>,             // perspective eye
     perspective: u32,           // 1 perspective, 0 orthographic top view
     cam_right: vec3<f32>,       // right · tan(fov/2) · aspect
@@ -38,7 +37,9 @@ struct Light {
     position: vec3<f32>, // centre
     radius: f32,         // sphere radius R
     color: vec3<f32>,    // colour × intensity
-    pad: f32,
+    shape: u32,          // 0 sphere, 1 rectangle facing down
+    half: vec2<f32>,     // rectangle: half-sides along X, Y
+    pad: vec2<f32>,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -49,27 +50,18 @@ struct Light {
 //#if ALBEDO_TEX
 @group(0) @binding(3) var<storage, read> albedo_tex: array<vec4<f32>>;
 //#endif
-//#if BLUR_EXPLICIT
-@group(0) @binding(4) var<storage, read> opacity_tex: array<u32>;
-//#endif
-//#if BLUR_SAT
-@group(0) @binding(5) var<storage, read> sat: array<u32>;
-//#endif
-//#if BLUR_MIP
-@group(0) @binding(6) var<storage, read> mip: array<vec4<f32>>;
-// One level of the caster opacity's MIP chain (`layout::MipLevel`): its texels start at
-// `offset` in `mip`.
-struct MipLevel {
-    offset: u32,
-    width: u32,
-    height: u32,
+//#if CASTER
+// The filtered planar image the blur method convolves (`layout::PlaneGpu`); its texels and
+// tables are the method's own bindings, in the method's WGSL file (blur/*.wgsl), included below.
+struct Plane {
+    size: vec2<u32>,            // texels w, h
+    margin: vec2<u32>,          // separable: margins mx, my around the image
+    padded: vec2<u32>,          // separable: padded map w, h
+    samples: u32,               // explicit: cap on samples per axis
     pad: u32,
 }
 
-@group(0) @binding(7) var<storage, read> mip_levels: array<MipLevel>;
-//#endif
-//#if BLUR_SEPARABLE
-@group(0) @binding(8) var<storage, read> sep_map: array<f32>; // [light][row][col][channel]
+@group(0) @binding(11) var<uniform> plane: Plane;
 //#endif
 //#if PTM_MIP
 // One level of the PTM's MIP chain (`layout::PtmLevel`): its texels start at `offset` in
@@ -332,174 +324,8 @@ fn albedo_at(p: vec2<f32>) -> vec3<f32> {
 // Continuous caster texel coordinates (column, row from the far edge) of a caster-plane point.
 fn caster_texel_coords(q: vec2<f32>) -> vec2<f32> {
     let r = frame.caster_rect;
-    let size = vec2<f32>(frame.caster_size);
+    let size = vec2<f32>(plane.size);
     return vec2<f32>((q.x - r.x) / (r.z - r.x) * size.x, (r.w - q.y) / (r.w - r.y) * size.y);
-}
-
-//#endif
-
-//#if BLUR_EXPLICIT
-// Opacity of the texel containing texel coordinate t as 8-bit counts per channel (0 outside).
-fn opacity_raw(t: vec2<f32>) -> vec3<u32> {
-    let size = vec2<f32>(frame.caster_size);
-    if (t.x < 0.0 || t.y < 0.0 || t.x >= size.x || t.y >= size.y) {
-        return vec3<u32>(0u);
-    }
-    let o = opacity_tex[u32(t.y) * frame.caster_size.x + u32(t.x)];
-    return vec3<u32>(o & 255u, (o >> 8u) & 255u, (o >> 16u) & 255u);
-}
-
-// Reference blur: mean opacity over an n×n grid of samples inside the ellipse of radii `wt`
-// (texels) around t; n grows with the radius: spacing ≤ ½ texel, n ≥ 16, ≤ counts.w. Sums are
-// integer counts (exact, ≤ 256²·255 < 2³²), divided once at the end.
-fn blur_explicit(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
-    let n = clamp(u32(ceil(4.0 * max(wt.x, wt.y))), 16u, frame.explicit_samples);
-    var sum = vec3<u32>(0u);
-    var count = 0u;
-    for (var k = 0u; k < n * n; k++) {
-        let o = (vec2<f32>(f32(k % n), f32(k / n)) + 0.5) / f32(n) * 2.0 - 1.0;
-        if (dot(o, o) <= 1.0) {
-            sum += opacity_raw(t + o * wt);
-            count += 1u;
-        }
-    }
-    return vec3<f32>(sum) / (f32(count) * 255.0);
-}
-//#endif
-
-//#if BLUR_SAT
-const SAT_CHANNELS: u32 = {{SAT_CHANNELS}}u;
-
-fn sat_load(i: u32, j: u32, ch: u32) -> u32 {
-    return sat[(j * (frame.caster_size.x + 1u) + i) * SAT_CHANNELS + ch];
-}
-
-// One axis of a box [lo, hi] (texel units, clamped to the table) split into whole-texel spans
-// of a piecewise-constant image: corner indices [i0, i0+1, i1, i1+1] (clamped to n) and weights
-// of the spans inner (c1→c2), right (c2→c3), left (c0→c1). Integral = Σ weight·span sum, exact
-// for the bilinear interpolant of the table. When lo and hi share a texel the inner span is
-// empty and the right span carries a1 − a0, so every span sum is non-negative.
-struct Spans {
-    corner: vec4<u32>,
-    weight: vec3<f32>,
-}
-
-fn sat_spans(lo: f32, hi: f32, n: u32) -> Spans {
-    let i0 = u32(floor(lo));
-    let i1 = u32(floor(hi));
-    let a0 = lo - floor(lo);
-    let a1 = hi - floor(hi);
-    var s: Spans;
-    if (i1 > i0) {
-        s.corner = vec4<u32>(i0, min(i0 + 1u, n), i1, min(i1 + 1u, n));
-        s.weight = vec3<f32>(1.0, a1, 1.0 - a0);
-    } else {
-        s.corner = vec4<u32>(i0, i1, i1, min(i1 + 1u, n));
-        s.weight = vec3<f32>(0.0, a1 - a0, 0.0);
-    }
-    return s;
-}
-
-// Summed-area lookup: mean opacity over the box t ± wt (texels); outside the caster counts as
-// transparent, so the sum is divided by the full box area. Corner differences are taken in
-// wrapping u32 (exact for any box up to 4096² texels), converted to f32 only after.
-fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
-    let size = vec2<f32>(frame.caster_size);
-    let lo = clamp(t - wt, vec2<f32>(0.0), size);
-    let hi = clamp(t + wt, vec2<f32>(0.0), size);
-    let sx = sat_spans(lo.x, hi.x, frame.caster_size.x);
-    let sy = sat_spans(lo.y, hi.y, frame.caster_size.y);
-    var out = vec3<f32>(0.0);
-    for (var ch = 0u; ch < SAT_CHANNELS; ch++) {
-        var s: array<array<u32, 4>, 4>;
-        for (var b = 0u; b < 4u; b++) {
-            for (var a = 0u; a < 4u; a++) {
-                s[b][a] = sat_load(sx.corner[a], sy.corner[b], ch);
-            }
-        }
-        var total = 0.0;
-        for (var m = 0u; m < 3u; m++) {
-            // Span m of an axis runs from corner ca[m] to cb[m]: inner 1→2, right 2→3, left 0→1.
-            let xa = select(select(0u, 2u, m == 1u), 1u, m == 0u);
-            let xb = select(select(1u, 3u, m == 1u), 2u, m == 0u);
-            for (var k = 0u; k < 3u; k++) {
-                let ya = select(select(0u, 2u, k == 1u), 1u, k == 0u);
-                let yb = select(select(1u, 3u, k == 1u), 2u, k == 0u);
-                let span_sum = s[yb][xb] - s[yb][xa] - s[ya][xb] + s[ya][xa];
-                total += sx.weight[m] * sy.weight[k] * f32(span_sum);
-            }
-        }
-        out[ch] = total / (4.0 * wt.x * wt.y * 255.0);
-    }
-    if (SAT_CHANNELS == 1u) {
-        return vec3<f32>(out.x);
-    }
-    return out;
-}
-//#endif
-
-//#if BLUR_MIP
-fn mip_texel(l: MipLevel, x: i32, y: i32) -> vec3<f32> {
-    if (x < 0 || y < 0 || x >= i32(l.width) || y >= i32(l.height)) {
-        return vec3<f32>(0.0);
-    }
-    return mip[l.offset + u32(y) * l.width + u32(x)].xyz;
-}
-
-// Bilinear sample of MIP `level` at level-0 texel coordinate t (transparent outside).
-fn mip_bilinear(level: u32, t: vec2<f32>) -> vec3<f32> {
-    let l = mip_levels[level];
-    let c = t / f32(1u << level) - 0.5;
-    let c0 = floor(c);
-    let a = c - c0;
-    let x = i32(c0.x);
-    let y = i32(c0.y);
-    return mix(
-        mix(mip_texel(l, x, y), mip_texel(l, x + 1, y), a.x),
-        mix(mip_texel(l, x, y + 1), mip_texel(l, x + 1, y + 1), a.x),
-        a.y,
-    );
-}
-
-// Trilinear: level log2(2·max(wt)) (box side in texels), blended between the two nearest.
-fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
-    let top = arrayLength(&mip_levels) - 1u;
-    let lod = clamp(log2(2.0 * max(wt.x, wt.y)), 0.0, f32(top));
-    let l0 = u32(lod);
-    let l1 = min(l0 + 1u, top);
-    return mix(mip_bilinear(l0, t), mip_bilinear(l1, t), lod - f32(l0));
-}
-//#endif
-
-//#if BLUR_SEPARABLE
-const SEP_CHANNELS: u32 = {{SAT_CHANNELS}}u;
-
-fn sep_tap(li: u32, x: i32, y: i32, ch: u32) -> f32 {
-    let pw = i32(frame.sep_padded.x);
-    let ph = i32(frame.sep_padded.y);
-    if (x < 0 || y < 0 || x >= pw || y >= ph) {
-        return 0.0;
-    }
-    return sep_map[(u32((i32(li) * ph + y) * pw + x)) * SEP_CHANNELS + ch];
-}
-
-// Bilinear lookup of light li's pre-blurred map (separable.wgsl) at caster texel coordinate t.
-fn blur_separable(li: u32, t: vec2<f32>) -> vec3<f32> {
-    let c = t + vec2<f32>(frame.sep_margin) - 0.5;
-    let c0 = floor(c);
-    let a = c - c0;
-    let x = i32(c0.x);
-    let y = i32(c0.y);
-    var out = vec3<f32>(0.0);
-    for (var ch = 0u; ch < SEP_CHANNELS; ch++) {
-        let top = sep_tap(li, x, y, ch) * (1.0 - a.x) + sep_tap(li, x + 1, y, ch) * a.x;
-        let bottom = sep_tap(li, x, y + 1, ch) * (1.0 - a.x) + sep_tap(li, x + 1, y + 1, ch) * a.x;
-        out[ch] = top * (1.0 - a.y) + bottom * a.y;
-    }
-    if (SEP_CHANNELS == 1u) {
-        return vec3<f32>(out.x);
-    }
-    return out;
 }
 //#endif
 
@@ -529,24 +355,39 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
     }
     let off = pp + s * ray - centre;
     let q = centre.xy + vec2<f32>(off.x, dot(off, e2));
-    let w = l.radius * s;
     let stretch = abs(frame.caster_cos_tilt + dot(ray, e2) * frame.caster_sin_tilt / denom);
-    let texel = (r.zw - r.xy) / vec2<f32>(frame.caster_size);
-    let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
+    let texel = (r.zw - r.xy) / vec2<f32>(plane.size);
     let t = caster_texel_coords(q);
-//#if BLUR_SAT
-    return blur_sat(t, wt);
-//#endif
-//#if BLUR_MIP
-    return blur_mip(t, wt);
-//#endif
-//#if BLUR_SEPARABLE
-    return blur_separable(li, t);
-//#endif
-//#if BLUR_EXPLICIT
-    return blur_explicit(t, wt);
-//#endif
+    if (l.shape == 1u) {
+        // A rectangle facing down: its image from p on the plane is the rectangle scaled by s
+        // (exactly, for a caster parallel to it), a box of half-sides s·half. Its patches light
+        // p in proportion to cos·cos/r² = z²/r⁴, more on the side nearer p: to first order in
+        // the half-sides the box moves to that weighting's centroid, −(4/3)·half²·d/r² on the
+        // light (d = light − p across the cloth), s times that on the plane (rows run to −y).
+        let d = ray.xy;
+        let shift = -4.0 / (3.0 * dot(ray, ray)) * l.half * l.half * d * s;
+        let tr = t + vec2<f32>(shift.x, -shift.y * stretch) / texel;
+        // Floored at 1/256 texel, not ½ as a sphere's: a thin light's kernel is a line, which
+        // sees the texel it crosses, not the mean of two (the box stays exact down to there).
+        let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
+        return blur_lookup(li, tr, wr, KERNEL_BOX);
+    }
+    let w = l.radius * s;
+    let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
+    return blur_lookup(li, t, wt, KERNEL_DISC);
 }
+
+// The kernel `blur_lookup` is asked for (`blur::Kernel` as a number): the ellipse of radii wt
+// (a sphere's), or the box of half-sides wt (a rectangle's). A method approximates what it
+// cannot apply exactly (`blur::Method::kernels`).
+const KERNEL_DISC: u32 = 0u;
+const KERNEL_BOX: u32 = 1u;
+
+// The least half-side of a rectangle's box, in texels (`cpu::shade::RECT_MIN`).
+const RECT_MIN: f32 = 0.00390625;
+
+// The blur method's WGSL (`blur::Method::wgsl`): its bindings and `blur_lookup`.
+{{BLUR}}
 //#endif
 
 // Linear radiance leaving acceptor point p (normal +Z):

@@ -22,6 +22,7 @@ pub fn light(position: [f32; 3], radius: f32, intensity: f32) -> Light {
     Light {
         position,
         radius,
+        rect: None,
         intensity,
         color: [1.0, 1.0, 1.0],
     }

@@ -1,9 +1,9 @@
-// sat.wgsl: summed-area table of 8-bit caster opacity as u32 counts (exact; wrapping sums stay
+// blur/sat_build.wgsl: summed-area table of an 8-bit image (the caster opacity) as u32 counts (exact; wrapping sums stay
 // exact for any box up to 4096² texels). Table is (w + 1) × (h + 1) × channels, row 0 and
 // column 0 zero: sat[j][i] = Σ opacity over rows < j, columns < i. Two passes, one thread per
 // row (then per column) and channel, each a sequential running sum: O(w·h) work, no float.
 
-// Field for field with `layout::SatParams`. CPU twin: cpu/sat.rs.
+// Field for field with `layout::SatParams`. CPU twin: blur/sat.rs.
 struct SatParams {
     size: vec2<u32>, // caster w, h
     channels: u32,   // opacity channels (1 grey, 3 coloured)

@@ -1,6 +1,6 @@
-// separable.wgsl: per light, a horizontal then a vertical box pass (half-sides from `radii`, in
+// blur/separable_passes.wgsl: per light, a horizontal then a vertical box pass (half-sides from `radii`, in
 // caster texels) over the caster opacity, with running sums at both box edges; output padded
-// by margins (mx, my) so the penumbra reaches past the caster. CPU twin: cpu/separable.rs.
+// by margins (mx, my) so the penumbra reaches past the caster. CPU twin: blur/separable.rs.
 
 // Field for field with `layout::SepParams`.
 struct SepParams {

@@ -1,0 +1,125 @@
+//! The MIP blur: a trilinear lookup in the image's MIP chain at level log2(2·max(wt)) (constant
+//! cost; the kernel is a blend of two power-of-two boxes on a fixed grid, so it errs most at
+//! edges). The chain is built once on the CPU ([`crate::mip::build_chain`]). WGSL
+//! `blur/mip.wgsl`; this module is its twin, function by function.
+
+use std::any::Any;
+
+use crate::bindings::shade as b;
+use crate::blur::Blur;
+use crate::blur::{own, Bound, Kernel, Method, Plane, Prepared};
+use crate::device::{Gpu, Timings};
+use crate::layout::{Frame, LightGpu, MipLevel, PlaneGpu};
+use crate::Result;
+
+/// The lookup included into the shading pass.
+pub const WGSL: &str = include_str!("mip.wgsl");
+
+/// The MIP method.
+pub struct Mip;
+
+/// The image's chain: levels concatenated (rgb in 0..1, a unused) and where each lies.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Chain {
+    /// Every level's texels, level 0 first.
+    pub texels: Vec<[f32; 4]>,
+    /// Offset and size of each level.
+    pub levels: Vec<MipLevel>,
+}
+
+fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
+    [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
+}
+
+/// Texel (x, y) of level `l`; transparent outside.
+pub fn mip_texel(mip: &[[f32; 4]], l: &MipLevel, x: i32, y: i32) -> [f32; 3] {
+    if x < 0 || y < 0 || x >= l.width as i32 || y >= l.height as i32 {
+        return [0.0; 3];
+    }
+    let t = mip[(l.offset + y as u32 * l.width + x as u32) as usize];
+    [t[0], t[1], t[2]]
+}
+
+/// Bilinear sample of `level` at level-0 texel coordinate t.
+pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 2]) -> [f32; 3] {
+    let l = &levels[level as usize];
+    let scale = (1u32 << level) as f32;
+    let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
+    let c0 = [c[0].floor(), c[1].floor()];
+    let a = [c[0] - c0[0], c[1] - c0[1]];
+    let (x, y) = (c0[0] as i32, c0[1] as i32);
+    mix3(
+        mix3(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
+        mix3(
+            mip_texel(mip, l, x, y + 1),
+            mip_texel(mip, l, x + 1, y + 1),
+            a[0],
+        ),
+        a[1],
+    )
+}
+
+/// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
+pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    let top = levels.len() as u32 - 1;
+    let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
+    let l0 = lod as u32;
+    let l1 = (l0 + 1).min(top);
+    mix3(
+        mip_bilinear(mip, levels, l0, t),
+        mip_bilinear(mip, levels, l1, t),
+        lod - l0 as f32,
+    )
+}
+
+impl Method for Mip {
+    fn blur(&self) -> Blur {
+        Blur::Mip
+    }
+
+    fn kernels(&self) -> &'static [Kernel] {
+        &[Kernel::MipBox]
+    }
+
+    fn wgsl(&self) -> &'static str {
+        WGSL
+    }
+
+    fn prepare(&self, plane: &Plane, _: &Frame, _: &[LightGpu], _: &mut PlaneGpu) -> Prepared {
+        let [w, h] = plane.size.map(|x| x as usize);
+        let (texels, levels) = crate::mip::build_chain(&plane.texels, w, h);
+        std::sync::Arc::new(Chain { texels, levels })
+    }
+
+    fn upload(
+        &self,
+        gpu: &Gpu,
+        _: &Plane,
+        prepared: &(dyn Any + Send + Sync),
+        _: &mut Timings,
+    ) -> Result<Vec<(u32, wgpu::Buffer)>> {
+        let chain: &Chain = own(prepared, "mip");
+        Ok(vec![
+            (
+                b::MIP.index,
+                gpu.storage("mip", bytemuck::cast_slice(&chain.texels)),
+            ),
+            (
+                b::MIP_LEVELS.index,
+                gpu.storage("mip levels", bytemuck::cast_slice(&chain.levels)),
+            ),
+        ])
+    }
+
+    fn blur_lookup(
+        &self,
+        b: &Bound<'_>,
+        _li: usize,
+        t: [f32; 2],
+        wt: [f32; 2],
+        _kernel: Kernel,
+    ) -> [f32; 3] {
+        let chain: &Chain = own(b.prepared, "mip");
+        blur_mip(&chain.texels, &chain.levels, t, wt)
+    }
+}

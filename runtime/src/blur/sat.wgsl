@@ -1,0 +1,78 @@
+// blur/sat.wgsl: box (rectangle) kernels from the summed-area table built by sat_build.wgsl.
+// Included into shade.wgsl by `blur::sat`; CPU twin: blur/sat.rs.
+
+@group(0) @binding(5) var<storage, read> sat: array<u32>;
+
+const SAT_CHANNELS: u32 = {{CHANNELS}}u;
+
+fn sat_load(i: u32, j: u32, ch: u32) -> u32 {
+    return sat[(j * (plane.size.x + 1u) + i) * SAT_CHANNELS + ch];
+}
+
+// One axis of a box [lo, hi] (texel units, clamped to the table) split into whole-texel spans
+// of a piecewise-constant image: corner indices [i0, i0+1, i1, i1+1] (clamped to n) and weights
+// of the spans inner (c1→c2), right (c2→c3), left (c0→c1). Integral = Σ weight·span sum, exact
+// for the bilinear interpolant of the table. When lo and hi share a texel the inner span is
+// empty and the right span carries a1 − a0, so every span sum is non-negative.
+struct Spans {
+    corner: vec4<u32>,
+    weight: vec3<f32>,
+}
+
+fn sat_spans(lo: f32, hi: f32, n: u32) -> Spans {
+    let i0 = u32(floor(lo));
+    let i1 = u32(floor(hi));
+    let a0 = lo - floor(lo);
+    let a1 = hi - floor(hi);
+    var s: Spans;
+    if (i1 > i0) {
+        s.corner = vec4<u32>(i0, min(i0 + 1u, n), i1, min(i1 + 1u, n));
+        s.weight = vec3<f32>(1.0, a1, 1.0 - a0);
+    } else {
+        s.corner = vec4<u32>(i0, i1, i1, min(i1 + 1u, n));
+        s.weight = vec3<f32>(0.0, a1 - a0, 0.0);
+    }
+    return s;
+}
+
+// Summed-area lookup: mean opacity over the box t ± wt (texels); outside the caster counts as
+// transparent, so the sum is divided by the full box area. Corner differences are taken in
+// wrapping u32 (exact for any box up to 4096² texels), converted to f32 only after.
+fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+    let size = vec2<f32>(plane.size);
+    let lo = clamp(t - wt, vec2<f32>(0.0), size);
+    let hi = clamp(t + wt, vec2<f32>(0.0), size);
+    let sx = sat_spans(lo.x, hi.x, plane.size.x);
+    let sy = sat_spans(lo.y, hi.y, plane.size.y);
+    var out = vec3<f32>(0.0);
+    for (var ch = 0u; ch < SAT_CHANNELS; ch++) {
+        var s: array<array<u32, 4>, 4>;
+        for (var b = 0u; b < 4u; b++) {
+            for (var a = 0u; a < 4u; a++) {
+                s[b][a] = sat_load(sx.corner[a], sy.corner[b], ch);
+            }
+        }
+        var total = 0.0;
+        for (var m = 0u; m < 3u; m++) {
+            // Span m of an axis runs from corner ca[m] to cb[m]: inner 1→2, right 2→3, left 0→1.
+            let xa = select(select(0u, 2u, m == 1u), 1u, m == 0u);
+            let xb = select(select(1u, 3u, m == 1u), 2u, m == 0u);
+            for (var k = 0u; k < 3u; k++) {
+                let ya = select(select(0u, 2u, k == 1u), 1u, k == 0u);
+                let yb = select(select(1u, 3u, k == 1u), 2u, k == 0u);
+                let span_sum = s[yb][xb] - s[yb][xa] - s[ya][xb] + s[ya][xa];
+                total += sx.weight[m] * sy.weight[k] * f32(span_sum);
+            }
+        }
+        out[ch] = total / (4.0 * wt.x * wt.y * 255.0);
+    }
+    if (SAT_CHANNELS == 1u) {
+        return vec3<f32>(out.x);
+    }
+    return out;
+}
+
+// The method's entry point, called by `light_opacity` (see blur/explicit.wgsl).
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, kernel: u32) -> vec3<f32> {
+    return blur_sat(t, wt);
+}
