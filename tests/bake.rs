@@ -483,6 +483,18 @@ fn maps_beside_the_stack_and_the_fit() {
         std::fs::read(d.join("samples.maps.exr")).unwrap(),
         std::fs::read(d.join("b.maps.exr")).unwrap()
     );
+    // A maps file passed where a PTM or a stack belongs is named for what it is.
+    for args in [
+        &["preview", "--ptm", "b.maps.exr", "-o", "x.png"][..],
+        &["convert", "b.maps.exr", "-o", "x.ptm.exr"],
+        &["fit", "samples.maps.exr", "-o", "x.ptm.exr"],
+    ] {
+        let e = common::refused(args, d);
+        assert!(
+            e.contains("companion maps") && e.contains("ptm bake --maps"),
+            "{args:?}: {e}"
+        );
+    }
     let mut c = exrio::read(&d.join("b.maps.exr")).unwrap();
     assert_eq!((c.width, c.height), (16, 16));
     assert_eq!(c.texts("maps:materials", "maps").unwrap(), ["warp", "weft"]);

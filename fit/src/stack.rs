@@ -223,6 +223,9 @@ impl SampleStack {
             _ => {
                 let hint = if c.attrs.contains_key("ptm:basis") {
                     " (it is a fitted PTM: pass the samples.exr written by `ptm bake`)"
+                } else if c.attrs.contains_key("maps:version") {
+                    " (it holds the companion maps `ptm bake --maps` writes: pass the \
+                     samples.exr beside it)"
                 } else {
                     " (no `stack:version` attribute: pass the samples.exr written by `ptm bake`)"
                 };

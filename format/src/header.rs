@@ -84,7 +84,7 @@ pub fn number(attrs: &Attributes, name: &str, path: &Path) -> Result<Option<f64>
 impl Header {
     /// Parses the header of the PTM file `path` (named in every refusal). Checked in this
     /// order: `ptm:version` is `occlusion-ptm/1` or `/2` (absent: not a PTM, with a hint when
-    /// it is a sample stack), `ptm:basis` names a basis, `ptm:monomials` (optional) is its
+    /// it is a sample stack or companion maps), `ptm:basis` names a basis, `ptm:monomials` (optional) is its
     /// list, `ptm:link` and `ptm:uv` (optional) name a link and map, `ptm:tileW` and
     /// `ptm:tileH` are positive finite numbers.
     pub fn parse(attrs: &Attributes, path: &Path) -> Result<Header> {
@@ -102,6 +102,9 @@ impl Header {
             None => {
                 let hint = if attrs.contains_key("stack:version") {
                     " (it is a sample stack: fit it first with `ptm fit`)"
+                } else if attrs.contains_key("maps:version") {
+                    " (it holds the companion maps `ptm bake --maps` writes beside a PTM: pass \
+                     the PTM, NAME.ptm.exr)"
                 } else {
                     " (no `ptm:version` attribute)"
                 };
