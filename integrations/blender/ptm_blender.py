@@ -120,35 +120,26 @@ def ptm_info(path):
     return stem, basis, link, uv
 
 
+def _drive(socket, index, light, data_path):
+    """Driver: socket.default_value[index] (None: the whole value) = `data_path` of the light
+    object, an RNA path into it."""
+    fc = socket.driver_add("default_value") if index is None else socket.driver_add("default_value", index)
+    d = fc.driver
+    d.type = "SCRIPTED"
+    var = d.variables.new()
+    var.name = "a"
+    var.type = "SINGLE_PROP"
+    var.targets[0].id_type = "OBJECT"
+    var.targets[0].id = light
+    var.targets[0].data_path = data_path
+    d.expression = "a"
+
+
 def _drive_light_dir(socket, light):
     """Drivers: socket.default_value = the light object's +Z axis (towards a sun) in world space."""
     for i in range(3):
-        fc = socket.driver_add("default_value", i)
-        d = fc.driver
-        d.type = "SCRIPTED"
-        var = d.variables.new()
-        var.name = "a"
-        var.type = "SINGLE_PROP"
-        var.targets[0].id_type = "OBJECT"
-        var.targets[0].id = light
         # RNA paths index the matrix as stored, column first: [2][i] is row i of the Z axis.
-        var.targets[0].data_path = f"matrix_world[2][{i}]"
-        d.expression = "a"
-
-
-def _drive_light_pos(socket, light):
-    """Drivers: the Combine XYZ inputs = the light object's world position."""
-    for i, inp in enumerate(socket.node.inputs[:3]):
-        fc = inp.driver_add("default_value")
-        d = fc.driver
-        d.type = "SCRIPTED"
-        var = d.variables.new()
-        var.name = "a"
-        var.type = "SINGLE_PROP"
-        var.targets[0].id_type = "OBJECT"
-        var.targets[0].id = light
-        var.targets[0].data_path = f"matrix_world[3][{i}]"
-        d.expression = "a"
+        _drive(socket, i, light, f"matrix_world[2][{i}]")
 
 
 def _connect_light(tree, light_in, light):
@@ -159,10 +150,10 @@ def _connect_light(tree, light_in, light):
         light_in.default_value = light_direction(light)
         _drive_light_dir(light_in, light)
         return
-    pos = tree.nodes.new("ShaderNodeCombineXYZ")
+    pos = tree.nodes.new("ShaderNodeCombineXYZ")  # the light's world position
     for i, c in enumerate(light.matrix_world.translation):
         pos.inputs[i].default_value = c
-    _drive_light_pos(pos.outputs[0], light)
+        _drive(pos.inputs[i], None, light, f"matrix_world[3][{i}]")
     geo = tree.nodes.new("ShaderNodeNewGeometry")
     sub = tree.nodes.new("ShaderNodeVectorMath")
     sub.operation = "SUBTRACT"
@@ -378,23 +369,22 @@ def occlude_key_light(light, scene=None, denoise=None, ambient=False):
     tree.nodes.clear()
     rl = tree.nodes.new("CompositorNodeRLayers")
     rl.scene = scene
-    mul = tree.nodes.new("ShaderNodeMix")
-    sub = tree.nodes.new("ShaderNodeMix")
-    for node, op in ((mul, "MULTIPLY"), (sub, "SUBTRACT")):
+
+    def mix(op):
+        node = tree.nodes.new("ShaderNodeMix")
         node.data_type = "RGBA"
         node.blend_type = op
         node.inputs["Factor"].default_value = 1.0
+        return node
+
+    mul, sub = mix("MULTIPLY"), mix("SUBTRACT")
     tree.links.new(rl.outputs[f"Combined_{KEY_GROUP}"], mul.inputs["A"])
     tree.links.new(rl.outputs[AOV], mul.inputs["B"])
     tree.links.new(rl.outputs["Image"], sub.inputs["A"])
     tree.links.new(mul.outputs["Result"], sub.inputs["B"])
     result = sub.outputs["Result"]
     if ambient:
-        rest, mul2, sub2 = (tree.nodes.new("ShaderNodeMix") for _ in range(3))
-        for node, op in ((rest, "SUBTRACT"), (mul2, "MULTIPLY"), (sub2, "SUBTRACT")):
-            node.data_type = "RGBA"
-            node.blend_type = op
-            node.inputs["Factor"].default_value = 1.0
+        rest, mul2, sub2 = mix("SUBTRACT"), mix("MULTIPLY"), mix("SUBTRACT")
         tree.links.new(rl.outputs["Image"], rest.inputs["A"])
         tree.links.new(rl.outputs[f"Combined_{KEY_GROUP}"], rest.inputs["B"])
         tree.links.new(rest.outputs["Result"], mul2.inputs["A"])
