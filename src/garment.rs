@@ -144,7 +144,7 @@ pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garme
         hi[1].max(lo[1] + 1e-6),
     ];
     scene.size = args.size.map_or(DEFAULT_SIZE, |(w, h)| [w, h]);
-    let dist = r / (0.5 * args.fov.to_radians()).sin() * 0.92;
+    let dist = r / (0.5 * args.fov.to_radians()).sin() * 0.62;
     let eye = args
         .camera
         .unwrap_or([c[0], c[1] - 0.87 * dist, c[2] + 0.5 * dist]);
