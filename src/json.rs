@@ -476,8 +476,34 @@ pub struct Render {
     /// The linear EXR written (absent without `--exr`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub exr: Option<String>,
+    /// `--mesh`: the mesh rendered (absent on the plane).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh: Option<MeshReport>,
     /// The whole run.
     pub seconds: f64,
+}
+
+/// `ptm preview --mesh`: what was rendered on the mesh.
+#[derive(Serialize, Debug, Default)]
+pub struct MeshReport {
+    /// The built-in's name or the OBJ's path.
+    pub mesh: String,
+    /// Triangles drawn.
+    pub triangles: usize,
+    /// Triangles whose UVs or positions span no area: their tangents fell back to one
+    /// perpendicular to the normal instead of MikkTSpace's.
+    pub tangent_fallback_triangles: usize,
+    /// Bytes of the GPU vertex buffer (three corners per triangle).
+    pub vertex_buffer_bytes: u64,
+    /// The companion maps read (absent without).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub maps: Option<String>,
+    /// Whether the companion maps' normal map was applied.
+    pub normal_map: bool,
+    /// Whether the albedo came from the yarn masks and `--yarn-color`.
+    pub yarn_colors: bool,
+    /// Whether K darkened the key light (false with `--no-k` or without `--ptm`).
+    pub k: bool,
 }
 
 /// The range of K a preview evaluated before clamping.

@@ -10,6 +10,7 @@ mod batch;
 mod convert;
 mod errors;
 mod fit;
+mod garment;
 mod json;
 mod merge;
 mod outputs;

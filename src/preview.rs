@@ -117,6 +117,51 @@ pub struct Args {
     /// then close.
     #[arg(long, value_name = "N", requires = "window", hide = true)]
     pub window_frames: Option<u32>,
+    /// Render the PTM on a mesh instead of the plane: a built-in `sphere`, `cylinder`, `drape`
+    /// (a 2.4 × 2.4 cloth over a sphere, with folds), `plane`, or an OBJ file with UVs. The
+    /// PTM tiles --repeat times per UV unit (per unit of cloth for the built-ins, whose UVs are
+    /// lengths); the light is brought into each pixel's MikkTSpace tangent frame for K. Default
+    /// camera and light frame the mesh.
+    #[arg(long, value_name = "NAME|FILE.obj", conflicts_with_all = ["caster", "compare_blur", "window"])]
+    pub mesh: Option<String>,
+    /// How an OBJ without texture coordinates gets UVs: none (refuse it), planar (uv = xy)
+    /// or box (each triangle along its dominant axis).
+    #[arg(long, value_parser = ["none", "planar", "box"], default_value = "none", requires = "mesh")]
+    pub uv_projection: String,
+    /// Companion maps (`ptm bake --maps`) for the mesh: the normal map and the yarn masks.
+    /// Default: NAME.maps.exr beside --ptm NAME.ptm.exr when it exists.
+    #[arg(long, requires = "mesh")]
+    pub maps: Option<PathBuf>,
+    /// Leave the companion maps' normal map off.
+    #[arg(long, requires = "mesh")]
+    pub no_normal_map: bool,
+    /// Colour of a yarn of the companion maps (`warp`, `weft`, `loop`, `pile`, … or an OBJ's
+    /// usemtl name) as linear r,g,b: the albedo becomes Σ mask · colour per texel (--albedo
+    /// for materials not named). Repeat for each yarn.
+    #[arg(long, value_name = "NAME=R,G,B", requires = "mesh")]
+    pub yarn_color: Vec<String>,
+    /// Render without K (the PTM still sets the tile): the comparison image.
+    #[arg(long, requires = "mesh")]
+    pub no_k: bool,
+    /// Sheen colour (glTF KHR_materials_sheen `sheenColorFactor`, linear r,g,b; 0 turns it
+    /// off). Mesh path only.
+    #[arg(long, value_parser = parse_triple, default_value = "0.25,0.25,0.25")]
+    pub sheen: [f32; 3],
+    /// Sheen roughness (glTF `sheenRoughnessFactor`, in (0, 1]; the Charlie lobe's α is its
+    /// square). Mesh path only.
+    #[arg(long, default_value_t = 0.5)]
+    pub sheen_roughness: f32,
+    /// Fill light (linear r,g,b): albedo · fill · (½ + ½ n_z), the sky over the floor; K does
+    /// not darken it (K multiplies the key lights only). Mesh path only.
+    #[arg(long, value_parser = parse_triple, default_value = "0.12,0.12,0.12")]
+    pub fill: [f32; 3],
+    /// Lookdev sheet: three renders side by side, with K, the same without K, and a close-up
+    /// with K (the same camera at a fifth of the field of view, where the weave shows).
+    #[arg(long, requires = "mesh", conflicts_with_all = ["turntable", "no_k"])]
+    pub sheet: bool,
+    /// Tessellation of a built-in mesh relative to its default (the drape: 200² quads).
+    #[arg(long, default_value_t = 1.0, requires = "mesh")]
+    pub mesh_detail: f32,
 }
 
 fn parse_pair<T: std::str::FromStr>(s: &str) -> Result<(T, T), String> {
@@ -310,7 +355,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     }
     scene.colored_shadow = args.colored_shadow;
     scene.blur = args.blur;
-    if let Some(eye) = args.camera {
+    if let Some(eye) = args.camera.filter(|_| args.mesh.is_none()) {
         if !(eye.iter().all(|c| c.is_finite()) && eye[2] > 0.0) {
             bail!(
                 "--camera {eye:?}: the eye must be finite and above the cloth (z > 0; the cloth \
@@ -432,8 +477,18 @@ pub fn run(args: &Args) -> anyhow::Result<json::Preview> {
     // clap requires -o unless --window.
     let output = args.output.as_deref().context("--output is required")?;
     let tx = check_outputs(args, output)?;
-    let scene = build_scene(args)?;
-    let prepared = scene.prepare()?;
+    let mut scene = build_scene(args)?;
+    let mesh = match &args.mesh {
+        Some(name) => Some(crate::garment::build(args, name, &mut scene)?),
+        None => None,
+    };
+    let (prepared, mesh_report) = match &mesh {
+        Some(m) => {
+            let (p, t) = m.scene.prepare()?;
+            (p, Some((m, t)))
+        }
+        None => (scene.prepare()?, None),
+    };
     let (gpu, device_s) = open_gpu(&prepared)?;
     let mut report = json::Render {
         adapter: gpu.describe(),
@@ -444,10 +499,43 @@ pub fn run(args: &Args) -> anyhow::Result<json::Preview> {
         lights: scene.lights.len(),
         blur: scene.caster.as_ref().map(|_| scene.blur.name()),
         seconds_device: device_s,
+        mesh: mesh_report.map(|(m, t)| json::MeshReport {
+            mesh: m.name.clone(),
+            triangles: t.triangles,
+            tangent_fallback_triangles: t.fallback_triangles,
+            vertex_buffer_bytes: ptm_runtime::mesh::vertex_bytes(t.triangles),
+            maps: m.maps.as_deref().map(json::path),
+            normal_map: m.scene.normal_map.is_some(),
+            yarn_colors: m.yarn_colors,
+            k: m.scene.scene.ptm.is_some(),
+        }),
         ..Default::default()
     };
+    if let Some(m) = &report.mesh {
+        if m.tangent_fallback_triangles > 0 {
+            eprintln!(
+                "ptm preview: {} of the mesh's {} triangles have degenerate UVs or no area; \
+                 their tangents fell back to one perpendicular to the normal",
+                m.tangent_fallback_triangles, m.triangles
+            );
+        }
+    }
     diagnose(&scene, &prepared, &mut report);
-    let image = render(args, &gpu, &scene, &prepared, &mut report)?;
+    let prep = |s: &Scene| -> anyhow::Result<SceneBuffers> {
+        Ok(match &mesh {
+            Some(m) => {
+                let mut ms = m.scene.clone();
+                ms.scene = s.clone();
+                ms.prepare()?.0
+            }
+            None => s.prepare()?,
+        })
+    };
+    let scene = mesh.as_ref().map_or(&scene, |m| &m.scene.scene);
+    let image = match &mesh {
+        Some(m) if args.sheet => lookdev_sheet(&gpu, m, &prepared, &mut report)?,
+        _ => render(args, &gpu, scene, &prepared, &prep, &mut report)?,
+    };
     if args.compare_blur {
         compare_blur(args, &gpu, &scene, &mut report)?;
     }
@@ -573,6 +661,7 @@ fn render(
     gpu: &Gpu,
     scene: &Scene,
     prepared: &SceneBuffers,
+    prep: &dyn Fn(&Scene) -> anyhow::Result<SceneBuffers>,
     report: &mut json::Render,
 ) -> anyhow::Result<Image> {
     let Some(n) = args.turntable else {
@@ -587,7 +676,7 @@ fn render(
     let mut per_frame = Vec::new();
     for k in 0..n {
         let turned = scene.with_lights_turned(std::f32::consts::TAU * k as f32 / n as f32);
-        let (img, t) = gpu::render(gpu, &turned.prepare()?)?;
+        let (img, t) = gpu::render(gpu, &prep(&turned)?)?;
         per_frame.push(json::Passes(t.passes));
         frames.push(img);
     }
@@ -604,6 +693,27 @@ fn render(
         seconds_passes: per_frame,
     });
     Ok(Image::labelled_sheet(&frames, &labels).expect("frames share one size"))
+}
+
+/// `--sheet`: with K, without K, and a close-up with K (a fifth of the field of view), side by
+/// side in one image (grey gutters between them).
+fn lookdev_sheet(
+    gpu: &Gpu,
+    m: &crate::garment::Garment,
+    prepared: &SceneBuffers,
+    report: &mut json::Render,
+) -> anyhow::Result<Image> {
+    let (with_k, t) = gpu::render(gpu, prepared)?;
+    report.seconds_passes = Some(json::Passes(t.passes));
+    let mut no_k = m.scene.clone();
+    no_k.scene.ptm = None;
+    let (without_k, _) = gpu::render(gpu, &no_k.prepare()?.0)?;
+    let mut close = m.scene.clone();
+    if let Some(cam) = &mut close.scene.perspective {
+        cam.fov_y_deg /= 5.0;
+    }
+    let (close_up, _) = gpu::render(gpu, &close.prepare()?.0)?;
+    Ok(Image::contact_sheet(&[with_k, without_k, close_up], 3).expect("frames share one size"))
 }
 
 /// `--compare-blur`: every blur method against the Monte Carlo soft shadow, as a table on
@@ -631,6 +741,13 @@ fn check_outputs(args: &Args, output: &Path) -> anyhow::Result<Transaction> {
     outputs.extend(args.exr.as_deref());
     let mut inputs = Vec::new();
     inputs.extend(args.ptm.as_deref().map(|p| ("PTM", p)));
+    inputs.extend(args.maps.as_deref().map(|p| ("companion maps", p)));
+    inputs.extend(
+        args.mesh
+            .as_deref()
+            .filter(|m| m.ends_with(".obj"))
+            .map(|p| ("mesh", Path::new(p))),
+    );
     inputs.extend(args.caster.as_deref().map(|p| ("caster", p)));
     inputs.extend(
         args.albedo_texture

@@ -48,10 +48,12 @@ pub mod shade {
     pub const COVERAGE: Binding = b("coverage", 10);
     /// The filtered planar image's uniform block (`layout::PlaneGpu`).
     pub const PLANE: Binding = b("plane", 11);
+    /// Mesh path: the tangent-space normal map.
+    pub const NORMAL_MAP: Binding = b("normal_tex", 12);
     /// Every binding of the shading pass.
     pub const ALL: &[Binding] = &[
         FRAME, LIGHTS, COEFFS, ALBEDO, OPACITY, SAT, MIP, MIP_LEVELS, SEP_MAP, PTM_LEVELS,
-        COVERAGE, PLANE,
+        COVERAGE, PLANE, NORMAL_MAP,
     ];
 }
 

@@ -29,12 +29,15 @@ pub struct Renderer {
     blur: Option<(&'static dyn Method, Prepared, PlaneGpu)>,
     bind_group: wgpu::BindGroup,
     target: wgpu::Texture,
+    /// Mesh path: the vertex buffer, its corner count and the depth buffer.
+    mesh: Option<(wgpu::Buffer, u32, wgpu::Texture)>,
     size: [u32; 2],
     /// Setup timings (`compile`, `upload`, `sat_build`).
     pub setup: Timings,
 }
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 
 impl Renderer {
     /// Builds the pipelines and buffers of `p`'s variant and uploads its data (a summed-area table, MIP chain or separable maps are built on the first render).
@@ -51,6 +54,34 @@ impl Renderer {
                 label: Some("shade.wgsl"),
                 source: wgpu::ShaderSource::Wgsl(src.into()),
             });
+        if v.mesh {
+            crate::mesh::check_fits(
+                p.mesh_vertices.len() / 3,
+                gpu.device.limits().max_buffer_size,
+            )?;
+        }
+        let mesh_layout = [Some(wgpu::VertexBufferLayout {
+            array_stride: std::mem::size_of::<crate::layout::MeshVertex>() as u64,
+            step_mode: wgpu::VertexStepMode::Vertex,
+            attributes: &crate::layout::MeshVertex::ATTRIBUTES,
+        })];
+        let (vs, fs, buffers, depth_stencil): (_, _, &[Option<wgpu::VertexBufferLayout>], _) =
+            if v.mesh {
+                (
+                    "vs_mesh",
+                    "fs_mesh",
+                    &mesh_layout,
+                    Some(wgpu::DepthStencilState {
+                        format: DEPTH_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                )
+            } else {
+                ("vs_main", "fs_main", &[], None)
+            };
         let pipeline = gpu
             .device
             .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -58,16 +89,16 @@ impl Renderer {
                 layout: None,
                 vertex: wgpu::VertexState {
                     module: &module,
-                    entry_point: Some("vs_main"),
+                    entry_point: Some(vs),
                     compilation_options: Default::default(),
-                    buffers: &[],
+                    buffers,
                 },
                 primitive: Default::default(),
-                depth_stencil: None,
+                depth_stencil,
                 multisample: Default::default(),
                 fragment: Some(wgpu::FragmentState {
                     module: &module,
-                    entry_point: Some("fs_main"),
+                    entry_point: Some(fs),
                     compilation_options: Default::default(),
                     targets: &[Some(TARGET_FORMAT.into())],
                 }),
@@ -114,6 +145,37 @@ impl Renderer {
                 gpu.storage("ptm levels", bytemuck::cast_slice(&p.ptm_levels)),
             ));
         }
+        if v.mesh && v.normal_map {
+            entries.push((
+                b::NORMAL_MAP.index,
+                gpu.storage("normal map", bytemuck::cast_slice(&p.normal_map)),
+            ));
+        }
+        let size = [p.frame.screen[0] as u32, p.frame.screen[1] as u32];
+        let mesh = v.mesh.then(|| {
+            let vertices = gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("mesh vertices"),
+                    contents: bytemuck::cast_slice(&p.mesh_vertices),
+                    usage: wgpu::BufferUsages::VERTEX,
+                });
+            let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("depth"),
+                size: wgpu::Extent3d {
+                    width: size[0],
+                    height: size[1],
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: DEPTH_FORMAT,
+                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                view_formats: &[],
+            });
+            (vertices, p.mesh_vertices.len() as u32, depth)
+        });
         gpu.wait("upload")?;
         setup.passes.push(("upload", t.elapsed().as_secs_f64()));
 
@@ -144,7 +206,6 @@ impl Renderer {
             layout: &layout,
             entries: &bind_entries,
         });
-        let size = [p.frame.screen[0] as u32, p.frame.screen[1] as u32];
         let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
             label: Some("radiance"),
             size: wgpu::Extent3d {
@@ -176,6 +237,7 @@ impl Renderer {
                 .map(|m| (crate::blur::method(m), p.prepared.clone(), p.plane_gpu)),
             bind_group,
             target,
+            mesh,
             size,
             setup,
         })
@@ -209,6 +271,10 @@ impl Renderer {
     pub fn frame(&self) -> Result<f64> {
         let t = Instant::now();
         let view = self.target.create_view(&Default::default());
+        let depth_view = self
+            .mesh
+            .as_ref()
+            .map(|(_, _, d)| d.create_view(&Default::default()));
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -218,18 +284,38 @@ impl Renderer {
                     depth_slice: None,
                     resolve_target: None,
                     ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color::BLACK),
+                        // The mesh path leaves alpha 0 where no triangle covers the pixel.
+                        load: wgpu::LoadOp::Clear(if self.mesh.is_some() {
+                            wgpu::Color::TRANSPARENT
+                        } else {
+                            wgpu::Color::BLACK
+                        }),
                         store: wgpu::StoreOp::Store,
                     },
                 })],
-                depth_stencil_attachment: None,
+                depth_stencil_attachment: depth_view.as_ref().map(|view| {
+                    wgpu::RenderPassDepthStencilAttachment {
+                        view,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Discard,
+                        }),
+                        stencil_ops: None,
+                    }
+                }),
                 timestamp_writes: None,
                 occlusion_query_set: None,
                 multiview_mask: None,
             });
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &self.bind_group, &[]);
-            pass.draw(0..3, 0..1);
+            match &self.mesh {
+                Some((vertices, n, _)) => {
+                    pass.set_vertex_buffer(0, vertices.slice(..));
+                    pass.draw(0..*n, 0..1);
+                }
+                None => pass.draw(0..3, 0..1),
+            }
         }
         self.gpu.queue.submit([enc.finish()]);
         self.gpu.wait("shade")?;

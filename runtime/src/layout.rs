@@ -56,6 +56,21 @@ pub struct Frame {
     pub cam_forward: [f32; 3],
     /// Padding to the WGSL vec3's 16-byte stride.
     pub pad2: f32,
+    /// Mesh path: the fill light's radiance scale (linear rgb): albedo · fill · (½ + ½ n_z), a
+    /// sky-over-floor ambient that K does not touch (K darkens the key lights only).
+    pub fill: [f32; 3],
+    /// Mesh path: the sheen roughness (glTF `sheenRoughnessFactor`; α = roughness²).
+    pub sheen_roughness: f32,
+    /// Mesh path: the sheen colour (glTF `sheenColorFactor`, linear rgb; 0 = no sheen).
+    pub sheen_color: [f32; 3],
+    /// Mesh path: the near plane's forward distance (depth 0).
+    pub near: f32,
+    /// Mesh path: the normal map's texels nx, ny (tiled with the PTM).
+    pub normal_size: [u32; 2],
+    /// Mesh path: the far plane's forward distance (depth 1).
+    pub far: f32,
+    /// Padding to 16 bytes.
+    pub pad5: f32,
 }
 
 impl Frame {
@@ -132,6 +147,33 @@ impl PtmLevel {
             pad2: [0.0; 2],
         }
     }
+}
+
+/// One corner of the mesh path's vertex buffer: `struct MeshIn` in `shader/mesh.wgsl`
+/// (attributes at `@location(0…4)`, [`MeshVertex::ATTRIBUTES`]).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MeshVertex {
+    /// Position (world, mesh units).
+    pub position: [f32; 3],
+    /// Unit shading normal.
+    pub normal: [f32; 3],
+    /// MikkTSpace tangent (unit xyz) and bitangent sign w: B = w · N × T.
+    pub tangent: [f32; 4],
+    /// The PTM's coordinates (swatch units: UV × tiles per UV unit × tile size).
+    pub uv: [f32; 2],
+    /// PTM units per mesh unit on this triangle (√ of the area ratio): the level of detail's
+    /// stretch.
+    pub uv_scale: f32,
+    /// Padding (56 bytes a corner).
+    pub pad: f32,
+}
+
+impl MeshVertex {
+    /// The vertex attributes as wgpu reads them, location k = field k in declaration order.
+    pub const ATTRIBUTES: [wgpu::VertexAttribute; 5] = wgpu::vertex_attr_array![
+        0 => Float32x3, 1 => Float32x3, 2 => Float32x4, 3 => Float32x2, 4 => Float32
+    ];
 }
 
 /// One level of the caster opacity's MIP chain: `struct MipLevel` in `blur/mip.wgsl`.
@@ -271,10 +313,43 @@ mod tests {
         let want = fields!(Frame: view, screen, tile, albedo, light_count, caster_rect,
             caster_height, caster_sin_tilt, caster_cos_tilt, pad3, ptm_size, albedo_size,
             ptm_texels_per_pixel, ptm_level_count, pad4, eye, perspective, cam_right, pad0,
-            cam_up, pad1, cam_forward, pad2);
+            cam_up, pad1, cam_forward, pad2, fill, sheen_roughness, sheen_color, near,
+            normal_size, far, pad5);
         check(&shade_module(), "Frame", want, size_of::<Frame>());
         // A uniform block's size is a multiple of 16 bytes.
         assert_eq!(size_of::<Frame>() % 16, 0);
+    }
+
+    #[test]
+    fn mesh_vertex_attributes_match_the_struct_and_the_wgsl_locations() {
+        let v = Variant::all()
+            .into_iter()
+            .find(|v| v.mesh)
+            .expect("a mesh variant");
+        let m = shader::validate(&v.name(), &shader::shade_source(&v).unwrap()).unwrap();
+        let want = fields!(MeshVertex: position, normal, tangent, uv, uv_scale);
+        let (got, _) = reflect(&m, "MeshIn");
+        let names: Vec<&str> = got.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["position", "normal", "tangent", "uv", "uv_scale"]);
+        // wgpu's attributes: locations 0…4 in order, at the Rust offsets.
+        for (k, (a, (_, off))) in MeshVertex::ATTRIBUTES.iter().zip(want).enumerate() {
+            assert_eq!(a.shader_location, k as u32);
+            assert_eq!(a.offset as usize, *off, "attribute {k}");
+        }
+        // naga's entry point reads each member at the location of its index.
+        let ep = m.entry_points.iter().find(|e| e.name == "vs_mesh").unwrap();
+        let arg = &ep.function.arguments[0];
+        let naga::TypeInner::Struct { members, .. } = &m.types[arg.ty].inner else {
+            panic!("vs_mesh takes MeshIn");
+        };
+        for (k, mem) in members.iter().enumerate() {
+            assert!(
+                matches!(mem.binding, Some(naga::Binding::Location { location, .. }) if location == k as u32),
+                "{:?} at {:?}",
+                mem.name,
+                mem.binding
+            );
+        }
     }
 
     #[test]

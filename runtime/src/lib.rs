@@ -27,6 +27,7 @@ pub mod cpu;
 pub mod device;
 pub mod gpu;
 pub mod layout;
+pub mod mesh;
 pub mod mip;
 pub mod output;
 pub mod penumbra;

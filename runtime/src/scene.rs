@@ -368,6 +368,8 @@ impl Scene {
             coverage: !coverage.is_empty(),
             link,
             uv,
+            mesh: false,
+            normal_map: false,
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
@@ -398,6 +400,8 @@ impl Scene {
             caster_downsample,
             nonfinite_coeffs,
             warnings,
+            mesh_vertices: Vec::new(),
+            normal_map: Vec::new(),
         })
     }
 }
@@ -511,6 +515,11 @@ pub struct Variant {
     pub link: Link,
     /// The PTM's (u, v) map (projected without a PTM): only its code is compiled.
     pub uv: UvMap,
+    /// The mesh path (`shader/mesh.wgsl`: a vertex buffer, a depth buffer) instead of the
+    /// full-screen plane; never with a caster.
+    pub mesh: bool,
+    /// Mesh path: a tangent-space normal map.
+    pub normal_map: bool,
 }
 
 impl Variant {
@@ -552,8 +561,27 @@ impl Variant {
                                 coverage,
                                 link,
                                 uv,
+                                mesh: false,
+                                normal_map: false,
                             });
                         }
+                    }
+                }
+                // The mesh path: no caster, with or without a normal map.
+                for normal_map in [false, true] {
+                    for &(link, uv, ptm_mip, coverage) in &ptm_kinds {
+                        out.push(Variant {
+                            basis,
+                            albedo_texture,
+                            caster: None,
+                            colored: false,
+                            ptm_mip,
+                            coverage,
+                            link,
+                            uv,
+                            mesh: true,
+                            normal_map,
+                        });
                     }
                 }
             }
@@ -584,6 +612,12 @@ impl Variant {
         }
         if self.colored {
             parts.push("colored".into());
+        }
+        if self.mesh {
+            parts.push("mesh".into());
+        }
+        if self.normal_map {
+            parts.push("normal-map".into());
         }
         parts.join("+")
     }
@@ -668,4 +702,10 @@ pub struct SceneBuffers {
     pub nonfinite_coeffs: usize,
     /// What the caller should tell the user about this scene (each at most once).
     pub warnings: Vec<Warning>,
+    /// Mesh path: the vertex buffer (three corners per triangle) and the normal map's texels
+    /// (xyz, w = 0; row-major, row 0 at the far edge); empty on the plane path
+    /// ([`crate::mesh::MeshScene::prepare`]).
+    pub mesh_vertices: Vec<crate::layout::MeshVertex>,
+    /// The tangent-space normal map's texels (see `mesh_vertices`).
+    pub normal_map: Vec<[f32; 4]>,
 }

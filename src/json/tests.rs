@@ -309,6 +309,10 @@ impl Sample for Render {
             compare_blur: s(),
             png: s(),
             exr: s(),
+            mesh: Some(MeshReport {
+                maps: s(),
+                ..Default::default()
+            }),
             seconds: s(),
         }
     }

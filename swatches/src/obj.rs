@@ -23,6 +23,11 @@ pub struct Obj {
     pub materials: Vec<u32>,
     /// The `usemtl` names, in order of first use.
     pub material_names: Vec<String>,
+    /// Texture coordinates (`vt u v`) as written.
+    pub uvs: Vec<[f64; 2]>,
+    /// Per triangle, the `vt` index (0-based, checked against `uvs`) of each corner; empty
+    /// unless every face gives one for every corner (`f v/vt …`).
+    pub triangle_uvs: Vec<[u32; 3]>,
 }
 
 /// Reads an OBJ file: see [`parse_obj`].
@@ -35,9 +40,10 @@ pub fn read_obj(path: &Path) -> Result<Obj> {
 }
 
 /// Parses OBJ bytes (`origin` names them in errors): `v x y z` lines, `f` lines (polygons
-/// fan-triangulated, `/vt/vn` parts ignored, negative indices relative to the vertices so far),
+/// fan-triangulated, negative indices relative to the vertices so far; the `/vt` part read into
+/// [`Obj::triangle_uvs`] when every face has one, `/vn` ignored), `vt u v` lines (NaN refused),
 /// every object into one mesh, a `# tile W H` comment before the first vertex, and `usemtl`
-/// groups (the materials of the faces that follow). Other lines (`vt`, `vn`, `o`, `g`, …) are
+/// groups (the materials of the faces that follow). Other lines (`vn`, `o`, `g`, …) are
 /// ignored, and so are bytes that are not UTF-8
 /// outside `v` and `f` lines (a Latin-1 comment).
 pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
@@ -56,6 +62,8 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
     let mut face_lines: Vec<usize> = Vec::new();
     // The current `usemtl` group (none before the first).
     let mut material = u32::MAX;
+    // Whether every face so far gave a `vt` for every corner.
+    let mut all_vt = true;
     for (n, raw) in bytes.split(|&b| b == b'\n').enumerate() {
         let n = n + 1;
         let line = String::from_utf8_lossy(raw);
@@ -97,11 +105,55 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
                 }
                 obj.positions.push(v);
             }
+            Some("vt") => {
+                let mut v = [0.0; 2];
+                for (k, c) in v.iter_mut().enumerate() {
+                    let t = it.next().ok_or_else(|| {
+                        bad(
+                            n,
+                            format!("a texture coordinate needs u v, found {k} numbers"),
+                        )
+                    })?;
+                    *c = t
+                        .parse::<f64>()
+                        .ok()
+                        .filter(|c| c.is_finite())
+                        .ok_or_else(|| {
+                            bad(
+                                n,
+                                format!("texture coordinate {t:?} is non-finite or not a number"),
+                            )
+                        })?;
+                }
+                obj.uvs.push(v);
+            }
             Some("f") => {
                 let nv = obj.positions.len() as i64;
+                let nt = obj.uvs.len() as i64;
                 let mut idx = Vec::with_capacity(4);
+                let mut vts = Vec::with_capacity(4);
                 for t in it {
-                    let first = t.split('/').next().unwrap_or("");
+                    let mut parts = t.split('/');
+                    let first = parts.next().unwrap_or("");
+                    match parts.next().filter(|s| !s.is_empty()) {
+                        None => all_vt = false,
+                        Some(vt) => {
+                            let k = vt.parse::<i64>().map_err(|_| {
+                                bad(
+                                    n,
+                                    format!("texture coordinate index {vt:?} is not an integer"),
+                                )
+                            })?;
+                            let k = if k > 0 { k - 1 } else { nt + k };
+                            if k < 0 || k >= nt {
+                                return Err(bad(
+                                    n,
+                                    format!("texture coordinate index {vt} is outside the {nt} `vt` lines so far"),
+                                ));
+                            }
+                            vts.push(k as u32);
+                        }
+                    }
                     let k = first
                         .parse::<i64>()
                         .map_err(|_| bad(n, format!("face index {t:?} is not an integer")))?;
@@ -132,6 +184,9 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
                     ));
                 }
                 for k in 1..idx.len() - 1 {
+                    if all_vt && vts.len() == idx.len() {
+                        obj.triangle_uvs.push([vts[0], vts[k], vts[k + 1]]);
+                    }
                     obj.triangles.push([idx[0], idx[k], idx[k + 1]]);
                     obj.materials.push(material);
                     face_lines.push(n);
@@ -167,6 +222,9 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
             n,
             format!("face index {k} but the file has {nv} vertices"),
         ));
+    }
+    if !all_vt || obj.triangle_uvs.len() != obj.triangles.len() {
+        obj.triangle_uvs.clear();
     }
     if obj.material_names.is_empty() {
         obj.materials.clear();

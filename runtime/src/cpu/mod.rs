@@ -8,6 +8,7 @@
 //! same [`SceneBuffers`] buffers; tests compare the GPU image with it.
 
 pub mod blit;
+pub mod mesh;
 pub mod shade;
 
 use rayon::prelude::*;
@@ -17,8 +18,11 @@ use crate::scene::SceneBuffers;
 use shade::{pixel_world, ptm_k_unclamped, ptm_lod, OpacityFn, Twin};
 
 /// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
-/// result does not depend on the thread count).
+/// result does not depend on the thread count); a mesh scene through [`mesh::render`].
 pub fn render(p: &SceneBuffers) -> Image {
+    if p.variant.mesh {
+        return mesh::render(p);
+    }
     render_with(p, None)
 }
 
@@ -68,6 +72,10 @@ pub struct KExcursion {
 /// `None` without a PTM or without a light above the acceptor.
 pub fn k_excursion(p: &SceneBuffers) -> Option<KExcursion> {
     let basis = p.variant.basis?;
+    if p.variant.mesh {
+        // Reported for the plane path (the mesh path's tangent frames are per pixel).
+        return None;
+    }
     let twin = Twin {
         p,
         blur: None,
@@ -147,6 +155,9 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
         "blur/separable_passes.wgsl" => separable::texel, separable::sep_h, separable::hval,
             separable::sep_v;
         "blit.wgsl" => blit::vs_main, blit::srgb_encode, blit::fs_main;
+        "mesh.wgsl" => mesh::mesh_clip, mesh::vs_mesh, mesh::mesh_lod, mesh::tangent_frame,
+            mesh::normal_at, mesh::sheen_d, mesh::sheen_l, mesh::sheen_lambda,
+            mesh::sheen_visibility, mesh::sheen_brdf, mesh::shade_mesh, mesh::fs_mesh;
     }
 }
 
@@ -218,11 +229,14 @@ mod tests {
                 files.push((format!("blur/{file}"), wgsl_functions(&[pass.to_string()])));
             }
         }
+        let mesh_fns = declared(shader::MESH_WGSL);
+        method_fns.extend(mesh_fns.iter().cloned());
         let shade: BTreeSet<String> = wgsl_functions(&assembled)
             .difference(&method_fns)
             .cloned()
             .collect();
         files.insert(0, ("shade.wgsl".into(), shade));
+        files.push(("mesh.wgsl".into(), mesh_fns));
         files.push((
             "blit.wgsl".into(),
             wgsl_functions(&[shader::BLIT_WGSL.to_string()]),

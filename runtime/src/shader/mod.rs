@@ -38,6 +38,12 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.caster.is_some() {
         d.push("CASTER");
     }
+    if v.mesh {
+        d.push("MESH");
+    }
+    if v.mesh && v.normal_map {
+        d.push("NORMAL_MAP");
+    }
     d
 }
 
@@ -60,6 +66,9 @@ pub fn ptm_eval_expr(basis: Basis) -> String {
         .collect();
     terms.join(" + ")
 }
+
+/// The mesh path's stages, included into `shade.wgsl` for mesh variants (`{{MESH}}`).
+pub const MESH_WGSL: &str = include_str!("mesh.wgsl");
 
 /// The window's blit pass (cargo feature `window`; validated and twinned without it).
 pub const BLIT_WGSL: &str = include_str!("blit.wgsl");
@@ -100,14 +109,22 @@ fn bad(line: usize, what: &str) -> Error {
 }
 
 /// The complete WGSL source of a variant: `shade.wgsl` with the blur method's file (its
-/// bindings and `blur_lookup`, [`crate::blur::Method::wgsl`]) in place of `{{BLUR}}`.
+/// bindings and `blur_lookup`, [`crate::blur::Method::wgsl`]) in place of `{{BLUR}}`, and for a
+/// mesh variant `mesh.wgsl` in place of `{{MESH}}` (and of the full-screen triangle).
 pub fn shade_source(v: &Variant) -> Result<String> {
     let defined = defines(v);
     let blur = match v.caster {
         Some(b) => preprocess(crate::blur::method(b).wgsl(), &defined)?,
         None => String::new(),
     };
-    let src = preprocess(SHADE_WGSL, &defined)?.replace("{{BLUR}}", &blur);
+    let mesh = if v.mesh {
+        preprocess(MESH_WGSL, &defined)?
+    } else {
+        String::new()
+    };
+    let src = preprocess(SHADE_WGSL, &defined)?
+        .replace("{{BLUR}}", &blur)
+        .replace("{{MESH}}", &mesh);
     let nc = v.basis.map_or(0, |b| b.len());
     let eval = v.basis.map(ptm_eval_expr).unwrap_or_default();
     Ok(src
@@ -142,8 +159,8 @@ mod tests {
     fn every_shade_variant_validates_with_naga() {
         let all = Variant::all();
         // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
-        // and without coverage; × albedo × caster.
-        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2) * 2 * 9);
+        // and without coverage; × albedo × (caster, or a mesh with or without a normal map).
+        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2) * 2 * (9 + 2));
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -178,6 +195,8 @@ mod tests {
             coverage: false,
             link: Link::Identity,
             uv: UvMap::Projected,
+            mesh: false,
+            normal_map: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -189,7 +208,15 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         let module = validate("plain", &src).unwrap();
-        for name in ["mip", "sep_map", "ptm_levels", "ptm_lod", "ptm_coverage"] {
+        for name in [
+            "mip",
+            "sep_map",
+            "ptm_levels",
+            "ptm_lod",
+            "ptm_coverage",
+            "normal_tex",
+            "vs_mesh",
+        ] {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");
@@ -207,6 +234,10 @@ mod tests {
             let src = shade_source(&v).unwrap();
             let ptm = v.basis.is_some();
             for name in logistic {
+                // The mesh path's sheen visibility has its own exp().
+                if v.mesh && name == "exp(" {
+                    continue;
+                }
                 let want = ptm && v.link == Link::Logistic;
                 assert_eq!(src.contains(name), want, "{}: {name}", v.name());
             }

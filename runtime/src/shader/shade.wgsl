@@ -31,6 +31,13 @@ struct Frame {
     pad1: f32,
     cam_forward: vec3<f32>,     // forward (unit)
     pad2: f32,
+    fill: vec3<f32>,            // mesh: fill light (not darkened by K)
+    sheen_roughness: f32,       // mesh: glTF sheenRoughnessFactor
+    sheen_color: vec3<f32>,     // mesh: glTF sheenColorFactor
+    near: f32,                  // mesh: near plane (depth 0)
+    normal_size: vec2<u32>,     // mesh: normal map texels nx, ny
+    far: f32,                   // mesh: far plane (depth 1)
+    pad5: f32,
 }
 
 struct Light {
@@ -49,6 +56,10 @@ struct Light {
 //#endif
 //#if ALBEDO_TEX
 @group(0) @binding(3) var<storage, read> albedo_tex: array<vec4<f32>>;
+//#endif
+//#if NORMAL_MAP
+// Tangent-space normals (xyz, +Y up, MikkTSpace), tiled with the PTM (mesh path only).
+@group(0) @binding(12) var<storage, read> normal_tex: array<vec4<f32>>;
 //#endif
 //#if CASTER
 // The filtered planar image the blur method convolves (`layout::PlaneGpu`); its texels and
@@ -84,6 +95,8 @@ struct PtmLevel {
 @group(0) @binding(10) var<storage, read> coverage: array<f32>;
 //#endif
 
+//#if MESH
+//#else
 // Full-screen triangle: vertices (−1, −1), (3, −1), (−1, 3).
 @vertex
 fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
@@ -91,6 +104,7 @@ fn vs_main(@builtin(vertex_index) i: u32) -> @builtin(position) vec4<f32> {
     let y = f32(i32(i >> 1u) * 4 - 1);
     return vec4<f32>(x, y, 0.0, 1.0);
 }
+//#endif
 
 // Perspective ray direction through pixel `frag` (its forward component is 1).
 fn view_dir(frag: vec2<f32>) -> vec3<f32> {
@@ -424,6 +438,9 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
     return radiance;
 }
 
+//#if MESH
+{{MESH}}
+//#else
 @fragment
 fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
     let p = pixel_world(frag.xy);
@@ -436,3 +453,4 @@ fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
 //#endif
     return vec4<f32>(shade(p.xy, lod), 1.0);
 }
+//#endif

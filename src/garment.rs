@@ -1,0 +1,218 @@
+//! `ptm preview --mesh`: the mesh scene the flags describe — the mesh (a built-in or an OBJ),
+//! the companion maps' normal map and yarn colours, a camera and key light framing the mesh,
+//! the sheen and the fill — around the plane scene `preview::build_scene` made (its PTM, albedo
+//! and size).
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use ptm_format::exrio;
+use ptm_runtime::mesh::{Mesh, MeshScene, UvProjection, BUILTINS};
+use ptm_runtime::scene::Perspective;
+use ptm_runtime::{Light, Scene};
+
+use crate::preview::Args;
+
+/// The mesh scene and what it was made of.
+pub struct Garment {
+    /// The scene to prepare.
+    pub scene: MeshScene,
+    /// The built-in's name or the OBJ's path.
+    pub name: String,
+    /// The companion maps read, if any.
+    pub maps: Option<PathBuf>,
+    /// Whether the albedo comes from the yarn masks.
+    pub yarn_colors: bool,
+}
+
+/// The default output size of a mesh render.
+pub const DEFAULT_SIZE: [u32; 2] = [640, 480];
+
+/// Builds the mesh scene of `--mesh NAME` on `scene` (from `build_scene`): replaces its size,
+/// view (the mesh's footprint, about whose centre --turntable turns the lights), lights and
+/// camera with the mesh's, and its albedo with the yarn colours when asked.
+pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garment> {
+    let mesh = if let Some(m) = Mesh::builtin(name, args.mesh_detail) {
+        if !(args.mesh_detail > 0.0 && args.mesh_detail <= 16.0) {
+            bail!("--mesh-detail {} must be in (0, 16]", args.mesh_detail);
+        }
+        m
+    } else if name.to_ascii_lowercase().ends_with(".obj") || Path::new(name).exists() {
+        let projection = match args.uv_projection.as_str() {
+            "planar" => UvProjection::Planar,
+            "box" => UvProjection::Box,
+            _ => UvProjection::None,
+        };
+        Mesh::from_obj(Path::new(name), projection)?
+    } else {
+        bail!(
+            "--mesh {name}: not a built-in mesh ({}) nor an OBJ file",
+            BUILTINS.join(", ")
+        );
+    };
+    let tile = scene
+        .ptm
+        .as_ref()
+        .map_or([1.0, 1.0], |p| p.tile.map(|t| t as f32));
+    let (rx, ry) = args.repeat;
+    let uv_to_ptm = [rx as f32 * tile[0], ry as f32 * tile[1]];
+
+    // Companion maps: the flag, or NAME.maps.exr beside NAME.ptm.exr.
+    let maps_path = args.maps.clone().or_else(|| {
+        let ptm = args.ptm.as_ref()?.to_str()?;
+        let stem = ptm.strip_suffix(".ptm.exr")?;
+        let p = PathBuf::from(format!("{stem}.maps.exr"));
+        p.exists().then_some(p)
+    });
+    let mut normal_map = None;
+    let mut yarn_colors = false;
+    if let Some(path) = &maps_path {
+        let mut maps = exrio::read(path)?;
+        let what = "a companion maps file (`ptm bake --maps`)";
+        maps.text("maps:version", what)?;
+        let (w, h) = (maps.width, maps.height);
+        if !args.no_normal_map {
+            let x = maps.take_f32("normal.X", what)?;
+            let y = maps.take_f32("normal.Y", what)?;
+            let z = maps.take_f32("normal.Z", what)?;
+            normal_map = Some((w, h, (0..w * h).map(|i| [x[i], y[i], z[i]]).collect()));
+        }
+        if !args.yarn_color.is_empty() {
+            let materials = maps.texts("maps:materials", what)?;
+            let coverage = maps.take_f32("coverage", what)?;
+            let mut albedo: Vec<[f32; 3]> = vec![[0.0; 3]; w * h];
+            let mut named = vec![0f32; w * h];
+            for spec in &args.yarn_color {
+                let (m, rgb) = parse_yarn_color(spec)?;
+                if !materials.iter().any(|x| *x == m) {
+                    bail!(
+                        "--yarn-color {spec}: {} has no material `{m}` (it has {})",
+                        path.display(),
+                        materials.join(", ")
+                    );
+                }
+                let channel: String = m
+                    .chars()
+                    .map(|c| {
+                        if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                            c
+                        } else {
+                            '_'
+                        }
+                    })
+                    .collect();
+                let mask = maps.take_f32(&format!("mask.{channel}"), what)?;
+                for i in 0..w * h {
+                    for c in 0..3 {
+                        albedo[i][c] += mask[i] * rgb[c];
+                    }
+                    named[i] += mask[i];
+                }
+            }
+            // Σ mask · colour over the covered fraction, the rest (materials not named) at
+            // --albedo; uncovered texels (holes, shown black by the coverage) at --albedo too.
+            for i in 0..w * h {
+                let cov = coverage[i];
+                for c in 0..3 {
+                    albedo[i][c] = if cov > 0.0 {
+                        (albedo[i][c] + (cov - named[i]).max(0.0) * args.albedo[c]) / cov
+                    } else {
+                        args.albedo[c]
+                    };
+                }
+            }
+            scene.albedo_texture = Some((w, h, albedo));
+            yarn_colors = true;
+        }
+    } else if !args.yarn_color.is_empty() {
+        bail!(
+            "--yarn-color needs the companion maps' masks: bake with --maps, or name the file \
+             with --maps NAME.maps.exr"
+        );
+    }
+    if args.no_k {
+        scene.ptm = None;
+    }
+
+    // Framing: the bounding sphere, seen from the front and above.
+    let (lo, hi) = mesh.bounds();
+    let c: [f32; 3] = std::array::from_fn(|a| 0.5 * (lo[a] + hi[a]));
+    let r = 0.5 * (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f32>().sqrt();
+    scene.view = [
+        lo[0],
+        lo[1],
+        hi[0].max(lo[0] + 1e-6),
+        hi[1].max(lo[1] + 1e-6),
+    ];
+    scene.size = args.size.map_or(DEFAULT_SIZE, |(w, h)| [w, h]);
+    let dist = r / (0.5 * args.fov.to_radians()).sin() * 0.62;
+    let eye = args
+        .camera
+        .unwrap_or([c[0], c[1] - 0.87 * dist, c[2] + 0.5 * dist]);
+    if !eye.iter().all(|x| x.is_finite()) {
+        bail!("--camera {eye:?} must be finite");
+    }
+    scene.perspective = Some(Perspective {
+        eye,
+        target: args.look_at.unwrap_or(c),
+        fov_y_deg: args.fov,
+    });
+    let positions = if args.light.is_empty() {
+        vec![[c[0] - 1.6 * r, c[1] - 1.9 * r, c[2] + 2.4 * r]]
+    } else {
+        args.light.clone()
+    };
+    let nth = |v: &[f32], i: usize| v.get(i).or(v.last()).copied();
+    scene.lights = positions
+        .iter()
+        .enumerate()
+        .map(|(i, &position)| {
+            let d2: f32 = (0..3).map(|a| (position[a] - c[a]).powi(2)).sum();
+            Light {
+                position,
+                radius: nth(&args.light_radius, i).unwrap_or(0.25 * r),
+                rect: None,
+                // Irradiance 1 at the mesh's centre, facing the light.
+                intensity: nth(&args.intensity, i).unwrap_or(d2),
+                color: args
+                    .color
+                    .get(i)
+                    .or(args.color.last())
+                    .copied()
+                    .unwrap_or([1.0; 3]),
+            }
+        })
+        .collect();
+    Ok(Garment {
+        scene: MeshScene {
+            scene: scene.clone(),
+            mesh,
+            uv_to_ptm,
+            sheen_color: args.sheen,
+            sheen_roughness: args.sheen_roughness,
+            fill: args.fill,
+            normal_map,
+            tile,
+        },
+        name: name.to_string(),
+        maps: maps_path,
+        yarn_colors,
+    })
+}
+
+/// `NAME=R,G,B`.
+fn parse_yarn_color(s: &str) -> anyhow::Result<(String, [f32; 3])> {
+    let (name, rgb) = s.split_once('=').with_context(|| {
+        format!("--yarn-color {s}: expected NAME=R,G,B (e.g. warp=0.5,0.1,0.1)")
+    })?;
+    let v: Vec<f32> = rgb
+        .split(',')
+        .map(|x| x.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("--yarn-color {s}: R,G,B must be numbers"))?;
+    match v[..] {
+        [r, g, b] if v.iter().all(|x| x.is_finite() && *x >= 0.0) => {
+            Ok((name.to_string(), [r, g, b]))
+        }
+        _ => bail!("--yarn-color {s}: expected three numbers ≥ 0 after `=`"),
+    }
+}
