@@ -241,3 +241,17 @@ mod tests {
         distinct::<Blur>();
     }
 }
+
+/// Parses `R,G,B` (or any three comma-separated numbers) for clap.
+pub fn parse_triple(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse()
+                .map_err(|_| format!("`{p}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    v.try_into()
+        .map_err(|_| format!("expected three comma-separated numbers, got `{s}`"))
+}

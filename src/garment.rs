@@ -10,7 +10,83 @@ use ptm_runtime::mesh::{Mesh, MeshScene, UvProjection, BUILTINS};
 use ptm_runtime::scene::Perspective;
 use ptm_runtime::{Light, Scene};
 
-use crate::preview::Args;
+use crate::args::parse_triple;
+
+/// `ptm preview`'s flags of the mesh path.
+#[derive(clap::Args, Debug)]
+pub struct MeshArgs {
+    /// Render the PTM on a mesh instead of the plane: a built-in `sphere`, `cylinder`, `drape`
+    /// (a 2.4 × 2.4 cloth over a sphere, with folds), `plane`, or an OBJ file with UVs. The
+    /// PTM tiles --repeat times per UV unit (per unit of cloth for the built-ins, whose UVs are
+    /// lengths); the light is brought into each pixel's MikkTSpace tangent frame for K. Default
+    /// camera and light frame the mesh.
+    #[arg(long, value_name = "NAME|FILE.obj", conflicts_with_all = ["caster", "compare_blur", "window"])]
+    pub mesh: Option<String>,
+    /// How an OBJ without texture coordinates gets UVs: none (refuse it), planar (uv = xy)
+    /// or box (each triangle along its dominant axis).
+    #[arg(long, value_parser = ["none", "planar", "box"], default_value = "none", requires = "mesh")]
+    pub uv_projection: String,
+    /// Companion maps (`ptm bake --maps`) for the mesh: the normal map and the yarn masks.
+    /// Default: NAME.maps.exr beside --ptm NAME.ptm.exr when it exists.
+    #[arg(long, requires = "mesh")]
+    pub maps: Option<PathBuf>,
+    /// Leave the companion maps' normal map off.
+    #[arg(long, requires = "mesh")]
+    pub no_normal_map: bool,
+    /// Colour of a yarn of the companion maps (`warp`, `weft`, `loop`, `pile`, … or an OBJ's
+    /// usemtl name) as linear r,g,b: the albedo becomes Σ mask · colour per texel (--albedo
+    /// for materials not named). Repeat for each yarn.
+    #[arg(long, value_name = "NAME=R,G,B", requires = "mesh")]
+    pub yarn_color: Vec<String>,
+    /// Render without K (the PTM still sets the tile): the comparison image.
+    #[arg(long, requires = "mesh")]
+    pub no_k: bool,
+    /// Sheen colour (glTF KHR_materials_sheen `sheenColorFactor`, linear r,g,b; 0 turns it
+    /// off). Mesh path only.
+    #[arg(long, value_parser = parse_triple, default_value = "0.25,0.25,0.25")]
+    pub sheen: [f32; 3],
+    /// Sheen roughness (glTF `sheenRoughnessFactor`, in (0, 1]; the Charlie lobe's α is its
+    /// square). Mesh path only.
+    #[arg(long, default_value_t = 0.5)]
+    pub sheen_roughness: f32,
+    /// Fill light (linear r,g,b): albedo · fill · (½ + ½ n_z), the sky over the floor; K does
+    /// not darken it (K multiplies the key lights only). Mesh path only.
+    #[arg(long, value_parser = parse_triple, default_value = "0.12,0.12,0.12")]
+    pub fill: [f32; 3],
+    /// Lookdev sheet: three renders side by side, with K, the same without K, and a close-up
+    /// with K (the same camera at a fifth of the field of view, where the weave shows).
+    #[arg(long, requires = "mesh", conflicts_with_all = ["turntable", "no_k"])]
+    pub sheet: bool,
+    /// Tessellation of a built-in mesh relative to its default (the drape: 200² quads).
+    #[arg(long, default_value_t = 1.0, requires = "mesh")]
+    pub mesh_detail: f32,
+}
+
+/// The flags the mesh path shares with the plane preview.
+pub struct View<'a> {
+    /// The PTM (`--ptm`), whose NAME.maps.exr is looked for beside it.
+    pub ptm: Option<&'a Path>,
+    /// `--repeat`: tiles per UV unit.
+    pub repeat: (u32, u32),
+    /// `--albedo`.
+    pub albedo: [f32; 3],
+    /// `--size`.
+    pub size: Option<(u32, u32)>,
+    /// `--fov`, degrees.
+    pub fov: f32,
+    /// `--camera`.
+    pub camera: Option<[f32; 3]>,
+    /// `--look-at`.
+    pub look_at: Option<[f32; 3]>,
+    /// `--light` positions.
+    pub light: &'a [[f32; 3]],
+    /// `--light-radius`, per light (the last repeats).
+    pub light_radius: &'a [f32],
+    /// `--intensity`, per light.
+    pub intensity: &'a [f32],
+    /// `--color`, per light.
+    pub color: &'a [[f32; 3]],
+}
 
 /// The mesh scene and what it was made of.
 pub struct Garment {
@@ -30,7 +106,12 @@ pub const DEFAULT_SIZE: [u32; 2] = [640, 480];
 /// Builds the mesh scene of `--mesh NAME` on `scene` (from `build_scene`): replaces its size,
 /// view (the mesh's footprint, about whose centre --turntable turns the lights), lights and
 /// camera with the mesh's, and its albedo with the yarn colours when asked.
-pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garment> {
+pub fn build(
+    args: &MeshArgs,
+    view: &View,
+    name: &str,
+    scene: &mut Scene,
+) -> anyhow::Result<Garment> {
     let mesh = if let Some(m) = Mesh::builtin(name, args.mesh_detail) {
         if !(args.mesh_detail > 0.0 && args.mesh_detail <= 16.0) {
             bail!("--mesh-detail {} must be in (0, 16]", args.mesh_detail);
@@ -53,12 +134,12 @@ pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garme
         .ptm
         .as_ref()
         .map_or([1.0, 1.0], |p| p.tile.map(|t| t as f32));
-    let (rx, ry) = args.repeat;
+    let (rx, ry) = view.repeat;
     let uv_to_ptm = [rx as f32 * tile[0], ry as f32 * tile[1]];
 
     // Companion maps: the flag, or NAME.maps.exr beside NAME.ptm.exr.
     let maps_path = args.maps.clone().or_else(|| {
-        let ptm = args.ptm.as_ref()?.to_str()?;
+        let ptm = view.ptm.as_ref()?.to_str()?;
         let stem = ptm.strip_suffix(".ptm.exr")?;
         let p = PathBuf::from(format!("{stem}.maps.exr"));
         p.exists().then_some(p)
@@ -83,7 +164,7 @@ pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garme
             let mut named = vec![0f32; w * h];
             for spec in &args.yarn_color {
                 let (m, rgb) = parse_yarn_color(spec)?;
-                if !materials.iter().any(|x| *x == m) {
+                if !materials.contains(&m) {
                     bail!(
                         "--yarn-color {spec}: {} has no material `{m}` (it has {})",
                         path.display(),
@@ -112,11 +193,11 @@ pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garme
             // --albedo; uncovered texels (holes, shown black by the coverage) at --albedo too.
             for i in 0..w * h {
                 let cov = coverage[i];
-                for c in 0..3 {
-                    albedo[i][c] = if cov > 0.0 {
-                        (albedo[i][c] + (cov - named[i]).max(0.0) * args.albedo[c]) / cov
+                for (a, &base) in albedo[i].iter_mut().zip(&view.albedo) {
+                    *a = if cov > 0.0 {
+                        (*a + (cov - named[i]).max(0.0) * base) / cov
                     } else {
-                        args.albedo[c]
+                        base
                     };
                 }
             }
@@ -143,9 +224,9 @@ pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garme
         hi[0].max(lo[0] + 1e-6),
         hi[1].max(lo[1] + 1e-6),
     ];
-    scene.size = args.size.map_or(DEFAULT_SIZE, |(w, h)| [w, h]);
-    let dist = r / (0.5 * args.fov.to_radians()).sin() * 0.62;
-    let eye = args
+    scene.size = view.size.map_or(DEFAULT_SIZE, |(w, h)| [w, h]);
+    let dist = r / (0.5 * view.fov.to_radians()).sin() * 0.62;
+    let eye = view
         .camera
         .unwrap_or([c[0], c[1] - 0.87 * dist, c[2] + 0.5 * dist]);
     if !eye.iter().all(|x| x.is_finite()) {
@@ -153,13 +234,13 @@ pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garme
     }
     scene.perspective = Some(Perspective {
         eye,
-        target: args.look_at.unwrap_or(c),
-        fov_y_deg: args.fov,
+        target: view.look_at.unwrap_or(c),
+        fov_y_deg: view.fov,
     });
-    let positions = if args.light.is_empty() {
+    let positions = if view.light.is_empty() {
         vec![[c[0] - 1.6 * r, c[1] - 1.9 * r, c[2] + 2.4 * r]]
     } else {
-        args.light.clone()
+        view.light.to_vec()
     };
     let nth = |v: &[f32], i: usize| v.get(i).or(v.last()).copied();
     scene.lights = positions
@@ -169,14 +250,14 @@ pub fn build(args: &Args, name: &str, scene: &mut Scene) -> anyhow::Result<Garme
             let d2: f32 = (0..3).map(|a| (position[a] - c[a]).powi(2)).sum();
             Light {
                 position,
-                radius: nth(&args.light_radius, i).unwrap_or(0.25 * r),
+                radius: nth(&view.light_radius, i).unwrap_or(0.25 * r),
                 rect: None,
                 // Irradiance 1 at the mesh's centre, facing the light.
-                intensity: nth(&args.intensity, i).unwrap_or(d2),
-                color: args
+                intensity: nth(&view.intensity, i).unwrap_or(d2),
+                color: view
                     .color
                     .get(i)
-                    .or(args.color.last())
+                    .or(view.color.last())
                     .copied()
                     .unwrap_or([1.0; 3]),
             }

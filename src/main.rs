@@ -47,7 +47,7 @@ enum Command {
     Fit(fit::Args),
     /// Render the swatch plane under area lights on the GPU, shaded by 1 − K of a PTM and the
     /// soft shadow of a planar caster.
-    Preview(preview::Args),
+    Preview(Box<preview::Args>),
     /// Generate a procedural tileable swatch as an OBJ file.
     Swatch(swatch::Args),
     /// Measured study: error of K against run time per setting, and stiff/extreme cases.

@@ -10,7 +10,7 @@ use ptm_format::Ptm;
 use ptm_runtime::scene::{Perspective, SceneBuffers};
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
 
-use crate::args::choice;
+use crate::args::{choice, parse_triple};
 use crate::json;
 
 #[derive(clap::Args)]
@@ -117,51 +117,9 @@ pub struct Args {
     /// then close.
     #[arg(long, value_name = "N", requires = "window", hide = true)]
     pub window_frames: Option<u32>,
-    /// Render the PTM on a mesh instead of the plane: a built-in `sphere`, `cylinder`, `drape`
-    /// (a 2.4 × 2.4 cloth over a sphere, with folds), `plane`, or an OBJ file with UVs. The
-    /// PTM tiles --repeat times per UV unit (per unit of cloth for the built-ins, whose UVs are
-    /// lengths); the light is brought into each pixel's MikkTSpace tangent frame for K. Default
-    /// camera and light frame the mesh.
-    #[arg(long, value_name = "NAME|FILE.obj", conflicts_with_all = ["caster", "compare_blur", "window"])]
-    pub mesh: Option<String>,
-    /// How an OBJ without texture coordinates gets UVs: none (refuse it), planar (uv = xy)
-    /// or box (each triangle along its dominant axis).
-    #[arg(long, value_parser = ["none", "planar", "box"], default_value = "none", requires = "mesh")]
-    pub uv_projection: String,
-    /// Companion maps (`ptm bake --maps`) for the mesh: the normal map and the yarn masks.
-    /// Default: NAME.maps.exr beside --ptm NAME.ptm.exr when it exists.
-    #[arg(long, requires = "mesh")]
-    pub maps: Option<PathBuf>,
-    /// Leave the companion maps' normal map off.
-    #[arg(long, requires = "mesh")]
-    pub no_normal_map: bool,
-    /// Colour of a yarn of the companion maps (`warp`, `weft`, `loop`, `pile`, … or an OBJ's
-    /// usemtl name) as linear r,g,b: the albedo becomes Σ mask · colour per texel (--albedo
-    /// for materials not named). Repeat for each yarn.
-    #[arg(long, value_name = "NAME=R,G,B", requires = "mesh")]
-    pub yarn_color: Vec<String>,
-    /// Render without K (the PTM still sets the tile): the comparison image.
-    #[arg(long, requires = "mesh")]
-    pub no_k: bool,
-    /// Sheen colour (glTF KHR_materials_sheen `sheenColorFactor`, linear r,g,b; 0 turns it
-    /// off). Mesh path only.
-    #[arg(long, value_parser = parse_triple, default_value = "0.25,0.25,0.25")]
-    pub sheen: [f32; 3],
-    /// Sheen roughness (glTF `sheenRoughnessFactor`, in (0, 1]; the Charlie lobe's α is its
-    /// square). Mesh path only.
-    #[arg(long, default_value_t = 0.5)]
-    pub sheen_roughness: f32,
-    /// Fill light (linear r,g,b): albedo · fill · (½ + ½ n_z), the sky over the floor; K does
-    /// not darken it (K multiplies the key lights only). Mesh path only.
-    #[arg(long, value_parser = parse_triple, default_value = "0.12,0.12,0.12")]
-    pub fill: [f32; 3],
-    /// Lookdev sheet: three renders side by side, with K, the same without K, and a close-up
-    /// with K (the same camera at a fifth of the field of view, where the weave shows).
-    #[arg(long, requires = "mesh", conflicts_with_all = ["turntable", "no_k"])]
-    pub sheet: bool,
-    /// Tessellation of a built-in mesh relative to its default (the drape: 200² quads).
-    #[arg(long, default_value_t = 1.0, requires = "mesh")]
-    pub mesh_detail: f32,
+    /// The mesh path's flags (`--mesh` and what goes with it).
+    #[command(flatten)]
+    pub garment: crate::garment::MeshArgs,
 }
 
 fn parse_pair<T: std::str::FromStr>(s: &str) -> Result<(T, T), String> {
@@ -211,17 +169,21 @@ fn output_size(args: &Args, view: [f32; 4]) -> [u32; 2] {
     }
 }
 
-fn parse_triple(s: &str) -> Result<[f32; 3], String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|p| {
-            p.trim()
-                .parse()
-                .map_err(|_| format!("`{p}` is not a number"))
-        })
-        .collect::<Result<_, _>>()?;
-    v.try_into()
-        .map_err(|_| format!("expected three comma-separated numbers, got `{s}`"))
+/// The flags the mesh path shares with the plane's.
+fn view_of(args: &Args) -> crate::garment::View<'_> {
+    crate::garment::View {
+        ptm: args.ptm.as_deref(),
+        repeat: args.repeat,
+        albedo: args.albedo,
+        size: args.size,
+        fov: args.fov,
+        camera: args.camera,
+        look_at: args.look_at,
+        light: &args.light,
+        light_radius: &args.light_radius,
+        intensity: &args.intensity,
+        color: &args.color,
+    }
 }
 
 /// The value for light `i` from a repeatable option (the last one repeats).
@@ -355,7 +317,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     }
     scene.colored_shadow = args.colored_shadow;
     scene.blur = args.blur;
-    if let Some(eye) = args.camera.filter(|_| args.mesh.is_none()) {
+    if let Some(eye) = args.camera.filter(|_| args.garment.mesh.is_none()) {
         if !(eye.iter().all(|c| c.is_finite()) && eye[2] > 0.0) {
             bail!(
                 "--camera {eye:?}: the eye must be finite and above the cloth (z > 0; the cloth \
@@ -478,8 +440,13 @@ pub fn run(args: &Args) -> anyhow::Result<json::Preview> {
     let output = args.output.as_deref().context("--output is required")?;
     let tx = check_outputs(args, output)?;
     let mut scene = build_scene(args)?;
-    let mesh = match &args.mesh {
-        Some(name) => Some(crate::garment::build(args, name, &mut scene)?),
+    let mesh = match &args.garment.mesh {
+        Some(name) => Some(crate::garment::build(
+            &args.garment,
+            &view_of(args),
+            name,
+            &mut scene,
+        )?),
         None => None,
     };
     let (prepared, mesh_report) = match &mesh {
@@ -533,11 +500,11 @@ pub fn run(args: &Args) -> anyhow::Result<json::Preview> {
     };
     let scene = mesh.as_ref().map_or(&scene, |m| &m.scene.scene);
     let image = match &mesh {
-        Some(m) if args.sheet => lookdev_sheet(&gpu, m, &prepared, &mut report)?,
+        Some(m) if args.garment.sheet => lookdev_sheet(&gpu, m, &prepared, &mut report)?,
         _ => render(args, &gpu, scene, &prepared, &prep, &mut report)?,
     };
     if args.compare_blur {
-        compare_blur(args, &gpu, &scene, &mut report)?;
+        compare_blur(args, &gpu, scene, &mut report)?;
     }
     write_outputs(args, output, tx, &image, &mut report)?;
     report.seconds = start.elapsed().as_secs_f64();
@@ -741,9 +708,10 @@ fn check_outputs(args: &Args, output: &Path) -> anyhow::Result<Transaction> {
     outputs.extend(args.exr.as_deref());
     let mut inputs = Vec::new();
     inputs.extend(args.ptm.as_deref().map(|p| ("PTM", p)));
-    inputs.extend(args.maps.as_deref().map(|p| ("companion maps", p)));
+    inputs.extend(args.garment.maps.as_deref().map(|p| ("companion maps", p)));
     inputs.extend(
-        args.mesh
+        args.garment
+            .mesh
             .as_deref()
             .filter(|m| m.ends_with(".obj"))
             .map(|p| ("mesh", Path::new(p))),

@@ -523,13 +523,13 @@ impl MeshScene {
         if self.mesh.corners.is_empty() {
             return Err(Error::Scene("the mesh has no triangles".into()));
         }
-        if !(self.sheen_roughness > 0.0 && self.sheen_roughness <= 1.0)
-            || !self
-                .sheen_color
-                .iter()
-                .chain(&self.fill)
-                .all(|c| c.is_finite() && *c >= 0.0)
-        {
+        let roughness_ok = self.sheen_roughness > 0.0 && self.sheen_roughness <= 1.0;
+        let colours_ok = self
+            .sheen_color
+            .iter()
+            .chain(&self.fill)
+            .all(|c| c.is_finite() && *c >= 0.0);
+        if !(roughness_ok && colours_ok) {
             return Err(Error::Scene(format!(
                 "sheen colour {:?} and fill {:?} must be finite and ≥ 0, sheen roughness {} in \
                  (0, 1]",

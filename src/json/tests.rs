@@ -570,6 +570,7 @@ fn nested() -> BTreeMap<&'static str, Value> {
         ("BlurRow", none::<BlurRow>()),
         ("Bounds", none::<Bounds>()),
         ("ReportSwatch", none::<ReportSwatch>()),
+        ("MeshReport", none::<MeshReport>()),
     ])
 }
 
