@@ -98,4 +98,3 @@ pub(crate) fn check(opts: &FitOptions, w: &[f64]) -> Result<FitOptions> {
         ..opts.clone()
     })
 }
-

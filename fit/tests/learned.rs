@@ -111,12 +111,21 @@ fn a_known_smooth_basis_is_learned_back_from_counts() {
     let (learned, report) = acc.finish([1.0, 1.0]).unwrap();
     let stats = report.learned.clone().expect("learning statistics");
     assert_eq!((stats.terms, stats.texels), (6, w * h));
-    assert!(stats.deviance < stats.deviance_start && stats.rms < stats.rms_start, "{stats:?}");
+    assert!(
+        stats.deviance < stats.deviance_start && stats.rms < stats.rms_start,
+        "{stats:?}"
+    );
     let (poly, _) = fit_stack(&stack, &options(Basis::Ptm6)).unwrap();
-    let (e_learned, e_poly) = (held_rms(&learned, &coeffs, &test), held_rms(&poly, &coeffs, &test));
+    let (e_learned, e_poly) = (
+        held_rms(&learned, &coeffs, &test),
+        held_rms(&poly, &coeffs, &test),
+    );
     eprintln!("held-out RMS of K: learned6 {e_learned:.4}, logistic ptm6 {e_poly:.4}; {stats:?}");
     // The count quantisation alone is 1/(√12·64) ≈ 0.0045 per sample.
-    assert!(e_learned < 0.5 * e_poly, "learned6 {e_learned} vs ptm6 {e_poly}");
+    assert!(
+        e_learned < 0.5 * e_poly,
+        "learned6 {e_learned} vs ptm6 {e_poly}"
+    );
     assert!(e_learned < 0.03, "learned6 {e_learned}");
     // The stored stack and the streaming counts fit the same.
     let (from_stack, _) = fit_stack(&stack, &opts).unwrap();

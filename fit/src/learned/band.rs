@@ -68,7 +68,6 @@ impl Band {
     }
 }
 
-
 #[cfg(test)]
 mod tests {
     use super::*;

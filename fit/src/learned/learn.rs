@@ -512,7 +512,14 @@ pub(crate) fn learn(
     for (l, row) in design.iter_mut().enumerate() {
         table.terms(uv[l].0, uv[l].1, row);
     }
-    let tables = Tables::learned(&design, w, held, lambda, opts.tolerance, opts.max_iterations);
+    let tables = Tables::learned(
+        &design,
+        w,
+        held,
+        lambda,
+        opts.tolerance,
+        opts.max_iterations,
+    );
     let stats = LearnedStats {
         terms: k,
         grid: GRID,
@@ -598,9 +605,13 @@ fn gauge(p: &Problem, b: &[f64], c: &[f64]) -> LearnedTable {
         let sign = if mean.abs() > 1e-9 * wsum {
             mean.signum()
         } else {
-            let big = (0..g2)
-                .map(|cell| tb[cell * k + r])
-                .fold(0f64, |m, x| if x.abs() > m.abs() { x } else { m });
+            let big = (0..g2).map(|cell| tb[cell * k + r]).fold(0f64, |m, x| {
+                if x.abs() > m.abs() {
+                    x
+                } else {
+                    m
+                }
+            });
             if big < 0.0 {
                 -1.0
             } else {

@@ -32,7 +32,6 @@ pub use accumulator::Accumulator;
 pub use factor::describe_direction;
 pub use options::{
     holdout_indices, ErrorStats, FitOptions, FitReport, LearnedStats, LogisticStats, Weight,
-    COND_WARN,
-    DEFAULT_RCOND,
+    COND_WARN, DEFAULT_RCOND,
 };
 pub use refit::fit_stack;
