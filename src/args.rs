@@ -46,6 +46,18 @@ impl Choice for Basis {
     }
 }
 
+/// `--basis` / `--fit`: `ptm6`, `ptm11`, or `learnedN` (N terms, 1 ..= 16; the fitter learns
+/// 6 or 11 and says so for other N).
+pub fn parse_basis(s: &str) -> Result<Basis, String> {
+    Basis::from_name(s).ok_or_else(|| {
+        format!(
+            "`{s}` is not a basis: ptm6, ptm11, learned6, learned11 (or learnedN, N terms in \
+             1..={})",
+            ptm_format::basis::MAX_LEARNED_TERMS
+        )
+    })
+}
+
 impl Choice for Link {
     fn all() -> &'static [Self] {
         &Link::ALL

@@ -58,8 +58,9 @@ pub struct Args {
     /// Seed of the sample positions (the output is identical for any thread count).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Fit a PTM while baking (streaming; -o is then the .ptm.exr).
-    #[arg(long, value_parser = choice::<Basis>())]
+    /// Fit a PTM while baking (streaming; -o is then the .ptm.exr): ptm6, ptm11, or a basis
+    /// learned from the bake, learned6 or learned11 (docs/model.md).
+    #[arg(long, value_name = "BASIS", value_parser = crate::args::parse_basis)]
     pub fit: Option<Basis>,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -187,6 +188,15 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
         bail!(
             "--shard with --fit and --light-distance is not supported (the per-texel fit's rank \
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
+        );
+    }
+    if args.shard.is_some() && args.fit.is_some_and(Basis::is_learned) {
+        bail!(
+            "--shard with --fit {}: a learned basis is learned from the whole bake, which a shard \
+             does not see (not supported yet): bake the sample stack in shards, merge, then \
+             `ptm fit --basis {}`",
+            args.fit.unwrap().name(),
+            args.fit.unwrap().name()
         );
     }
     if args.maps_png && args.shard.is_some() {
@@ -731,6 +741,7 @@ impl Product {
                     uv: ptm.uv.name(),
                     mip_levels: fit.mip_levels,
                     logistic: json::Logistic::of(&fit),
+                    learned: json::Learned::of(&fit),
                     solver: fit.solver.clone(),
                     rank: fit.rank,
                     condition_number: json::finite(fit.cond),

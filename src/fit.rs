@@ -22,8 +22,10 @@ pub struct Args {
     /// NAME.ptm.c0.exr, … instead).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Polynomial basis: ptm6 (u², u, uv, v, v², 1) or ptm11 (cubic + u²v²).
-    #[arg(long, value_parser = choice::<Basis>(), default_value = "ptm6")]
+    /// Basis: ptm6 (u², u, uv, v, v², 1), ptm11 (cubic + u²v²), or a basis learned from the
+    /// stack, learned6 or learned11 (k tables over the hemispherical (u, v) square shared by
+    /// the swatch, stored in the file; docs/model.md).
+    #[arg(long, value_name = "BASIS", value_parser = crate::args::parse_basis, default_value = "ptm6")]
     pub basis: Basis,
     #[command(flatten)]
     pub model: ModelArgs,
@@ -452,6 +454,7 @@ fn fit_json(
         uv: ptm.uv.name(),
         mip_levels: report.mip_levels,
         logistic: json::Logistic::of(&report),
+        learned: json::Learned::of(&report),
         width: ptm.width,
         height: ptm.height,
         texels: report.texels,

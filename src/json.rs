@@ -129,6 +129,51 @@ impl Logistic {
     }
 }
 
+/// What learning a basis did (`learned` of `ptm fit` and of `ptm bake --fit`; null for a
+/// polynomial basis).
+#[derive(Serialize, Debug, Default)]
+pub struct Learned {
+    /// Terms k of the learned basis.
+    pub terms: usize,
+    /// Side G of each term's G × G table over the hemispherical (u, v) square.
+    pub grid: usize,
+    /// Roughness λ of the tables (penalty λ × texels × the squared second differences).
+    pub roughness: f64,
+    /// Texels the basis was learned on (a deterministic subsample of the covered ones).
+    pub texels: usize,
+    /// Alternations of table and coefficient Newton steps run.
+    pub alternations: u32,
+    /// Mean binomial deviance per sample on those texels at the start (the polynomial basis
+    /// of the same size).
+    pub deviance_start: f64,
+    /// Mean binomial deviance per sample on those texels with the learned basis.
+    pub deviance: f64,
+    /// Weighted RMS of σ − K on those texels' fitting samples at the start.
+    pub rms_start: f64,
+    /// Weighted RMS of σ − K on those texels' fitting samples with the learned basis.
+    pub rms: f64,
+    /// Seconds of the learning stage.
+    pub seconds: f64,
+}
+
+impl Learned {
+    /// What `r`'s learning stage did (none for a polynomial basis).
+    pub fn of(r: &FitReport) -> Option<Learned> {
+        r.learned.as_ref().map(|s| Learned {
+            terms: s.terms,
+            grid: s.grid,
+            roughness: s.roughness,
+            texels: s.texels,
+            alternations: s.alternations,
+            deviance_start: s.deviance_start,
+            deviance: s.deviance,
+            rms_start: s.rms_start,
+            rms: s.rms,
+            seconds: s.seconds,
+        })
+    }
+}
+
 /// Statistics of a per-texel error of K over the covered texels.
 #[derive(Serialize, Debug, Default)]
 pub struct Stats {
@@ -272,7 +317,7 @@ pub struct Rays {
 /// `ptm bake --fit`: the streaming fit.
 #[derive(Serialize, Debug, Default)]
 pub struct BakeFit {
-    /// `ptm6` or `ptm11`.
+    /// `ptm6`, `ptm11` or `learnedN`.
     pub basis: Option<&'static str>,
     /// `identity` or `logistic`.
     pub link: &'static str,
@@ -282,6 +327,8 @@ pub struct BakeFit {
     pub mip_levels: usize,
     /// The logistic fit's statistics (null for the identity link).
     pub logistic: Option<Logistic>,
+    /// What learning the basis did (null for a polynomial basis).
+    pub learned: Option<Learned>,
     /// The solver, in words.
     pub solver: String,
     /// Rank of the design matrix.
@@ -311,7 +358,7 @@ pub struct Fit {
     pub layout: &'static str,
     /// Every file of the PTM (the renderer layout's parts, its error map).
     pub files: Vec<String>,
-    /// `ptm6` or `ptm11`.
+    /// `ptm6`, `ptm11` or `learnedN`.
     pub basis: &'static str,
     /// `identity` or `logistic`.
     pub link: &'static str,
@@ -321,6 +368,8 @@ pub struct Fit {
     pub mip_levels: usize,
     /// The logistic fit's statistics (null for the identity link).
     pub logistic: Option<Logistic>,
+    /// What learning the basis did (null for a polynomial basis).
+    pub learned: Option<Learned>,
     /// Texels per row.
     pub width: usize,
     /// Rows.
@@ -746,6 +795,23 @@ pub struct Convert {
     pub height: usize,
     /// The maps carried over (`ptm`, `coverage`, `err`, …).
     pub maps: Vec<String>,
+}
+
+/// `ptm eval`: the stack of K a PTM gives under a light set.
+#[derive(Serialize, Debug, Default)]
+pub struct Eval {
+    /// The PTM read.
+    pub input: String,
+    /// The sample stack written.
+    pub output: String,
+    /// Its basis (`ptm6`, `ptm11`, `learnedN`).
+    pub basis: &'static str,
+    /// Texels per row.
+    pub width: usize,
+    /// Rows.
+    pub height: usize,
+    /// Lights evaluated (the stack's K channels).
+    pub lights: usize,
 }
 
 #[cfg(test)]

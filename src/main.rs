@@ -9,6 +9,7 @@ mod bake;
 mod batch;
 mod convert;
 mod errors;
+mod eval;
 mod fit;
 mod garment;
 mod json;
@@ -58,6 +59,9 @@ enum Command {
     Batch(batch::Args),
     /// Rewrite a PTM in the other layout (renderer RGB(A) parts ↔ named channels), losslessly.
     Convert(convert::Args),
+    /// K of every texel of a PTM (any basis) for each light of an .lp file, written as a sample
+    /// stack in the bake's layout: score a PTM against any held-out bake.
+    Eval(eval::Args),
 }
 
 fn main() -> ExitCode {
@@ -89,6 +93,7 @@ fn main() -> ExitCode {
         Command::Merge(a) => merge::run(a).and_then(|r| json::to_value(&r)),
         Command::Batch(a) => batch::run(a).and_then(|r| json::to_value(&r)),
         Command::Convert(a) => convert::run(a).and_then(|r| json::to_value(&r)),
+        Command::Eval(a) => eval::run(a).and_then(|r| json::to_value(&r)),
     };
     match result {
         Ok(report) => {
@@ -260,6 +265,7 @@ impl Command {
             Command::Merge(a) => a.parts.first().and_then(|p| path(p)),
             Command::Batch(a) => path(&a.manifest),
             Command::Convert(a) => path(&a.input),
+            Command::Eval(a) => path(&a.input),
         }
     }
 }

@@ -202,6 +202,14 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
             // Either layout (`ptm fit --layout rgba`'s parts, named by any part or the stem).
             // Its errors name the file.
             let ptm = ptm_format::layout::load(path)?;
+            if ptm.basis.is_learned() {
+                anyhow::bail!(
+                    "{}: basis {}: learned basis: not supported by this reader yet; use \
+                     Ptm::eval / ptm eval",
+                    path.display(),
+                    ptm.basis.name()
+                );
+            }
             Scene::over_ptm(ptm, 1, [1, 1])
         }
         None => {
@@ -216,6 +224,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                     coverage: None,
                     tile: [1.0, 1.0],
                     planes: vec![vec![0.0]; 6],
+                    learned: None,
                 },
                 1,
                 [1, 1],

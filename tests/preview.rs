@@ -28,6 +28,7 @@ fn write_ptm(dir: &Path) -> PathBuf {
         coverage: None,
         tile: [1.0, 1.0],
         planes,
+        learned: None,
     };
     let path = dir.join("weave.ptm.exr");
     p.save(&path, &SaveOptions::default()).unwrap();

@@ -12,7 +12,7 @@
 //!
 //! Modules: [`stack`] (the stored sample stack `samples.exr`), [`solve`] (shared-design SVD fit,
 //! streaming [`Accumulator`], per-texel solves, diagnostics), [`logistic`] (the maximum-likelihood
-//! fit of the logistic link), `mip` (the MIP chain's footprints, the identity link's levels),
+//! fit of the logistic link), [`learned`] (a light basis learned per swatch), `mip` (the MIP chain's footprints, the identity link's levels),
 //! [`simd`] (the instruction set the kernels run with, [`simd::Isa`]), [`images`] (RTI PNG
 //! stacks), [`shard`] (farm bakes: the partition, part files and their merge), [`diagnostic`]
 //! (the fit's typed diagnostics). File layouts: docs/FORMAT.md.
@@ -22,6 +22,7 @@
 
 pub mod diagnostic;
 pub mod images;
+pub mod learned;
 pub mod logistic;
 mod mip;
 pub mod shard;

@@ -35,7 +35,7 @@ pub(crate) mod counts;
 pub(crate) mod image;
 mod newton;
 pub(crate) mod pool;
-mod tables;
+pub(crate) mod tables;
 
 /// Default ridge λ of the logistic fit (relative to the mean eigenvalue of AᵀΩA).
 pub const DEFAULT_RIDGE: f64 = 1e-5;

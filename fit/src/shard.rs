@@ -355,6 +355,7 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 planes,
                 mips: Vec::new(),
                 coverage: None, // the merge's `finish_fit` sets the whole image's
+                learned: None,
             };
             PartData::Ptm(Box::new(PtmPart {
                 ptm,

@@ -30,6 +30,7 @@ fn sample_ptm(basis: Basis) -> Ptm {
         coverage: None,
         tile: [1.5, 0.75],
         planes,
+        learned: None,
     }
 }
 

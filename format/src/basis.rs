@@ -46,37 +46,111 @@ const PTM11: [Monomial; 11] = [
     m("1", 0, 0),
 ];
 
-/// The polynomial basis of a PTM.
+/// Most terms of a learned basis ([`Basis::Learned`]).
+pub const MAX_LEARNED_TERMS: usize = 16;
+
+/// Channel names of a learned basis's terms: `b0`, `b1`, … (the powers are unused: a learned
+/// term is a table, [`crate::learned::LearnedTable`], not a monomial).
+const LEARNED: [Monomial; MAX_LEARNED_TERMS] = [
+    m("b0", 0, 0),
+    m("b1", 0, 0),
+    m("b2", 0, 0),
+    m("b3", 0, 0),
+    m("b4", 0, 0),
+    m("b5", 0, 0),
+    m("b6", 0, 0),
+    m("b7", 0, 0),
+    m("b8", 0, 0),
+    m("b9", 0, 0),
+    m("b10", 0, 0),
+    m("b11", 0, 0),
+    m("b12", 0, 0),
+    m("b13", 0, 0),
+    m("b14", 0, 0),
+    m("b15", 0, 0),
+];
+
+const LEARNED_NAMES: [&str; MAX_LEARNED_TERMS] = [
+    "learned1",
+    "learned2",
+    "learned3",
+    "learned4",
+    "learned5",
+    "learned6",
+    "learned7",
+    "learned8",
+    "learned9",
+    "learned10",
+    "learned11",
+    "learned12",
+    "learned13",
+    "learned14",
+    "learned15",
+    "learned16",
+];
+
+/// The basis of a PTM: a fixed polynomial one, or k functions learned from the swatch.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Basis {
     /// Biquadratic, 6 terms (patent ¶0030).
     Ptm6,
     /// Cubic set plus u²v², 11 terms (patent claims 18/27).
     Ptm11,
+    /// k terms (1 ..= [`MAX_LEARNED_TERMS`]) learned from the swatch's bake, each a table over
+    /// the hemispherical (u, v) square that the PTM file carries
+    /// ([`crate::learned::LearnedTable`]); channels `b0` … `b{k−1}`. Constructed through
+    /// [`Basis::learned`], which checks k.
+    Learned(u8),
 }
 
 impl Basis {
-    /// Every basis, in the order help texts list them.
+    /// Every polynomial basis, in the order help texts list them (learned bases are
+    /// [`Basis::learned`]).
     pub const ALL: [Basis; 2] = [Basis::Ptm6, Basis::Ptm11];
 
-    /// `"ptm6"` or `"ptm11"`: the name on the command line and in the file header.
+    /// The learned basis of `terms` terms, when 1 ≤ terms ≤ [`MAX_LEARNED_TERMS`].
+    pub fn learned(terms: usize) -> Option<Basis> {
+        (1..=MAX_LEARNED_TERMS)
+            .contains(&terms)
+            .then_some(Basis::Learned(terms as u8))
+    }
+
+    /// Whether the terms are learned tables rather than monomials.
+    pub fn is_learned(self) -> bool {
+        matches!(self, Basis::Learned(_))
+    }
+
+    /// `"ptm6"`, `"ptm11"` or `"learnedN"`: the name on the command line and in the file
+    /// header.
     pub fn name(self) -> &'static str {
         match self {
             Basis::Ptm6 => "ptm6",
             Basis::Ptm11 => "ptm11",
+            Basis::Learned(k) => LEARNED_NAMES[(k as usize).clamp(1, MAX_LEARNED_TERMS) - 1],
         }
     }
 
-    /// The basis whose [`Basis::name`] is `name` (as the file's `ptm:basis` and the CLI spell it).
+    /// The basis whose [`Basis::name`] is `name` (as the file's `ptm:basis` and the CLI spell
+    /// it): `ptm6`, `ptm11`, or `learnedN` with N in 1 ..= 16 (`learned6`, `learned11`, …).
     pub fn from_name(name: &str) -> Option<Basis> {
+        if let Some(n) = name.strip_prefix("learned") {
+            // Decimal without a sign or leading zero, so each basis has one name.
+            if n.starts_with('0') || !n.bytes().all(|b| b.is_ascii_digit()) {
+                return None;
+            }
+            return n.parse().ok().and_then(Basis::learned);
+        }
         Basis::ALL.into_iter().find(|b| b.name() == name)
     }
 
-    /// The basis's monomials in coefficient order (channel i holds the coefficient of the i-th).
+    /// The basis's terms in coefficient order (channel i holds the coefficient of the i-th):
+    /// the monomials of a polynomial basis; for a learned one the names `b0` … only (its
+    /// values come from its table, never from the powers).
     pub fn monomials(self) -> &'static [Monomial] {
         match self {
             Basis::Ptm6 => &PTM6,
             Basis::Ptm11 => &PTM11,
+            Basis::Learned(k) => &LEARNED[..(k as usize).clamp(1, MAX_LEARNED_TERMS)],
         }
     }
 
@@ -87,14 +161,31 @@ impl Basis {
     }
 
     /// Writes the basis terms at (u, v) into `out[..self.len()]`.
+    ///
+    /// # Panics
+    /// For a learned basis, whose terms are the file's table
+    /// ([`crate::learned::LearnedTable::terms`]).
     pub fn terms<T: num_like::Float>(self, u: T, v: T, out: &mut [T]) {
+        assert!(
+            !self.is_learned(),
+            "{}: a learned basis is evaluated from its table (LearnedTable::terms)",
+            self.name()
+        );
         for (o, mono) in out.iter_mut().zip(self.monomials()) {
             *o = T::powi(u, mono.pu) * T::powi(v, mono.pv);
         }
     }
 
     /// Unclamped K(u, v) = Σ cᵢ·termᵢ(u, v) for coefficients in basis order.
+    ///
+    /// # Panics
+    /// For a learned basis (see [`Basis::terms`]; [`crate::Ptm::eval`] evaluates either).
     pub fn eval<T: num_like::Float>(self, coeffs: &[T], u: T, v: T) -> T {
+        assert!(
+            !self.is_learned(),
+            "{}: a learned basis is evaluated from its table (Ptm::eval)",
+            self.name()
+        );
         let mut k = T::zero();
         for (c, mono) in coeffs.iter().zip(self.monomials()) {
             k = k + *c * T::powi(u, mono.pu) * T::powi(v, mono.pv);
@@ -241,7 +332,11 @@ impl UvMap {
 /// each packed upper-triangle entry (i ≤ j, row-major) the index of its product among them.
 /// ptm6 has 21 entries over 15 products, ptm11 66 over 33: a Hessian Σₙ wₙ·aₙaₙᵀ costs only
 /// the distinct products per light.
+///
+/// # Panics
+/// For a learned basis (its products are not monomials).
 pub fn products(basis: Basis) -> (Vec<(u8, u8)>, Vec<usize>) {
+    assert!(!basis.is_learned(), "products of a learned basis");
     let ms = basis.monomials();
     let mut distinct: Vec<(u8, u8)> = Vec::new();
     let mut index = Vec::new();

@@ -130,17 +130,19 @@ pub fn encode_levels(
         .collect();
     let mut la = LayerAttributes::default();
     for (name, a) in attrs {
-        let value = match a {
-            Attr::Text(s) => AttributeValue::Text(encode_text(&s)),
-            Attr::Texts(v) => {
-                AttributeValue::TextVector(v.iter().map(|s| encode_text(s)).collect())
-            }
-            Attr::F64(x) => AttributeValue::F64(x),
-            Attr::I32(x) => AttributeValue::I32(x),
-        };
-        la.other.insert(encode_text(name), value);
+        la.other.insert(encode_text(name), attribute_value(a));
     }
     encode_layer(path, width, height, la, list)
+}
+
+/// The `exr` crate's value of a portable attribute (text as UTF-8).
+pub fn attribute_value(a: Attr) -> AttributeValue {
+    match a {
+        Attr::Text(s) => AttributeValue::Text(encode_text(&s)),
+        Attr::Texts(v) => AttributeValue::TextVector(v.iter().map(|s| encode_text(s)).collect()),
+        Attr::F64(x) => AttributeValue::F64(x),
+        Attr::I32(x) => AttributeValue::I32(x),
+    }
 }
 
 /// Channels of one layer with all their resolution levels, as the `exr` crate takes them.

@@ -117,8 +117,10 @@ impl Header {
             bad(
                 path,
                 format!(
-                    "unknown basis {name:?} in `ptm:basis` (this version reads {})",
-                    Basis::ALL.map(|b| b.name()).join(", ")
+                    "unknown basis {name:?} in `ptm:basis` (this version reads {} and learned1 \
+                     … learned{})",
+                    Basis::ALL.map(|b| b.name()).join(", "),
+                    crate::basis::MAX_LEARNED_TERMS
                 ),
             )
         })?;

@@ -102,10 +102,14 @@ pub const RGBA: [&str; 4] = ["R", "G", "B", "A"];
 
 /// The parts of the renderer layout of `basis`: slots in R, G, B(, A) order. Coefficients fill
 /// them in basis order, three per part for ptm6 and four for ptm11; coverage is the last slot.
+///
+/// A learned basis of k terms fills four slots a part; coverage takes the slot after the last
+/// coefficient (so it is the A of the last part only when k ≡ 3 mod 4, and a part of its own,
+/// in R, when k ≡ 0 mod 4).
 pub fn parts(basis: Basis) -> Vec<Vec<Slot>> {
     let per = match basis {
         Basis::Ptm6 => 3,
-        Basis::Ptm11 => 4,
+        Basis::Ptm11 | Basis::Learned(_) => 4,
     };
     let mut slots: Vec<Slot> = basis
         .monomials()
@@ -115,7 +119,7 @@ pub fn parts(basis: Basis) -> Vec<Vec<Slot>> {
     slots.push(Slot::Coverage);
     let mut out: Vec<Vec<Slot>> = slots.chunks(per).map(<[Slot]>::to_vec).collect();
     // ptm6: 7 slots in chunks of 3 leave coverage alone; it becomes the A of the last part.
-    if out.last().is_some_and(|p| p.len() == 1) && out.len() > 1 {
+    if !basis.is_learned() && out.last().is_some_and(|p| p.len() == 1) && out.len() > 1 {
         let last = out.pop().unwrap();
         out.last_mut().unwrap().extend(last);
     }
@@ -596,6 +600,25 @@ fn ptm_of<'a>(
                 .collect(),
         })
         .collect();
+    let learned = if basis.is_learned() {
+        let k = basis.len();
+        // Coefficient planes beyond the table's terms: a file that disagrees with itself.
+        for i in k..crate::basis::MAX_LEARNED_TERMS {
+            let extra = format!("ptm.b{i}");
+            if take(&extra).is_some() {
+                return Err(format_err(
+                    path,
+                    format!(
+                        "basis {} has {k} coefficient planes but the file also holds `{extra}`",
+                        basis.name()
+                    ),
+                ));
+            }
+        }
+        Some(crate::LearnedTable::from_attrs(attrs, k, path)?)
+    } else {
+        None
+    };
     let storage = match (halves.iter().all(|&h| h), halves.iter().any(|&h| h)) {
         (true, _) => "half",
         (false, true) => "mixed",
@@ -623,6 +646,7 @@ fn ptm_of<'a>(
         planes,
         mips,
         coverage,
+        learned,
     };
     ptm.validate()
         .map_err(|e| format_err(path, e.to_string()))?;
@@ -727,7 +751,14 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
                 ),
             ));
         }
-        for key in ["ptm:basis", "ptm:link", "ptm:uv", "ptm:version"] {
+        for key in [
+            "ptm:basis",
+            "ptm:link",
+            "ptm:uv",
+            "ptm:version",
+            crate::learned::GRID_ATTR,
+            crate::learned::TABLE_ATTR,
+        ] {
             if s.attrs.get(key) != file.attrs.get(key) {
                 return Err(format_err(
                     &p,

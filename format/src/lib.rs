@@ -1,5 +1,5 @@
 //! `ptm-format`: the occlusion PTM file and all a render pipeline needs to use one — the
-//! polynomial bases, links and (u, v) maps ([`basis`]), the PTM in memory with [`Ptm::load`],
+//! polynomial bases, links and (u, v) maps ([`basis`]), the table of a learned basis ([`learned`]), the PTM in memory with [`Ptm::load`],
 //! [`Ptm::save`] and CPU evaluation ([`ptm`]), the EXR layer under it ([`exrio`]), the one
 //! parser of a PTM header ([`header`]), the renderer layout of RGB(A) parts, its lossless
 //! conversion and the one decoder both layouts are read through ([`layout`]), HP PTM 1.2
@@ -37,6 +37,7 @@ pub mod hash;
 pub mod header;
 pub mod hp;
 pub mod layout;
+pub mod learned;
 pub mod lights;
 pub mod ptm;
 pub mod vec3;
@@ -44,6 +45,7 @@ pub mod vec3;
 pub use atomic::{same_file, write_atomic, Transaction};
 pub use basis::{Basis, Link, Monomial, UvMap};
 pub use layout::{Layout, PtmFile};
+pub use learned::LearnedTable;
 pub use lights::{HorizonLight, LightSet};
 pub use ptm::{FileFacts, Level, Ptm, PtmInfo, SaveOptions, ToFileFacts};
 

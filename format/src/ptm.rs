@@ -27,7 +27,7 @@ use std::path::Path;
 use half::f16;
 
 use crate::exrio::{self, Attr, Samples};
-use crate::{Basis, Error, Link, Result, UvMap};
+use crate::{Basis, Error, LearnedTable, Link, Result, UvMap};
 
 /// Value of `ptm:version` for a plain PTM (identity link, projected (u, v)): every reader of
 /// version 1 evaluates it correctly.
@@ -75,6 +75,9 @@ pub struct Ptm {
     /// when every texel is fully covered. Stored as the `coverage` channel (with box-averaged
     /// MIP levels when the file has levels).
     pub coverage: Option<Vec<f32>>,
+    /// The tables of a learned basis ([`Basis::Learned`]; shared by every MIP level), `None`
+    /// for a polynomial basis. Stored in the header (`ptm:learnedGrid`, `ptm:learnedTable`).
+    pub learned: Option<LearnedTable>,
 }
 
 /// How [`Ptm::save`] writes the file.
@@ -213,6 +216,7 @@ impl Ptm {
             planes,
             mips: Vec::new(),
             coverage: None,
+            learned: None,
         }
     }
 
@@ -226,14 +230,26 @@ impl Ptm {
     /// tangent plane is (l·X, l·Y) = (u, v) (mapped by `self.uv` first). For the identity link this
     /// is the raw polynomial, which may leave [0, 1]; σ never does.
     pub fn eval_unclamped(&self, x: usize, y: usize, u: f32, v: f32) -> f32 {
-        let i = y * self.width + x;
+        let (mu, mv) = self.uv.of_projected(u, v);
+        self.link.apply(self.poly(y * self.width + x, mu, mv))
+    }
+
+    /// p(u, v) = Σ cᵢ·termᵢ(u, v) of texel index i at mapped (u, v): the monomials, or the
+    /// learned tables read bilinearly.
+    fn poly(&self, i: usize, u: f32, v: f32) -> f32 {
         let mut c = [0f32; 16];
         for (k, p) in self.planes.iter().enumerate() {
             c[k] = p[i];
         }
-        let (mu, mv) = self.uv.of_projected(u, v);
-        self.link
-            .apply(self.basis.eval(&c[..self.basis.len()], mu, mv))
+        let m = self.basis.len();
+        match &self.learned {
+            Some(t) if self.basis.is_learned() => {
+                let mut b = [0f64; 16];
+                t.terms(u as f64, v as f64, &mut b[..m]);
+                (0..m).map(|k| c[k] as f64 * b[k]).sum::<f64>() as f32
+            }
+            _ => self.basis.eval(&c[..m], u, v),
+        }
     }
 
     /// K at texel (x, y) (column x, row y; row 0 at y = H) for a light in the upper hemisphere
@@ -249,14 +265,9 @@ impl Ptm {
         if l[2] <= 0.0 {
             return 1.0;
         }
-        let i = y * self.width + x;
-        let mut c = [0f32; 16];
-        for (k, p) in self.planes.iter().enumerate() {
-            c[k] = p[i];
-        }
         let (u, v) = self.uv.of_dir(l);
         self.link
-            .apply(self.basis.eval(&c[..self.basis.len()], u as f32, v as f32))
+            .apply(self.poly(y * self.width + x, u as f32, v as f32))
             .clamp(0.0, 1.0)
     }
 
@@ -283,6 +294,43 @@ impl Ptm {
                 self.basis.name(),
                 self.basis.len()
             )));
+        }
+        match (&self.learned, self.basis.is_learned()) {
+            (None, false) => {}
+            (Some(_), false) => {
+                return Err(Error::Invalid(format!(
+                    "PTM {}×{} {}: a polynomial basis has no learned table",
+                    self.width,
+                    self.height,
+                    self.basis.name()
+                )))
+            }
+            (None, true) => {
+                return Err(Error::Invalid(format!(
+                    "PTM {}×{} {}: a learned basis needs its table",
+                    self.width,
+                    self.height,
+                    self.basis.name()
+                )))
+            }
+            (Some(t), true) => {
+                t.check(
+                    self.basis.len(),
+                    &format!("the {} table", self.basis.name()),
+                )
+                .map_err(Error::Invalid)?;
+                if self.link != Link::Logistic || self.uv != UvMap::Hemispherical {
+                    return Err(Error::Invalid(format!(
+                        "PTM {}×{} {}: a learned basis is defined for the logistic link over \
+                         the hemispherical (u, v) map, not {} over {}",
+                        self.width,
+                        self.height,
+                        self.basis.name(),
+                        self.link.name(),
+                        self.uv.name()
+                    )));
+                }
+            }
         }
         if !self.tile.iter().all(|s| s.is_finite() && *s > 0.0) {
             return Err(Error::Invalid(format!(
@@ -353,12 +401,17 @@ impl Ptm {
 
     /// Largest change of K anywhere on the unit disk caused by storing the coefficients as half
     /// floats: max over texels (and MIP levels) of Σ|c − half(c)| (every term is at most 1 in
-    /// magnitude there, for either (u, v) map), times 1/4 for the logistic link (σ' ≤ 1/4).
+    /// magnitude there, for either (u, v) map; a learned term at most its table's largest
+    /// magnitude), times 1/4 for the logistic link (σ' ≤ 1/4).
     pub fn half_error_bound(&self) -> f64 {
-        let scale = match self.link {
-            Link::Identity => 1.0,
-            Link::Logistic => 0.25,
-        };
+        let term = self.learned.as_ref().map_or(1.0, |t| {
+            t.values.iter().fold(0f64, |a, &x| a.max(x.abs() as f64))
+        });
+        let scale = term
+            * match self.link {
+                Link::Identity => 1.0,
+                Link::Logistic => 0.25,
+            };
         std::iter::once(&self.planes)
             .chain(self.mips.iter().map(|l| &l.planes))
             .map(|planes| {
@@ -447,6 +500,7 @@ impl Ptm {
                 Attr::Text(
                     match self.link {
                         Link::Identity => "K = p(u, v) = sum_i ptm.<m_i> * m_i(u, v); K = occluded fraction, 0 lit, 1 occluded; clamp to [0,1]",
+                        Link::Logistic if self.basis.is_learned() => "K = 1 / (1 + exp(-p(u, v))), p(u, v) = sum_k ptm.b<k> * B_k(u, v), B_k the learned tables (ptm:learnedFormula); K = occluded fraction, 0 lit, 1 occluded",
                         Link::Logistic => "K = 1 / (1 + exp(-p(u, v))), p(u, v) = sum_i ptm.<m_i> * m_i(u, v); K = occluded fraction, 0 lit, 1 occluded",
                     }
                     .into(),
@@ -472,6 +526,9 @@ impl Ptm {
                 Attr::Text(format!("ptm {}", env!("CARGO_PKG_VERSION"))),
             ),
         ];
+        if let Some(t) = &self.learned {
+            attrs.extend(t.attrs());
+        }
         if let Some(cov) = &self.coverage {
             // Holes in the cloth: coefficients 0 there, which reads as "lit" without this.
             channels.push(("coverage".into(), with_levels(cov)));

@@ -86,6 +86,7 @@ fn sample(basis: Basis, link: Link, uv: UvMap, mips: bool) -> (Ptm, Report) {
         planes,
         mips,
         coverage: Some(coverage.clone()),
+        learned: None,
     };
     let report = Report {
         rank: basis.len(),

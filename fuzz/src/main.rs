@@ -697,6 +697,7 @@ fn gen_corpus() {
                 .map(|t| if t % 7 == 0 { 0.0 } else { 1.0 })
                 .collect(),
         ),
+        learned: None,
     };
     p.save(&dir.join("ptm/ptm6.exr"), &SaveOptions::default())
         .unwrap();

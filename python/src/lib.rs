@@ -194,16 +194,22 @@ fn poly_block_any(planes: &[&[f32]], ab: &[(f32, f32)], k: &mut [f32]) {
 fn eval_into(ptm: &Ptm, lights: &[Light], out: &mut [f32]) {
     let n = ptm.width * ptm.height;
     let monomials = ptm.basis.monomials();
-    // Per light, the powers of each term, as `Basis::eval` computes them.
+    // Per light, the powers of each term, as `Basis::eval` computes them; a learned basis's
+    // terms are its table read at (u, v) (times 1), as `Ptm::eval` reads it.
     let powers: Vec<Option<Vec<(f32, f32)>>> = lights
         .iter()
         .map(|l| match *l {
-            Light::Uv(u, v) => Some(
-                monomials
+            Light::Uv(u, v) => Some(match &ptm.learned {
+                Some(t) => {
+                    let mut b = vec![0f64; t.terms];
+                    t.terms(u as f64, v as f64, &mut b);
+                    b.into_iter().map(|x| (x as f32, 1.0)).collect()
+                }
+                None => monomials
                     .iter()
                     .map(|m| (<f32 as Float>::powi(u, m.pu), <f32 as Float>::powi(v, m.pv)))
                     .collect(),
-            ),
+            }),
             Light::Below => None,
         })
         .collect();
@@ -328,6 +334,7 @@ impl PyPtm {
             planes: planes_of(&coefficients),
             mips,
             coverage,
+            learned: None,
         };
         ptm.validate().map_err(py_err)?;
         Ok(PyPtm {

@@ -152,6 +152,13 @@ impl Scene {
         if w == 0 || h == 0 {
             return Err(Error::Scene(format!("output size {w}×{h} is empty")));
         }
+        if let Some(p) = self.ptm.as_ref().filter(|p| p.basis.is_learned()) {
+            return Err(Error::Scene(format!(
+                "the PTM's basis is {}: learned basis: not supported by this reader yet; use \
+                 Ptm::eval / ptm eval",
+                p.basis.name()
+            )));
+        }
         if w.max(h) > MAX_IMAGE_SIDE {
             return Err(Error::Scene(format!(
                 "output size {w}×{h} exceeds {MAX_IMAGE_SIDE} pixels a side (the largest render \

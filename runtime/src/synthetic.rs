@@ -44,6 +44,7 @@ pub fn random_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
         coverage: None,
         tile: [1.0, 1.0],
         planes,
+        learned: None,
     }
 }
 
@@ -108,6 +109,7 @@ pub fn checker(n: usize) -> Ptm {
         coverage: None,
         tile: [1.0, 1.0],
         planes,
+        learned: None,
     }
 }
 
@@ -126,6 +128,7 @@ pub fn constant(k: f32) -> Ptm {
         coverage: None,
         tile: [0.5, 0.5],
         planes,
+        learned: None,
     }
 }
 

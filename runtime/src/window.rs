@@ -782,6 +782,7 @@ mod tests {
             planes: (0..6)
                 .map(|i| vec![if i == 5 { 0.3 } else { 0.0 }; 16])
                 .collect(),
+            learned: None,
         };
         let mut scene = Scene::over_ptm(ptm, 2, [64, 48]);
         scene.view = [0.0, 0.0, 2.0, 1.5];

@@ -119,6 +119,36 @@ impl Sample for Logistic {
     }
 }
 
+impl Sample for Learned {
+    fn sample() -> Self {
+        Learned {
+            terms: s(),
+            grid: s(),
+            roughness: s(),
+            texels: s(),
+            alternations: s(),
+            deviance_start: s(),
+            deviance: s(),
+            rms_start: s(),
+            rms: s(),
+            seconds: s(),
+        }
+    }
+}
+
+impl Sample for Eval {
+    fn sample() -> Self {
+        Eval {
+            input: s(),
+            output: s(),
+            basis: s(),
+            width: s(),
+            height: s(),
+            lights: s(),
+        }
+    }
+}
+
 impl Sample for Stats {
     fn sample() -> Self {
         Stats {
@@ -207,6 +237,7 @@ impl Sample for BakeFit {
             uv: s(),
             mip_levels: s(),
             logistic: s(),
+            learned: s(),
             solver: s(),
             rank: s(),
             condition_number: s(),
@@ -230,6 +261,7 @@ impl Sample for Fit {
             uv: s(),
             mip_levels: s(),
             logistic: s(),
+            learned: s(),
             width: s(),
             height: s(),
             texels: s(),
@@ -540,6 +572,7 @@ fn shapes() -> Vec<Shape> {
             Convert::sample(),
             Convert::default(),
         ),
+        shape("ptm eval", "Eval", Eval::sample(), Eval::default()),
         shape(
             "any failure (every subcommand)",
             "Failure",
@@ -559,6 +592,7 @@ fn nested() -> BTreeMap<&'static str, Value> {
     BTreeMap::from([
         ("ErrorInfo", none::<ErrorInfo>()),
         ("Logistic", none::<Logistic>()),
+        ("Learned", none::<Learned>()),
         ("Stats", none::<Stats>()),
         ("Rays", none::<Rays>()),
         ("BakeFit", none::<BakeFit>()),

@@ -192,11 +192,14 @@ fn run_block(isa: Isa, t: &Tables, packed: &[f32], live: &[bool], out: &mut [Tex
     macro_rules! dispatch {
         ($f:ident, $cpu:expr $(, $unsafe:tt)?) => {{
             let cpu = $cpu;
-            match t.m {
+            match (t.m, t.d) {
                 // SAFETY (the unsafe arms): `cpu` is the token of the features `$f` is compiled
                 // for, so the CPU has them.
-                6 => $($unsafe)? { $f::<6, 15>(cpu, t, packed, live, out) },
-                11 => $($unsafe)? { $f::<11, 33>(cpu, t, packed, live, out) },
+                (6, 15) => $($unsafe)? { $f::<6, 15>(cpu, t, packed, live, out) },
+                (11, 33) => $($unsafe)? { $f::<11, 33>(cpu, t, packed, live, out) },
+                // Learned bases: every product of two terms is its own Hessian entry.
+                (6, 21) => $($unsafe)? { $f::<6, 21>(cpu, t, packed, live, out) },
+                (11, 66) => $($unsafe)? { $f::<11, 66>(cpu, t, packed, live, out) },
                 _ => unreachable!("bases have 6 or 11 terms"),
             }
         }};

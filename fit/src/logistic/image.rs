@@ -113,7 +113,34 @@ pub(crate) fn fit_image(
     let m = opts.basis.len();
     let n = lights.len();
     let t0 = Instant::now();
-    let (tables, isa, lambda) = tables::for_fit(prep, lights, opts)?;
+    let (tables, isa, lambda, learned) = if opts.basis.is_learned() {
+        if part.is_some() {
+            return Err(crate::Error::Invalid(format!(
+                "a learned basis ({}) is learned from the whole bake; farm shards cannot fit one \
+                 yet (bake without shards, or fit the merged stack)",
+                opts.basis.name()
+            )));
+        }
+        let start = FitOptions {
+            basis: crate::learned::start_basis(m).expect("checked when prepared"),
+            ..opts.clone()
+        };
+        let (_, isa, lambda) = tables::for_fit(prep, lights, &start)?;
+        let l = crate::learned::learn::learn(
+            src,
+            t,
+            &|ti| !masked[ti],
+            lights,
+            &prep.w,
+            &prep.held,
+            opts,
+            lambda,
+        )?;
+        (l.tables, isa, lambda, Some((l.table, l.stats)))
+    } else {
+        let (tables, isa, lambda) = tables::for_fit(prep, lights, opts)?;
+        (tables, isa, lambda, None)
+    };
     let f = &prep.factor;
     let t_factor = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
@@ -181,11 +208,18 @@ pub(crate) fn fit_image(
         rcond: opts.rcond,
         singular_values: f.sigma.clone(),
         solver: format!(
-            "logistic maximum likelihood (binomial deviance), Newton per texel from the least-squares logit fit, ridge lambda={lambda:e} x mean eigenvalue (rho={:.3e}), tolerance {:e} per unit weight, at most {} iterations, weight={}",
+            "{prefix}logistic maximum likelihood (binomial deviance), Newton per texel from the least-squares logit fit, ridge lambda={lambda:e} x mean eigenvalue (rho={:.3e}), tolerance {:e} per unit weight, at most {} iterations, weight={}",
             tables.ridge,
             opts.tolerance,
             opts.max_iterations,
             opts.weight.name(),
+            prefix = match &learned {
+                Some((_, st)) => format!(
+                    "learned basis of {} terms ({}x{} bilinear tables over the hemispherical (u, v) square, roughness {:e} x texels, alternating Newton on {} texels, {} alternations), then ",
+                    st.terms, st.grid, st.grid, st.roughness, st.texels, st.alternations
+                ),
+                None => String::new(),
+            },
         ),
         warnings,
         ..FitReport::default()
@@ -198,6 +232,11 @@ pub(crate) fn fit_image(
     report.rms_map = rms_map;
     report.max_map = max_map;
     report.seconds = vec![("factor", t_factor), ("newton", t_level0)];
+    let (table, stats) = learned.map_or((None, None), |(t, s)| (Some(t), Some(s)));
+    if let Some(st) = &stats {
+        report.seconds.insert(1, ("learn", st.seconds));
+    }
+    report.learned = stats;
     if opts.mips {
         report.seconds.push(("mip levels", t_mips));
     }
@@ -211,6 +250,7 @@ pub(crate) fn fit_image(
         planes,
         mips,
         coverage: None, // set by the caller, which knows the coverage
+        learned: table,
     };
     Ok((ptm, report, pooled))
 }

@@ -4,7 +4,6 @@
 //! (residuals, classes, held-out error). Written once over [`Simd`]; the token `cpu` proves the
 //! instruction set (see `crate::simd`).
 use super::tables::Tables;
-use super::HOLE_LOGIT;
 use crate::simd::Simd;
 
 /// Largest Newton step (max-norm of the coefficient change) taken at once: far from the optimum
@@ -387,7 +386,7 @@ pub(super) fn final_pass<S: Simd, const M: usize>(
         let o = &mut out[q];
         if !live[q] {
             *o = TexelFit::default();
-            o.c[t.constant_term] = HOLE_LOGIT;
+            o.c[..M].copy_from_slice(&t.hole[..M]);
             continue;
         }
         for j in 0..M {

@@ -36,7 +36,7 @@ pub(crate) enum Source<'a> {
 impl Source<'_> {
     /// K of light `l` for the `out.len()` texels from index `start`, or −1 where the texel has
     /// no covered sample (or, for a stack, a non-finite one).
-    pub(super) fn fill(&self, l: usize, start: usize, out: &mut [f32]) {
+    pub(crate) fn fill(&self, l: usize, start: usize, out: &mut [f32]) {
         let r = start..start + out.len();
         match self {
             Source::Planes { k, coverage } => {

@@ -31,8 +31,12 @@ pub(crate) struct Tables {
     pub max_iterations: u32,
     /// Σ ω over the fitting lights.
     pub omega_sum: f64,
-    /// Index of the constant term.
-    pub constant_term: usize,
+    /// Coefficients written for a texel with no covered sample: [`super::HOLE_LOGIT`] on the
+    /// constant term of a polynomial basis; for a learned basis the least-squares coefficients
+    /// of that constant logit over the fitting lights.
+    pub hole: [f32; 16],
+    /// Entries of the packed Hessian the kernel sums per light (`q`'s row length).
+    pub d: usize,
 }
 
 impl Tables {
@@ -86,6 +90,8 @@ impl Tables {
             .map(|&l| w[l] * design[l].iter().map(|x| x * x).sum::<f64>())
             .sum();
         debug_assert_eq!(q.len(), fit.len() * d);
+        let mut hole = [0f32; 16];
+        hole[monos.iter().position(|x| (x.pu, x.pv) == (0, 0)).unwrap()] = super::HOLE_LOGIT;
         Tables {
             m,
             nfit: fit.len(),
@@ -99,7 +105,84 @@ impl Tables {
             tolerance,
             max_iterations,
             omega_sum,
-            constant_term: monos.iter().position(|x| (x.pu, x.pv) == (0, 0)).unwrap(),
+            hole,
+            d,
+        }
+    }
+
+    /// The tables of a learned basis from the design rows of every light (`design`: lights ×
+    /// k, the learned terms at each light's (u, v)), weights and held-out lights: the Hessian's
+    /// entries are every product aᵢaⱼ (i ≤ j), the warm start the weighted least-squares
+    /// operator (AᵀΩA)⁻¹AᵀΩ, a hole's coefficients that operator applied to a constant
+    /// [`super::HOLE_LOGIT`].
+    pub fn learned(
+        design: &[Vec<f64>],
+        w: &[f64],
+        held: &[usize],
+        lambda: f64,
+        tolerance: f64,
+        max_iterations: u32,
+    ) -> Tables {
+        let m = design.first().map_or(0, Vec::len);
+        let d = m * (m + 1) / 2;
+        let fit: Vec<usize> = (0..w.len())
+            .filter(|&i| w[i] > 0.0 && !held.contains(&i))
+            .collect();
+        let used: Vec<usize> = fit.iter().chain(held).copied().collect();
+        let mut a = Vec::with_capacity(used.len() * m);
+        for &l in &used {
+            a.extend(design[l].iter().map(|&x| x as f32));
+        }
+        let mut q = Vec::with_capacity(fit.len() * d);
+        for &l in &fit {
+            for i in 0..m {
+                for j in i..m {
+                    q.push((design[l][i] * design[l][j]) as f32);
+                }
+            }
+        }
+        let gram = nalgebra::DMatrix::from_fn(m, m, |i, j| {
+            fit.iter()
+                .map(|&l| w[l] * design[l][i] * design[l][j])
+                .sum::<f64>()
+        });
+        let trace: f64 = (0..m).map(|i| gram[(i, i)]).sum();
+        // A tiny ridge keeps the inverse defined on a degenerate learned basis.
+        let reg = gram + nalgebra::DMatrix::identity(m, m) * (1e-12 * trace.max(1e-300));
+        let inv = reg
+            .clone()
+            .cholesky()
+            .map(|c| c.inverse())
+            .or_else(|| reg.pseudo_inverse(1e-12).ok())
+            .unwrap_or_else(|| nalgebra::DMatrix::zeros(m, m));
+        let mut warm = Vec::with_capacity(fit.len() * m);
+        let mut hole64 = vec![0f64; m];
+        for &l in &fit {
+            for i in 0..m {
+                let x: f64 = (0..m).map(|j| inv[(i, j)] * design[l][j]).sum::<f64>() * w[l];
+                warm.push(x as f32);
+                hole64[i] += x * super::HOLE_LOGIT as f64;
+            }
+        }
+        let mut hole = [0f32; 16];
+        for i in 0..m {
+            hole[i] = hole64[i] as f32;
+        }
+        Tables {
+            m,
+            nfit: fit.len(),
+            used,
+            a,
+            q,
+            omega: fit.iter().map(|&l| w[l] as f32).collect(),
+            warm,
+            pair: (0..d).collect(),
+            ridge: lambda * trace / m as f64,
+            tolerance,
+            max_iterations,
+            omega_sum: fit.iter().map(|&l| w[l]).sum(),
+            hole,
+            d,
         }
     }
 }

@@ -314,6 +314,12 @@ pub(crate) fn prepare(lights: &LightSet, opts: &FitOptions) -> Result<SharedDesi
              equations indefinite)"
         )));
     }
+    if opts.basis.is_learned() {
+        // A learned basis starts from the polynomial one of its size: its design, factor and
+        // diagnostics are that basis's, once the learned basis's own needs are met.
+        let (w, _) = light_weights(lights, opts)?;
+        return prepare(lights, &crate::learned::check(opts, &w)?);
+    }
     let (w, held) = light_weights(lights, opts)?;
     let a = design(opts.basis, opts.uv, lights);
     // The logistic link's λ is its own ridge; its factorisation (diagnostics, warm start) is the

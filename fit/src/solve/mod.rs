@@ -31,7 +31,7 @@ mod refit;
 pub use accumulator::Accumulator;
 pub use factor::describe_direction;
 pub use options::{
-    holdout_indices, ErrorStats, FitOptions, FitReport, LogisticStats, Weight, COND_WARN,
-    DEFAULT_RCOND,
+    holdout_indices, ErrorStats, FitOptions, FitReport, LearnedStats, LogisticStats, Weight,
+    COND_WARN, DEFAULT_RCOND,
 };
 pub use refit::fit_stack;

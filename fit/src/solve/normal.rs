@@ -274,6 +274,7 @@ impl NormalSums {
             tile,
             planes,
             coverage: ptm_coverage(img.coverage),
+            learned: None,
         };
         report.rms = ErrorStats::of(&rms_map, img.masked);
         report.rms_map = rms_map;

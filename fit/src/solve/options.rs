@@ -143,6 +143,8 @@ pub struct FitReport {
     /// iteration cap, texels whose samples a polynomial separates exactly (optimum at infinity
     /// without the ridge) and texels whose samples are all 0 or all 1 (a special separable case).
     pub logistic: Option<LogisticStats>,
+    /// Learned basis: what the learning stage did (subsample, alternations, deviance).
+    pub learned: Option<LearnedStats>,
     /// MIP levels fitted beside level 0 (0 = none).
     pub mip_levels: usize,
     /// Lights in the set, lights that entered the fit (weight > 0, not held out).
@@ -190,6 +192,31 @@ pub struct FitReport {
     pub max_map: Vec<f32>,
     /// Seconds per stage, in order.
     pub seconds: Vec<(&'static str, f64)>,
+}
+
+/// What the learning stage did (in [`FitReport::learned`]; [`crate::learned`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LearnedStats {
+    /// Terms k.
+    pub terms: usize,
+    /// Grid side G of each table.
+    pub grid: usize,
+    /// Roughness λ.
+    pub roughness: f64,
+    /// Texels the basis was learned on (the subsample).
+    pub texels: usize,
+    /// Alternations run.
+    pub alternations: u32,
+    /// Mean deviance per fitted sample on the subsample, at the polynomial start and at the end.
+    pub deviance_start: f64,
+    /// Mean deviance per fitted sample at the end of the learning.
+    pub deviance: f64,
+    /// RMS of σ − K on the subsample's fitting samples, at the start and at the end.
+    pub rms_start: f64,
+    /// RMS of σ − K at the end of the learning.
+    pub rms: f64,
+    /// Seconds of the learning stage (subsample, alternations, gauge).
+    pub seconds: f64,
 }
 
 /// What the logistic fit did, over the fitted texels of level 0.

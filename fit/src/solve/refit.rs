@@ -272,6 +272,7 @@ fn fit_stack_identity(stack: &SampleStack, opts: &FitOptions) -> Result<(Ptm, Fi
         tile: stack.tile,
         planes,
         coverage: ptm_coverage(&stack.coverage),
+        learned: None,
     };
     Ok((ptm, report))
 }

@@ -1,0 +1,666 @@
+//! Learning the tables of a learned basis (the maths: `learned.rs`): the deterministic
+//! subsample, damped Newton on the coefficients per texel and on the tables, the alternation,
+//! the gauge, and the logistic kernel's tables for the learned rows.
+use std::time::Instant;
+
+use nalgebra::{DMatrix, SymmetricEigen};
+use rayon::prelude::*;
+
+use super::band::Band;
+use super::{start_basis, GRID, MAX_ALTERNATIONS, MAX_SUBSAMPLE, ROUGHNESS, STOP};
+use crate::logistic::pool::Source;
+use crate::logistic::tables::Tables;
+use crate::solve::options::{FitOptions, LearnedStats};
+use crate::{Error, Result};
+use ptm_format::basis::sigmoid64;
+use ptm_format::hash::splitmix64;
+use ptm_format::learned::bilinear;
+use ptm_format::{LearnedTable, LightSet, UvMap};
+
+/// Seed of the subsample's hash.
+const SEED: u64 = 0x6c65_6172_6e65_6421;
+
+/// The subsample: up to [`MAX_SUBSAMPLE`] of the texels `live`, those whose hash of their
+/// index is smallest, in increasing index order.
+fn subsample(texels: usize, live: &dyn Fn(usize) -> bool) -> Vec<usize> {
+    let mut cand: Vec<(u64, usize)> = (0..texels)
+        .filter(|&t| live(t))
+        .map(|t| (splitmix64(SEED ^ t as u64), t))
+        .collect();
+    if cand.len() > MAX_SUBSAMPLE {
+        cand.select_nth_unstable(MAX_SUBSAMPLE);
+        cand.truncate(MAX_SUBSAMPLE);
+    }
+    let mut out: Vec<usize> = cand.into_iter().map(|(_, t)| t).collect();
+    out.sort_unstable();
+    out
+}
+
+/// The learning problem on the subsample.
+struct Problem {
+    /// Terms k.
+    k: usize,
+    /// Texels S.
+    s: usize,
+    /// Fitting lights N.
+    n: usize,
+    /// K `[texel][light]`, < 0 where a sample is missing.
+    kv: Vec<f32>,
+    /// Per fitting light its weight ω.
+    omega: Vec<f64>,
+    /// Per fitting light its four grid cells and weights.
+    cells: Vec<[(usize, f64); 4]>,
+    /// Per-texel ridge ρ (absolute).
+    rho: f64,
+    /// Roughness weight μ = λ·S.
+    mu: f64,
+    /// Σ ω over the samples present (the deviance's normaliser).
+    weight_sum: f64,
+}
+
+/// Binomial deviance of fraction k at logit z: softplus(z) − k·z, stable in both tails.
+#[inline]
+fn dev(k: f64, z: f64) -> f64 {
+    z.max(0.0) + (-z.abs()).exp().ln_1p() - k * z
+}
+
+/// Design rows a_n = Σ w·b[cell] (N × k) of the table `b` (`[cell][term]`).
+fn rows(p: &Problem, b: &[f64]) -> Vec<f64> {
+    let k = p.k;
+    let mut a = vec![0f64; p.n * k];
+    for (n, cs) in p.cells.iter().enumerate() {
+        for &(c, w) in cs {
+            for j in 0..k {
+                a[n * k + j] += w * b[c * k + j];
+            }
+        }
+    }
+    a
+}
+
+/// Solves the k × k SPD system `h` (dense, row-major) · x = g by Cholesky; `None` when not
+/// positive definite.
+fn chol_solve(h: &mut [f64], g: &[f64], k: usize) -> Option<Vec<f64>> {
+    for j in 0..k {
+        let mut s = h[j * k + j];
+        for q in 0..j {
+            s -= h[j * k + q] * h[j * k + q];
+        }
+        if s.is_nan() || s <= 0.0 {
+            return None;
+        }
+        let d = s.sqrt();
+        h[j * k + j] = d;
+        for i in j + 1..k {
+            let mut s = h[i * k + j];
+            for q in 0..j {
+                s -= h[i * k + q] * h[j * k + q];
+            }
+            h[i * k + j] = s / d;
+        }
+    }
+    let mut y = g.to_vec();
+    for i in 0..k {
+        for q in 0..i {
+            y[i] -= h[i * k + q] * y[q];
+        }
+        y[i] /= h[i * k + i];
+    }
+    for i in (0..k).rev() {
+        for q in i + 1..k {
+            y[i] -= h[q * k + i] * y[q];
+        }
+        y[i] /= h[i * k + i];
+    }
+    Some(y)
+}
+
+/// Deviance of texel x with coefficients c under rows a (plus nothing else).
+fn texel_dev(p: &Problem, a: &[f64], x: usize, c: &[f64]) -> f64 {
+    let k = p.k;
+    let kx = &p.kv[x * p.n..(x + 1) * p.n];
+    let mut s = 0.0;
+    for n in 0..p.n {
+        if kx[n] < 0.0 {
+            continue;
+        }
+        let z: f64 = (0..k).map(|j| a[n * k + j] * c[j]).sum();
+        s += p.omega[n] * dev(kx[n] as f64, z);
+    }
+    s
+}
+
+/// `steps` damped Newton steps per texel on its coefficients (rows `a` fixed), in parallel.
+fn coefficient_steps(p: &Problem, a: &[f64], c: &mut [f64], steps: usize) {
+    let k = p.k;
+    c.par_chunks_mut(k).enumerate().for_each(|(x, cx)| {
+        let kx = &p.kv[x * p.n..(x + 1) * p.n];
+        for _ in 0..steps {
+            let mut g: Vec<f64> = cx.iter().map(|v| p.rho * v).collect();
+            let mut h = vec![0f64; k * k];
+            for j in 0..k {
+                h[j * k + j] = p.rho;
+            }
+            let mut f0 = 0.5 * p.rho * cx.iter().map(|v| v * v).sum::<f64>();
+            for n in 0..p.n {
+                if kx[n] < 0.0 {
+                    continue;
+                }
+                let an = &a[n * k..(n + 1) * k];
+                let z: f64 = (0..k).map(|j| an[j] * cx[j]).sum();
+                let s = sigmoid64(z);
+                let kk = kx[n] as f64;
+                f0 += p.omega[n] * dev(kk, z);
+                let r = p.omega[n] * (s - kk);
+                let w = p.omega[n] * s * (1.0 - s);
+                for i in 0..k {
+                    g[i] += r * an[i];
+                    let wi = w * an[i];
+                    for j in 0..=i {
+                        h[i * k + j] += wi * an[j];
+                    }
+                }
+            }
+            let Some(step) = chol_solve(&mut h, &g, k) else {
+                return;
+            };
+            let mut alpha = 1.0;
+            let mut trial = vec![0f64; k];
+            let mut accepted = false;
+            for _ in 0..12 {
+                for j in 0..k {
+                    trial[j] = cx[j] - alpha * step[j];
+                }
+                let f = texel_dev(p, a, x, &trial)
+                    + 0.5 * p.rho * trial.iter().map(|v| v * v).sum::<f64>();
+                if f <= f0 {
+                    accepted = true;
+                    break;
+                }
+                alpha *= 0.5;
+            }
+            if !accepted {
+                return;
+            }
+            let moved = (0..k).fold(0f64, |m, j| m.max((alpha * step[j]).abs()));
+            cx.copy_from_slice(&trial);
+            if moved < 1e-7 {
+                return;
+            }
+        }
+    });
+}
+
+/// Σₓ deviance of the subsample (summed in texel order: the same for any thread count).
+fn total_dev(p: &Problem, a: &[f64], c: &[f64]) -> f64 {
+    let per: Vec<f64> = (0..p.s)
+        .into_par_iter()
+        .map(|x| texel_dev(p, a, x, &c[x * p.k..(x + 1) * p.k]))
+        .collect();
+    per.iter().sum()
+}
+
+/// RMS of σ − K over the subsample's fitting samples.
+fn rms(p: &Problem, a: &[f64], c: &[f64]) -> f64 {
+    let k = p.k;
+    let per: Vec<(f64, f64)> = (0..p.s)
+        .into_par_iter()
+        .map(|x| {
+            let (mut s, mut m) = (0.0, 0.0);
+            for n in 0..p.n {
+                let kv = p.kv[x * p.n + n];
+                if kv < 0.0 {
+                    continue;
+                }
+                let z: f64 = (0..k).map(|j| a[n * k + j] * c[x * k + j]).sum();
+                let e = sigmoid64(z) - kv as f64;
+                s += p.omega[n] * e * e;
+                m += p.omega[n];
+            }
+            (s, m)
+        })
+        .collect();
+    let (s, m) = per.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
+    (s / m.max(1e-300)).sqrt()
+}
+
+/// The second-difference operator's DᵀD over the G × G grid (dense G² × G²).
+fn roughness_matrix(g: usize) -> Vec<f64> {
+    let g2 = g * g;
+    let mut dtd = vec![0f64; g2 * g2];
+    let mut add = |cells: [usize; 3]| {
+        let coef = [1.0, -2.0, 1.0];
+        for a in 0..3 {
+            for b in 0..3 {
+                dtd[cells[a] * g2 + cells[b]] += coef[a] * coef[b];
+            }
+        }
+    };
+    for j in 0..g {
+        for i in 1..g - 1 {
+            add([j * g + i - 1, j * g + i, j * g + i + 1]);
+        }
+    }
+    for j in 1..g - 1 {
+        for i in 0..g {
+            add([(j - 1) * g + i, j * g + i, (j + 1) * g + i]);
+        }
+    }
+    dtd
+}
+
+/// ‖D b‖² of the tables through DᵀD: bᵀ(DᵀD ⊗ I)b.
+fn roughness(dtd: &[f64], b: &[f64], g2: usize, k: usize) -> f64 {
+    let mut s = 0.0;
+    for c1 in 0..g2 {
+        for c2 in 0..g2 {
+            let d = dtd[c1 * g2 + c2];
+            if d != 0.0 {
+                for j in 0..k {
+                    s += d * b[c1 * k + j] * b[c2 * k + j];
+                }
+            }
+        }
+    }
+    s
+}
+
+/// One damped Newton step on the tables for fixed coefficients. Returns the new objective's
+/// table part (deviance + roughness).
+fn table_step(p: &Problem, dtd: &[f64], b: &mut Vec<f64>, c: &[f64], f0: f64) -> f64 {
+    let (k, g2) = (p.k, GRID * GRID);
+    let a = rows(p, b);
+    let kk = k * k;
+    // Per light: r_n = Σₓ ω(σ − k)cₓ and M_n = Σₓ ωσ(1−σ)cₓcₓᵀ (lower triangle), texels in
+    // order within a light: the same sums for any thread count.
+    let per: Vec<(Vec<f64>, Vec<f64>)> = (0..p.n)
+        .into_par_iter()
+        .map(|n| {
+            let an = &a[n * k..(n + 1) * k];
+            let mut r = vec![0f64; k];
+            let mut m = vec![0f64; kk];
+            for x in 0..p.s {
+                let kv = p.kv[x * p.n + n];
+                if kv < 0.0 {
+                    continue;
+                }
+                let cx = &c[x * k..(x + 1) * k];
+                let z: f64 = (0..k).map(|j| an[j] * cx[j]).sum();
+                let s = sigmoid64(z);
+                let rr = p.omega[n] * (s - kv as f64);
+                let w = p.omega[n] * s * (1.0 - s);
+                for i in 0..k {
+                    r[i] += rr * cx[i];
+                    let wi = w * cx[i];
+                    for j in 0..=i {
+                        m[i * k + j] += wi * cx[j];
+                    }
+                }
+            }
+            (r, m)
+        })
+        .collect();
+    let np = g2 * k;
+    let bw = 2 * GRID * k + k - 1;
+    let mut h = Band::new(np, bw);
+    let mut grad = vec![0f64; np];
+    for (n, (r, m)) in per.iter().enumerate() {
+        for &(c1, w1) in &p.cells[n] {
+            for i in 0..k {
+                grad[c1 * k + i] += w1 * r[i];
+            }
+            for &(c2, w2) in &p.cells[n] {
+                let ww = w1 * w2;
+                if ww == 0.0 {
+                    continue;
+                }
+                for i in 0..k {
+                    for j in 0..k {
+                        let (pi, pj) = (c1 * k + i, c2 * k + j);
+                        if pi >= pj {
+                            let mij = if i >= j { m[i * k + j] } else { m[j * k + i] };
+                            h.add(pi, pj, ww * mij);
+                        }
+                    }
+                }
+            }
+        }
+    }
+    for c1 in 0..g2 {
+        for c2 in c1.saturating_sub(2 * GRID)..=c1 {
+            let d = dtd[c1 * g2 + c2];
+            if d == 0.0 {
+                continue;
+            }
+            for j in 0..k {
+                h.add(c1 * k + j, c2 * k + j, p.mu * d);
+            }
+        }
+        for c2 in 0..g2 {
+            let d = dtd[c1 * g2 + c2];
+            if d != 0.0 {
+                for j in 0..k {
+                    grad[c1 * k + j] += p.mu * d * b[c2 * k + j];
+                }
+            }
+        }
+    }
+    let trace: f64 = (0..np).map(|i| h.v[i * (bw + 1)]).sum::<f64>() / np as f64;
+    let mut eps = 1e-9 * trace.max(1e-300);
+    let step = loop {
+        let mut hh = Band {
+            n: h.n,
+            bw: h.bw,
+            v: h.v.clone(),
+        };
+        for i in 0..np {
+            hh.add(i, i, eps);
+        }
+        if let Some(s) = hh.solve(&grad) {
+            break s;
+        }
+        eps *= 100.0;
+        if eps > trace {
+            return f0;
+        }
+    };
+    let obj = |b: &[f64]| total_dev(p, &rows(p, b), c) + 0.5 * p.mu * roughness(dtd, b, g2, k);
+    let mut alpha = 1.0;
+    let mut trial = vec![0f64; np];
+    while alpha > 1e-4 {
+        for i in 0..np {
+            trial[i] = b[i] - alpha * step[i];
+        }
+        let f = obj(&trial);
+        if f <= f0 {
+            *b = trial;
+            return f;
+        }
+        alpha *= 0.5;
+    }
+    f0
+}
+
+/// The learned tables, the kernel's tables for them, and what the learning did.
+pub(crate) struct Learned {
+    pub table: LearnedTable,
+    pub tables: Tables,
+    pub stats: LearnedStats,
+}
+
+/// Learns the basis of `opts.basis` from `src` (`texels` texels, `live` those to fit) over
+/// `lights` with weights `w` and held-out lights `held`, then builds the kernel's tables.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn learn(
+    src: &Source,
+    texels: usize,
+    live: &(dyn Fn(usize) -> bool + Sync),
+    lights: &LightSet,
+    w: &[f64],
+    held: &[usize],
+    opts: &FitOptions,
+    lambda: f64,
+) -> Result<Learned> {
+    let t0 = Instant::now();
+    let k = opts.basis.len();
+    let start = start_basis(k).expect("checked by `check`");
+    let fit: Vec<usize> = (0..lights.len()).filter(|&i| w[i] > 0.0).collect();
+    let n = fit.len();
+    let uv: Vec<(f64, f64)> = lights
+        .dirs
+        .iter()
+        .map(|d| UvMap::Hemispherical.of_dir(*d))
+        .collect();
+    // The subsample's K, light by light (each light's plane read whole, in parallel).
+    let sub = subsample(texels, live);
+    let planes: Vec<Vec<f32>> = fit
+        .par_iter()
+        .map(|&l| {
+            let mut buf = vec![0f32; texels];
+            src.fill(l, 0, &mut buf);
+            sub.iter().map(|&t| buf[t]).collect()
+        })
+        .collect();
+    let mut keep = Vec::new();
+    let mut kv = Vec::new();
+    for (i, &t) in sub.iter().enumerate() {
+        if planes.iter().any(|p| p[i] >= 0.0) {
+            keep.push(t);
+            kv.extend(planes.iter().map(|p| p[i]));
+        }
+    }
+    drop(planes);
+    let s = keep.len();
+    if s == 0 {
+        return Err(Error::Invalid(
+            "no texel has a fitting sample to learn the basis from".into(),
+        ));
+    }
+    let omega: Vec<f64> = fit.iter().map(|&l| w[l]).collect();
+    let cells: Vec<[(usize, f64); 4]> = fit
+        .iter()
+        .map(|&l| bilinear(GRID, uv[l].0, uv[l].1))
+        .collect();
+    let weight_sum: f64 = (0..s)
+        .map(|x| {
+            (0..n)
+                .filter(|&q| kv[x * n + q] >= 0.0)
+                .map(|q| omega[q])
+                .sum::<f64>()
+        })
+        .sum();
+    // The start: the polynomial basis sampled on the grid, [cell][term].
+    let g2 = GRID * GRID;
+    let mut b = vec![0f64; g2 * k];
+    let mut mono = vec![0f64; k];
+    for j in 0..GRID {
+        for i in 0..GRID {
+            let (u, v) = node(i, j);
+            start.terms(u, v, &mut mono);
+            b[(j * GRID + i) * k..(j * GRID + i + 1) * k].copy_from_slice(&mono);
+        }
+    }
+    let mut p = Problem {
+        k,
+        s,
+        n,
+        kv,
+        omega,
+        cells,
+        rho: 0.0,
+        mu: ROUGHNESS * s as f64,
+        weight_sum,
+    };
+    let ridge = |p: &Problem, a: &[f64]| {
+        let trace: f64 = (0..p.n)
+            .map(|q| p.omega[q] * (0..k).map(|j| a[q * k + j].powi(2)).sum::<f64>())
+            .sum();
+        lambda * trace / k as f64
+    };
+    let dtd = roughness_matrix(GRID);
+    let mut c = vec![0f64; s * k];
+    let a = rows(&p, &b);
+    p.rho = ridge(&p, &a);
+    coefficient_steps(&p, &a, &mut c, 30);
+    let deviance_start = total_dev(&p, &a, &c);
+    let rms_start = rms(&p, &a, &c);
+    let coef_ridge = |p: &Problem, c: &[f64]| 0.5 * p.rho * c.iter().map(|x| x * x).sum::<f64>();
+    let mut f_table = deviance_start + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
+    let mut j_prev = f_table + coef_ridge(&p, &c);
+    let mut alternations = 0;
+    while alternations < MAX_ALTERNATIONS {
+        alternations += 1;
+        table_step(&p, &dtd, &mut b, &c, f_table);
+        let a = rows(&p, &b);
+        p.rho = ridge(&p, &a);
+        coefficient_steps(&p, &a, &mut c, 2);
+        let dv = total_dev(&p, &a, &c);
+        f_table = dv + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
+        let j = f_table + coef_ridge(&p, &c);
+        let fell = j_prev - j;
+        j_prev = j;
+        if fell < STOP * j.abs() {
+            break;
+        }
+    }
+    let a = rows(&p, &b);
+    let deviance = total_dev(&p, &a, &c);
+    let rms_end = rms(&p, &a, &c);
+    let table = gauge(&p, &b, &c);
+    // The kernel's tables from the stored (f32) table, so the file evaluates what was fitted.
+    let mut design = vec![vec![0f64; k]; lights.len()];
+    for (l, row) in design.iter_mut().enumerate() {
+        table.terms(uv[l].0, uv[l].1, row);
+    }
+    let tables = Tables::learned(
+        &design,
+        w,
+        held,
+        lambda,
+        opts.tolerance,
+        opts.max_iterations,
+    );
+    let stats = LearnedStats {
+        terms: k,
+        grid: GRID,
+        roughness: ROUGHNESS,
+        texels: s,
+        alternations,
+        deviance_start: deviance_start / p.weight_sum,
+        deviance: deviance / p.weight_sum,
+        rms_start,
+        rms: rms_end,
+        seconds: t0.elapsed().as_secs_f64(),
+    };
+    Ok(Learned {
+        table,
+        tables,
+        stats,
+    })
+}
+
+/// (u, v) of grid node (column i, row j).
+fn node(i: usize, j: usize) -> (f64, f64) {
+    let s = (GRID - 1) as f64;
+    (-1.0 + 2.0 * i as f64 / s, -1.0 + 2.0 * j as f64 / s)
+}
+
+/// The tables in the documented gauge (module docs), as stored.
+fn gauge(p: &Problem, b: &[f64], c: &[f64]) -> LearnedTable {
+    let k = p.k;
+    let g2 = GRID * GRID;
+    let a = rows(p, b);
+    let wsum: f64 = p.omega.iter().sum();
+    // Gram of the terms over the fitting lights, normalised: G = Σ ω a aᵀ / Σ ω = L Lᵀ.
+    let gram = DMatrix::from_fn(k, k, |i, j| {
+        (0..p.n)
+            .map(|q| p.omega[q] * a[q * k + i] * a[q * k + j])
+            .sum::<f64>()
+            / wsum
+    });
+    let l = gram
+        .clone()
+        .cholesky()
+        .map(|ch| ch.l())
+        .unwrap_or_else(|| DMatrix::identity(k, k));
+    let linv = l
+        .clone()
+        .try_inverse()
+        .unwrap_or_else(|| DMatrix::identity(k, k));
+    // Orthonormal terms B' = B L⁻ᵀ carry coefficients c' = Lᵀ c; their second moments' eigenvectors V.
+    let mut sm = DMatrix::<f64>::zeros(k, k);
+    for x in 0..p.s {
+        let cx = nalgebra::DVector::from_column_slice(&c[x * k..(x + 1) * k]);
+        let cp = l.transpose() * cx;
+        sm += &cp * cp.transpose();
+    }
+    let eig = SymmetricEigen::new(sm);
+    let mut order: Vec<usize> = (0..k).collect();
+    order.sort_by(|&x, &y| {
+        eig.eigenvalues[y]
+            .partial_cmp(&eig.eigenvalues[x])
+            .unwrap_or(std::cmp::Ordering::Equal)
+            .then(x.cmp(&y))
+    });
+    // Final transform T (k × k): b''[cell] = T b[cell], T = Vᵀ L⁻¹ with V's columns reordered.
+    let mut t = DMatrix::<f64>::zeros(k, k);
+    let vt_linv = eig.eigenvectors.transpose() * &linv;
+    for (r, &o) in order.iter().enumerate() {
+        for j in 0..k {
+            t[(r, j)] = vt_linv[(o, j)];
+        }
+    }
+    // Signs: each term's mean over the fitting lights positive (its largest entry when the
+    // mean is zero).
+    let mut values = vec![0f32; k * g2];
+    let mut tb = vec![0f64; g2 * k];
+    for cell in 0..g2 {
+        for r in 0..k {
+            tb[cell * k + r] = (0..k).map(|j| t[(r, j)] * b[cell * k + j]).sum();
+        }
+    }
+    let a2 = rows(p, &tb);
+    for r in 0..k {
+        let mean: f64 = (0..p.n).map(|q| p.omega[q] * a2[q * k + r]).sum();
+        let sign = if mean.abs() > 1e-9 * wsum {
+            mean.signum()
+        } else {
+            let big = (0..g2).map(|cell| tb[cell * k + r]).fold(0f64, |m, x| {
+                if x.abs() > m.abs() {
+                    x
+                } else {
+                    m
+                }
+            });
+            if big < 0.0 {
+                -1.0
+            } else {
+                1.0
+            }
+        };
+        for cell in 0..g2 {
+            values[r * g2 + cell] = (sign * tb[cell * k + r]) as f32;
+        }
+    }
+    LearnedTable {
+        grid: GRID,
+        terms: k,
+        values,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roughness_is_zero_on_bilinear_tables_and_positive_else() {
+        let g2 = GRID * GRID;
+        let dtd = roughness_matrix(GRID);
+        let mut b = vec![0f64; g2];
+        for j in 0..GRID {
+            for i in 0..GRID {
+                let (u, v) = node(i, j);
+                b[j * GRID + i] = 1.0 + 2.0 * u - v + 0.5 * u * v;
+            }
+        }
+        assert!(roughness(&dtd, &b, g2, 1).abs() < 1e-9);
+        for j in 0..GRID {
+            for i in 0..GRID {
+                let (u, _) = node(i, j);
+                b[j * GRID + i] = u * u;
+            }
+        }
+        assert!(roughness(&dtd, &b, g2, 1) > 1e-3);
+    }
+
+    #[test]
+    fn the_subsample_is_deterministic_and_bounded() {
+        let a = subsample(100_000, &|t| t % 3 != 0);
+        let b = subsample(100_000, &|t| t % 3 != 0);
+        assert_eq!(a, b);
+        assert_eq!(a.len(), MAX_SUBSAMPLE);
+        assert!(a.windows(2).all(|w| w[0] < w[1]) && a.iter().all(|t| t % 3 != 0));
+        assert_eq!(subsample(50, &|_| true), (0..50).collect::<Vec<_>>());
+    }
+}
