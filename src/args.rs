@@ -202,6 +202,20 @@ pub fn parse_threads(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
+/// Parses `R,G,B` (or any three comma-separated numbers) for clap.
+pub fn parse_triple(s: &str) -> Result<[f32; 3], String> {
+    let v: Vec<f32> = s
+        .split(',')
+        .map(|p| {
+            p.trim()
+                .parse()
+                .map_err(|_| format!("`{p}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    v.try_into()
+        .map_err(|_| format!("expected three comma-separated numbers, got `{s}`"))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -252,18 +266,4 @@ mod tests {
         distinct::<Layout>();
         distinct::<Blur>();
     }
-}
-
-/// Parses `R,G,B` (or any three comma-separated numbers) for clap.
-pub fn parse_triple(s: &str) -> Result<[f32; 3], String> {
-    let v: Vec<f32> = s
-        .split(',')
-        .map(|p| {
-            p.trim()
-                .parse()
-                .map_err(|_| format!("`{p}` is not a number"))
-        })
-        .collect::<Result<_, _>>()?;
-    v.try_into()
-        .map_err(|_| format!("expected three comma-separated numbers, got `{s}`"))
 }

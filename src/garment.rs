@@ -250,10 +250,10 @@ pub fn build(
             let d2: f32 = (0..3).map(|a| (position[a] - c[a]).powi(2)).sum();
             Light {
                 position,
-                radius: nth(&view.light_radius, i).unwrap_or(0.25 * r),
+                radius: nth(view.light_radius, i).unwrap_or(0.25 * r),
                 rect: None,
                 // Irradiance 1 at the mesh's centre, facing the light.
-                intensity: nth(&view.intensity, i).unwrap_or(d2),
+                intensity: nth(view.intensity, i).unwrap_or(d2),
                 color: view
                     .color
                     .get(i)
