@@ -181,6 +181,7 @@ fn k_of_u() -> Ptm {
         coverage: None,
         tile: [1.0, 1.0],
         planes,
+        learned: None,
     }
 }
 
