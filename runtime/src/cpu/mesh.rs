@@ -279,7 +279,7 @@ pub fn tangent_light(p: &SceneBuffers, light: usize) -> Vec<Option<[f32; 3]>> {
 }
 
 /// The interpolated fragment each pixel shows (row-major; `None` where no triangle covers it),
-/// in row bands of [`BAND`] in parallel (each band owns its pixels, so the result does not
+/// in row bands of `BAND` in parallel (each band owns its pixels, so the result does not
 /// depend on the thread count).
 pub fn rasterise(p: &SceneBuffers) -> Vec<Option<MeshOut>> {
     let f = &p.frame;
