@@ -145,13 +145,15 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
                                 )
                             })?;
                             let k = if k > 0 { k - 1 } else { nt + k };
+                            // A texture index with no `vt` line behind it (foreign files
+                            // write `f 1/1/1` with no texture coordinates at all): the face
+                            // has no UVs, as the bake never needed them; `ptm preview --mesh`
+                            // then says the mesh has none.
                             if k < 0 || k >= nt {
-                                return Err(bad(
-                                    n,
-                                    format!("texture coordinate index {vt} is outside the {nt} `vt` lines so far"),
-                                ));
+                                all_vt = false;
+                            } else {
+                                vts.push(k as u32);
                             }
-                            vts.push(k as u32);
                         }
                     }
                     let k = first
