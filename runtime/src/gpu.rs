@@ -160,20 +160,13 @@ impl Renderer {
                     contents: bytemuck::cast_slice(&p.mesh_vertices),
                     usage: wgpu::BufferUsages::VERTEX,
                 });
-            let depth = gpu.device.create_texture(&wgpu::TextureDescriptor {
-                label: Some("depth"),
-                size: wgpu::Extent3d {
-                    width: size[0],
-                    height: size[1],
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: 1,
-                dimension: wgpu::TextureDimension::D2,
-                format: DEPTH_FORMAT,
-                usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
-                view_formats: &[],
-            });
+            let depth = attachment(
+                gpu,
+                "depth",
+                size,
+                DEPTH_FORMAT,
+                wgpu::TextureUsages::RENDER_ATTACHMENT,
+            );
             (vertices, p.mesh_vertices.len() as u32, depth)
         });
         gpu.wait("upload")?;
@@ -206,20 +199,13 @@ impl Renderer {
             layout: &layout,
             entries: &bind_entries,
         });
-        let target = gpu.device.create_texture(&wgpu::TextureDescriptor {
-            label: Some("radiance"),
-            size: wgpu::Extent3d {
-                width: size[0],
-                height: size[1],
-                depth_or_array_layers: 1,
-            },
-            mip_level_count: 1,
-            sample_count: 1,
-            dimension: wgpu::TextureDimension::D2,
-            format: TARGET_FORMAT,
-            usage: wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-            view_formats: &[],
-        });
+        let target = attachment(
+            gpu,
+            "radiance",
+            size,
+            TARGET_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
         if let Some(e) = pollster::block_on(scope.pop()) {
             return Err(Error::Shader {
                 variant: v.name(),
@@ -392,4 +378,29 @@ pub fn render(gpu: &Gpu, p: &SceneBuffers) -> Result<(Image, Timings)> {
     let image = r.readback()?;
     timings.passes.push(("readback", t.elapsed().as_secs_f64()));
     Ok((image, timings))
+}
+
+/// A single-level 2D texture of `size` pixels that a pass renders into (the radiance target,
+/// the mesh path's depth buffer).
+fn attachment(
+    gpu: &Gpu,
+    label: &str,
+    size: [u32; 2],
+    format: wgpu::TextureFormat,
+    usage: wgpu::TextureUsages,
+) -> wgpu::Texture {
+    gpu.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some(label),
+        size: wgpu::Extent3d {
+            width: size[0],
+            height: size[1],
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format,
+        usage,
+        view_formats: &[],
+    })
 }

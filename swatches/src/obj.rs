@@ -39,6 +39,25 @@ pub fn read_obj(path: &Path) -> Result<Obj> {
     parse_obj(&bytes, &path.display().to_string())
 }
 
+/// Fills `out` with the next finite numbers of a line; the reason when one is missing
+/// (`missing(found)`) or is not a finite number (named as a `what`).
+fn finite_numbers<'a>(
+    it: &mut impl Iterator<Item = &'a str>,
+    out: &mut [f64],
+    what: &str,
+    missing: impl Fn(usize) -> String,
+) -> std::result::Result<(), String> {
+    for (k, c) in out.iter_mut().enumerate() {
+        let t = it.next().ok_or_else(|| missing(k))?;
+        *c = t
+            .parse::<f64>()
+            .ok()
+            .filter(|c| c.is_finite())
+            .ok_or_else(|| format!("{what} {t:?} is non-finite or not a number"))?;
+    }
+    Ok(())
+}
+
 /// Parses OBJ bytes (`origin` names them in errors): `v x y z` lines, `f` lines (polygons
 /// fan-triangulated, negative indices relative to the vertices so far; the `/vt` part read into
 /// [`Obj::triangle_uvs`] when every face has one, `/vn` ignored), `vt u v` lines (NaN refused),
@@ -88,43 +107,18 @@ pub fn parse_obj(bytes: &[u8], origin: &str) -> Result<Obj> {
             }
             Some("v") => {
                 let mut v = [0.0; 3];
-                for (k, c) in v.iter_mut().enumerate() {
-                    let t = it.next().ok_or_else(|| {
-                        bad(n, format!("a vertex needs 3 coordinates, found {k}"))
-                    })?;
-                    *c = t
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|c| c.is_finite())
-                        .ok_or_else(|| {
-                            bad(
-                                n,
-                                format!("vertex coordinate {t:?} is non-finite or not a number"),
-                            )
-                        })?;
-                }
+                finite_numbers(&mut it, &mut v, "vertex coordinate", |k| {
+                    format!("a vertex needs 3 coordinates, found {k}")
+                })
+                .map_err(|reason| bad(n, reason))?;
                 obj.positions.push(v);
             }
             Some("vt") => {
                 let mut v = [0.0; 2];
-                for (k, c) in v.iter_mut().enumerate() {
-                    let t = it.next().ok_or_else(|| {
-                        bad(
-                            n,
-                            format!("a texture coordinate needs u v, found {k} numbers"),
-                        )
-                    })?;
-                    *c = t
-                        .parse::<f64>()
-                        .ok()
-                        .filter(|c| c.is_finite())
-                        .ok_or_else(|| {
-                            bad(
-                                n,
-                                format!("texture coordinate {t:?} is non-finite or not a number"),
-                            )
-                        })?;
-                }
+                finite_numbers(&mut it, &mut v, "texture coordinate", |k| {
+                    format!("a texture coordinate needs u v, found {k} numbers")
+                })
+                .map_err(|reason| bad(n, reason))?;
                 obj.uvs.push(v);
             }
             Some("f") => {

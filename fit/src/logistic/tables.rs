@@ -56,14 +56,7 @@ impl Tables {
         let m = basis.len();
         let (prods, pair) = products(basis);
         let d = prods.len();
-        let fit: Vec<usize> = (0..w.len())
-            .filter(|&i| w[i] > 0.0 && !held.contains(&i))
-            .collect();
-        let used: Vec<usize> = fit.iter().chain(held).copied().collect();
-        let mut a = Vec::with_capacity(used.len() * m);
-        for &l in &used {
-            a.extend(design[l].iter().map(|&x| x as f32));
-        }
+        let (fit, used, a) = rows(design, w, held, m);
         // Products from the (u, v) of each light: the same monomials, exponents added.
         let monos = basis.monomials();
         let mut q = Vec::with_capacity(fit.len() * d);
@@ -125,14 +118,7 @@ impl Tables {
     ) -> Tables {
         let m = design.first().map_or(0, Vec::len);
         let d = m * (m + 1) / 2;
-        let fit: Vec<usize> = (0..w.len())
-            .filter(|&i| w[i] > 0.0 && !held.contains(&i))
-            .collect();
-        let used: Vec<usize> = fit.iter().chain(held).copied().collect();
-        let mut a = Vec::with_capacity(used.len() * m);
-        for &l in &used {
-            a.extend(design[l].iter().map(|&x| x as f32));
-        }
+        let (fit, used, a) = rows(design, w, held, m);
         let mut q = Vec::with_capacity(fit.len() * d);
         for &l in &fit {
             for i in 0..m {
@@ -237,4 +223,24 @@ pub(crate) fn for_fit(
         opts.max_iterations,
     );
     Ok((tables, isa, lambda))
+}
+
+/// The lights a design fits (weight > 0, not held out), those followed by the held-out ones
+/// (the lights every texel's K is read for), and the design rows of the latter in f32
+/// (`used` × `m`).
+fn rows(
+    design: &[Vec<f64>],
+    w: &[f64],
+    held: &[usize],
+    m: usize,
+) -> (Vec<usize>, Vec<usize>, Vec<f32>) {
+    let fit: Vec<usize> = (0..w.len())
+        .filter(|&i| w[i] > 0.0 && !held.contains(&i))
+        .collect();
+    let used: Vec<usize> = fit.iter().chain(held).copied().collect();
+    let mut a = Vec::with_capacity(used.len() * m);
+    for &l in &used {
+        a.extend(design[l].iter().map(|&x| x as f32));
+    }
+    (fit, used, a)
 }
