@@ -24,9 +24,15 @@ pub struct Args {
     pub output: PathBuf,
     /// Basis: ptm6 (u², u, uv, v, v², 1), ptm11 (cubic + u²v²), or a basis learned from the
     /// stack, learned6 or learned11 (k tables over the hemispherical (u, v) square shared by
-    /// the swatch, stored in the file; docs/model.md).
-    #[arg(long, value_name = "BASIS", value_parser = crate::args::parse_basis, default_value = "ptm6")]
-    pub basis: Basis,
+    /// the swatch, stored in the file; docs/model.md). `auto` fits ptm6, learned6, ptm11 and
+    /// learned11 on the same lights, scores each on the same held-out lights and keeps the
+    /// first (cheapest) within --auto-margin of the best.
+    #[arg(long, value_name = "BASIS", value_parser = parse_choice, default_value = "ptm6")]
+    pub basis: BasisChoice,
+    /// With --basis auto: keep the cheapest candidate whose held-out error is at most
+    /// (1 + MARGIN) × the best candidate's.
+    #[arg(long, value_name = "MARGIN", default_value_t = AUTO_MARGIN)]
+    pub auto_margin: f64,
     #[command(flatten)]
     pub model: ModelArgs,
     /// Weight of each light's squared error.
@@ -94,6 +100,48 @@ pub struct Args {
     pub export_hp: Option<PathBuf>,
 }
 
+/// `--basis`: one basis, or `auto`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BasisChoice {
+    /// This basis.
+    Fixed(Basis),
+    /// The cheapest of [`AUTO_CANDIDATES`] within `--auto-margin` of the best on held-out
+    /// lights.
+    Auto,
+}
+
+/// The candidates of `--basis auto`, cheapest first: fewer coefficients per texel first, and
+/// at equal count the polynomial (no table to read) before the learned basis.
+pub const AUTO_CANDIDATES: [Basis; 4] = [
+    Basis::Ptm6,
+    Basis::Learned(6),
+    Basis::Ptm11,
+    Basis::Learned(11),
+];
+
+/// Default `--auto-margin`: 2 % of the best held-out error.
+pub const AUTO_MARGIN: f64 = 0.02;
+
+fn parse_choice(s: &str) -> Result<BasisChoice, String> {
+    if s == "auto" {
+        return Ok(BasisChoice::Auto);
+    }
+    crate::args::parse_basis(s)
+        .map(BasisChoice::Fixed)
+        .map_err(|e| format!("{e}, or auto"))
+}
+
+impl BasisChoice {
+    /// The basis whose outputs are checked before the fit: for `auto`, the candidate with the
+    /// most files (the renderer layout's parts follow the coefficient count).
+    fn for_paths(self) -> Basis {
+        match self {
+            BasisChoice::Fixed(b) => b,
+            BasisChoice::Auto => Basis::Learned(11),
+        }
+    }
+}
+
 /// `ptm fit`: checks the flags and every output, reads the stack (or the RTI images), fits,
 /// writes the PTM (and the HP export) in one transaction; returns what `--json` prints.
 pub fn run(args: &Args) -> anyhow::Result<json::Fit> {
@@ -101,13 +149,23 @@ pub fn run(args: &Args) -> anyhow::Result<json::Fit> {
     check_export(args)?;
     // Every output is checked before the work (an output that is an input, two outputs that
     // are one file, a missing directory) and all are published together at the end.
-    let tx = destinations(args)?;
+    let mut tx = destinations(args, args.basis.for_paths())?;
     let t0 = Instant::now();
     let input = read_input(args)?;
     let t_read = t0.elapsed().as_secs_f64();
-    let (opts, holdout) = fit_options(args, &input.stack);
     let dirs = input.stack.lights.dirs.clone();
-    let (ptm, report) = fit(input.stack, &input.source, input.samples, &opts)?;
+    let (opts, holdout, ptm, report, auto) = match args.basis {
+        BasisChoice::Fixed(basis) => {
+            let (opts, holdout) = fit_options(args, &input.stack, basis);
+            let (ptm, report) = fit(input.stack, &input.source, input.samples, &opts)?;
+            (opts, holdout, ptm, report, None)
+        }
+        BasisChoice::Auto => {
+            let c = choose(args, input.stack, &input.source, input.samples)?;
+            tx = destinations(args, c.basis)?;
+            (c.opts, c.holdout, c.ptm, c.report, Some(c.json))
+        }
+    };
     let t1 = Instant::now();
     let png_light = quick_look_light(args, &report, dirs.len())?;
     let pngs = quick_looks(args, &ptm, &report, png_light.map(|i| dirs[i]))?;
@@ -144,6 +202,7 @@ pub fn run(args: &Args) -> anyhow::Result<json::Fit> {
         timing,
     );
     out.holdout_default = holdout == Holdout::Default;
+    out.auto = auto;
     out.png_k = args.png_k.as_deref().map(json::path);
     out.png_light = png_light;
     out.png_error = args.png_error.as_deref().map(json::path);
@@ -232,7 +291,7 @@ fn quick_looks<'a>(
 /// `--export-hp` needs what HP's format holds: the 6-term biquadratic in the projected (u, v)
 /// with the identity link.
 fn check_export(args: &Args) -> anyhow::Result<()> {
-    if args.export_hp.is_some() && args.basis != Basis::Ptm6 {
+    if args.export_hp.is_some() && args.basis != BasisChoice::Fixed(Basis::Ptm6) {
         bail!("--export-hp: HP's .ptm format holds only the 6-term biquadratic; fit with --basis ptm6 to export it");
     }
     if args.export_hp.is_some()
@@ -250,10 +309,10 @@ fn check_export(args: &Args) -> anyhow::Result<()> {
 
 /// Refuses an output that is an input (the stack, the `.lp`, an image) and checks every
 /// destination: the PTM (or the renderer layout's parts) and the HP export.
-fn destinations(args: &Args) -> anyhow::Result<Transaction> {
+fn destinations(args: &Args, basis: Basis) -> anyhow::Result<Transaction> {
     let mut outputs = match args.layout {
         Layout::Channels => vec![args.output.clone()],
-        Layout::Rgba => ptm_format::layout::rgba_paths(&args.output, args.basis),
+        Layout::Rgba => ptm_format::layout::rgba_paths(&args.output, basis),
     };
     outputs.extend(args.export_hp.iter().cloned());
     outputs.extend(args.png_k.iter().chain(&args.png_error).cloned());
@@ -324,26 +383,150 @@ fn read_input(args: &Args) -> anyhow::Result<Input> {
 }
 
 /// The options `args` ask for over `stack`, and where the hold-out count came from.
-fn fit_options(args: &Args, stack: &SampleStack) -> (FitOptions, Holdout) {
+fn fit_options(args: &Args, stack: &SampleStack, basis: Basis) -> (FitOptions, Holdout) {
     let (holdout, source) = match args.holdout {
         Some(n) => (n, Holdout::Given),
         None => (
-            default_holdout(stack.lights.len(), args.basis.len()),
+            default_holdout(stack.lights.len(), basis.len()),
             Holdout::Default,
         ),
     };
     let mut opts = FitOptions {
-        basis: args.basis,
+        basis,
         weight: args.weight,
         regularize: args.regularize,
         rcond: args.rcond,
         strict: args.strict,
         skip_bad: args.skip_bad,
         holdout,
-        ..FitOptions::new(args.basis)
+        ..FitOptions::new(basis)
     };
     args.model.apply(&mut opts);
     (opts, source)
+}
+
+/// What `--basis auto` kept.
+struct Chosen {
+    basis: Basis,
+    opts: FitOptions,
+    holdout: Holdout,
+    ptm: Ptm,
+    report: FitReport,
+    json: json::Auto,
+}
+
+/// `--basis auto`: fits every candidate of [`AUTO_CANDIDATES`] the link and (u, v) map allow
+/// on the same lights, holding out the same ones (the default count is that of the largest
+/// candidate, so every candidate sees the same split), prints their held-out errors and fit
+/// times, and keeps the first within `--auto-margin` of the best.
+fn choose(
+    args: &Args,
+    stack: SampleStack,
+    source: &str,
+    samples: Option<String>,
+) -> anyhow::Result<Chosen> {
+    if !(args.auto_margin >= 0.0 && args.auto_margin.is_finite()) {
+        bail!(
+            "--auto-margin {}: give a fraction ≥ 0 of the best held-out error (default {AUTO_MARGIN})",
+            args.auto_margin
+        );
+    }
+    let most = AUTO_CANDIDATES.iter().map(|b| b.len()).max().unwrap_or(11);
+    let (holdout, source_of_holdout) = match args.holdout {
+        Some(n) => (n, Holdout::Given),
+        None => (default_holdout(stack.lights.len(), most), Holdout::Default),
+    };
+    if holdout == 0 {
+        bail!(
+            "{source}: --basis auto chooses by the error on held-out lights, and {} none of its \
+             {} lights: hold some out (--holdout N, N ≥ 1; the default holds out an eighth \
+             from {} lights) or give the basis",
+            if args.holdout.is_some() { "--holdout 0 holds out" } else { "the default holds out" },
+            stack.lights.len(),
+            (4 * most * 8).div_ceil(7)
+        );
+    }
+    let mut tried: Vec<(Basis, FitOptions, Ptm, FitReport)> = Vec::new();
+    let mut rows = Vec::new();
+    for basis in AUTO_CANDIDATES {
+        let (mut opts, _) = fit_options(args, &stack, basis);
+        opts.holdout = holdout;
+        let t = Instant::now();
+        match fit_stack(&stack, &opts) {
+            Ok((ptm, report)) => {
+                let err = report.holdout.as_ref().map(|h| h.mean);
+                rows.push(json::AutoCandidate {
+                    basis: basis.name().to_string(),
+                    holdout_rms_error: err,
+                    seconds: t.elapsed().as_secs_f64(),
+                    skipped: None,
+                });
+                tried.push((basis, opts, ptm, report));
+            }
+            // A learned candidate the link, map or dome does not allow is left out, said why.
+            Err(ptm_fit::Error::Invalid(why)) if basis.is_learned() => {
+                rows.push(json::AutoCandidate {
+                    basis: basis.name().to_string(),
+                    holdout_rms_error: None,
+                    seconds: t.elapsed().as_secs_f64(),
+                    skipped: Some(why),
+                });
+            }
+            Err(e) => return Err(e).with_context(|| format!("{source}: --basis auto, {}", basis.name())),
+        }
+    }
+    drop(stack);
+    let errs: Vec<f64> = tried
+        .iter()
+        .map(|(_, _, _, r)| r.holdout.as_ref().map_or(f64::INFINITY, |h| h.mean))
+        .collect();
+    let best = errs.iter().copied().fold(f64::INFINITY, f64::min);
+    if !best.is_finite() {
+        bail!("{source}: --basis auto: no candidate measured a finite held-out error");
+    }
+    let pick = errs
+        .iter()
+        .position(|&e| e <= best * (1.0 + args.auto_margin))
+        .expect("the best is within any margin ≥ 0");
+    eprintln!(
+        "ptm fit: --basis auto: mean RMS error of K on {holdout} held-out lights, fit time:"
+    );
+    for r in &rows {
+        match (&r.skipped, r.holdout_rms_error) {
+            (Some(why), _) => eprintln!("  {:<10} skipped: {why}", r.basis),
+            (None, e) => eprintln!(
+                "  {:<10} {:.4}  {:>7.2} s{}",
+                r.basis,
+                e.unwrap_or(f64::NAN),
+                r.seconds,
+                if r.basis == tried[pick].0.name() {
+                    format!(
+                        "  <- kept: the first within {:.1} % of the best ({best:.4})",
+                        100.0 * args.auto_margin
+                    )
+                } else {
+                    String::new()
+                }
+            ),
+        }
+    }
+    let (basis, opts, ptm, mut report) = tried.swap_remove(pick);
+    report.samples = samples;
+    for w in &report.warnings {
+        eprintln!("ptm fit: warning: {}", crate::errors::fit_warning(w));
+    }
+    Ok(Chosen {
+        basis,
+        opts,
+        holdout: source_of_holdout,
+        ptm,
+        report,
+        json: json::Auto {
+            margin: args.auto_margin,
+            chosen: basis.name().to_string(),
+            candidates: rows,
+        },
+    })
 }
 
 /// Refuses a stack with nothing to fit, says what is fitted, fits, and prints the fit's
@@ -449,12 +632,13 @@ fn fit_json(
         output: json::path(&args.output),
         layout: args.layout.name(),
         files: json::paths(&files),
-        basis: args.basis.name(),
+        basis: opts.basis.name(),
         link: ptm.link.name(),
         uv: ptm.uv.name(),
         mip_levels: report.mip_levels,
         logistic: json::Logistic::of(&report),
         learned: json::Learned::of(&report),
+        auto: None,
         width: ptm.width,
         height: ptm.height,
         texels: report.texels,

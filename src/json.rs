@@ -347,6 +347,34 @@ pub struct BakeFit {
     pub stages: Stages,
 }
 
+/// `ptm fit --basis auto`: every candidate basis fitted on the same lights and scored on the
+/// same held-out ones, and which was kept.
+#[derive(Serialize, Debug, Default)]
+pub struct Auto {
+    /// A candidate is kept when its held-out error is at most (1 + margin) × the best one's.
+    pub margin: f64,
+    /// The basis kept: the first candidate (in the order listed, cheapest first) within the
+    /// margin of the best.
+    pub chosen: String,
+    /// The candidates in the order tried.
+    pub candidates: Vec<AutoCandidate>,
+}
+
+/// One candidate of `--basis auto`.
+#[derive(Serialize, Debug, Default)]
+pub struct AutoCandidate {
+    /// `ptm6`, `learned6`, `ptm11` or `learned11`.
+    pub basis: String,
+    /// Mean over texels of the per-texel RMS error of K on the held-out lights (null when the
+    /// candidate was not fitted).
+    pub holdout_rms_error: Option<f64>,
+    /// Seconds of its fit.
+    pub seconds: f64,
+    /// Why it was not fitted (a learned basis over a dome too sparse for it, or a link or
+    /// (u, v) map it does not take); null when it was.
+    pub skipped: Option<String>,
+}
+
 /// `ptm fit`: the PTM fitted and written.
 #[derive(Serialize, Debug, Default)]
 pub struct Fit {
@@ -370,6 +398,8 @@ pub struct Fit {
     pub logistic: Option<Logistic>,
     /// What learning the basis did (null for a polynomial basis).
     pub learned: Option<Learned>,
+    /// `--basis auto`: the candidates and their held-out errors (null for a given basis).
+    pub auto: Option<Auto>,
     /// Texels per row.
     pub width: usize,
     /// Rows.

@@ -119,6 +119,27 @@ impl Sample for Logistic {
     }
 }
 
+impl Sample for Auto {
+    fn sample() -> Self {
+        Auto {
+            margin: s(),
+            chosen: s(),
+            candidates: s(),
+        }
+    }
+}
+
+impl Sample for AutoCandidate {
+    fn sample() -> Self {
+        AutoCandidate {
+            basis: s(),
+            holdout_rms_error: s(),
+            seconds: s(),
+            skipped: s(),
+        }
+    }
+}
+
 impl Sample for Learned {
     fn sample() -> Self {
         Learned {
@@ -262,6 +283,7 @@ impl Sample for Fit {
             mip_levels: s(),
             logistic: s(),
             learned: s(),
+            auto: s(),
             width: s(),
             height: s(),
             texels: s(),
