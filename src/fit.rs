@@ -431,19 +431,32 @@ fn choose(
             args.auto_margin
         );
     }
-    let most = AUTO_CANDIDATES.iter().map(|b| b.len()).max().unwrap_or(11);
+    // The default: the most any candidate would hold out by default (an eighth where the rest
+    // still number 4× its coefficients), the same lights for all.
+    let n = stack.lights.len();
+    let by_default = |n| {
+        AUTO_CANDIDATES
+            .iter()
+            .map(|b| default_holdout(n, b.len()))
+            .max()
+    };
     let (holdout, source_of_holdout) = match args.holdout {
-        Some(n) => (n, Holdout::Given),
-        None => (default_holdout(stack.lights.len(), most), Holdout::Default),
+        Some(h) => (h, Holdout::Given),
+        None => (by_default(n).unwrap_or(0), Holdout::Default),
     };
     if holdout == 0 {
+        let from = (1..10_000)
+            .find(|&m| by_default(m).unwrap_or(0) > 0)
+            .unwrap_or(0);
         bail!(
             "{source}: --basis auto chooses by the error on held-out lights, and {} none of its \
-             {} lights: hold some out (--holdout N, N ≥ 1; the default holds out an eighth \
-             from {} lights) or give the basis",
-            if args.holdout.is_some() { "--holdout 0 holds out" } else { "the default holds out" },
-            stack.lights.len(),
-            (4 * most * 8).div_ceil(7)
+             {n} lights: hold some out (--holdout N, N ≥ 1; by default an eighth is held out \
+             from {from} lights) or give the basis",
+            if args.holdout.is_some() {
+                "--holdout 0 holds out"
+            } else {
+                "the default holds out"
+            },
         );
     }
     let mut tried: Vec<(Basis, FitOptions, Ptm, FitReport)> = Vec::new();
@@ -472,7 +485,9 @@ fn choose(
                     skipped: Some(why),
                 });
             }
-            Err(e) => return Err(e).with_context(|| format!("{source}: --basis auto, {}", basis.name())),
+            Err(e) => {
+                return Err(e).with_context(|| format!("{source}: --basis auto, {}", basis.name()))
+            }
         }
     }
     drop(stack);
@@ -488,9 +503,7 @@ fn choose(
         .iter()
         .position(|&e| e <= best * (1.0 + args.auto_margin))
         .expect("the best is within any margin ≥ 0");
-    eprintln!(
-        "ptm fit: --basis auto: mean RMS error of K on {holdout} held-out lights, fit time:"
-    );
+    eprintln!("ptm fit: --basis auto: mean RMS error of K on {holdout} held-out lights, fit time:");
     for r in &rows {
         match (&r.skipped, r.holdout_rms_error) {
             (Some(why), _) => eprintln!("  {:<10} skipped: {why}", r.basis),

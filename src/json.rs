@@ -143,6 +143,9 @@ pub struct Learned {
     pub texels: usize,
     /// Alternations of table and coefficient Newton steps run.
     pub alternations: u32,
+    /// The alternation whose tables were kept: that of the lowest held-out deviance on the
+    /// subsample when lights are held out (0: the polynomial start), else the last.
+    pub kept: u32,
     /// Mean binomial deviance per sample on those texels at the start (the polynomial basis
     /// of the same size).
     pub deviance_start: f64,
@@ -165,6 +168,7 @@ impl Learned {
             roughness: s.roughness,
             texels: s.texels,
             alternations: s.alternations,
+            kept: s.kept,
             deviance_start: s.deviance_start,
             deviance: s.deviance,
             rms_start: s.rms_start,

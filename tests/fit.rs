@@ -813,3 +813,114 @@ fn the_file_records_its_held_out_lights() {
         assert_eq!(text(&dir.path().join(file)), "", "{link} {layout}");
     }
 }
+
+#[test]
+fn basis_auto_keeps_the_cheapest_candidate_within_the_margin() {
+    let dir = tmpdir();
+    let d = dir.path();
+    let (s, _) = stack(&dome(64), 8, 6, true);
+    s.write(&d.join("s.exr")).unwrap();
+    let chosen_of = |j: &serde_json::Value, margin: f64| {
+        let errs: Vec<f64> = j["auto"]["candidates"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["holdout_rms_error"].as_f64().unwrap())
+            .collect();
+        let best = errs.iter().copied().fold(f64::INFINITY, f64::min);
+        let i = errs
+            .iter()
+            .position(|&e| e <= best * (1.0 + margin))
+            .unwrap();
+        j["auto"]["candidates"][i]["basis"]
+            .as_str()
+            .unwrap()
+            .to_string()
+    };
+    let j = common::json(["fit", "s.exr", "-o", "a.ptm.exr", "--basis", "auto"], d);
+    let names: Vec<&str> = j["auto"]["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["basis"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["ptm6", "learned6", "ptm11", "learned11"], "{j}");
+    // Every candidate saw the same 8 held-out lights (an eighth of 64, the largest's default).
+    assert_eq!(j["holdout_lights"].as_array().unwrap().len(), 8, "{j}");
+    let want = chosen_of(&j, 0.02);
+    assert_eq!(j["auto"]["chosen"].as_str(), Some(want.as_str()));
+    assert_eq!(j["basis"].as_str(), Some(want.as_str()));
+    assert_eq!(Ptm::load(&d.join("a.ptm.exr")).unwrap().basis.name(), want);
+    // The written file is the kept candidate's fit: its held-out error is the one listed.
+    let listed = j["auto"]["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["basis"] == want.as_str())
+        .unwrap()["holdout_rms_error"]
+        .as_f64();
+    assert_eq!(j["holdout_rms_error"]["mean"].as_f64(), listed);
+    // Margin 0 keeps the best; a huge margin the cheapest.
+    let j = common::json(
+        [
+            "fit",
+            "s.exr",
+            "-o",
+            "b.ptm.exr",
+            "--basis",
+            "auto",
+            "--auto-margin",
+            "0",
+        ],
+        d,
+    );
+    assert_eq!(j["auto"]["chosen"].as_str().unwrap(), chosen_of(&j, 0.0));
+    let j = common::json(
+        [
+            "fit",
+            "s.exr",
+            "-o",
+            "c.ptm.exr",
+            "--basis",
+            "auto",
+            "--auto-margin",
+            "1e9",
+        ],
+        d,
+    );
+    assert_eq!(j["auto"]["chosen"].as_str(), Some("ptm6"));
+    // No held-out lights: nothing to choose by.
+    let run = ptm(
+        [
+            "fit",
+            "s.exr",
+            "-o",
+            "d.ptm.exr",
+            "--basis",
+            "auto",
+            "--holdout",
+            "0",
+        ],
+        d,
+    );
+    assert!(
+        !run.ok && run.stderr.contains("held-out") && run.stderr.contains("--holdout N"),
+        "{}",
+        run.stderr
+    );
+    // 32 lights, 4 held out: 28 fitting lights are too few for learned11 (44), which is
+    // skipped with the reason; learned6 (24) is fitted.
+    let (s, _) = stack(&dome(32), 8, 6, true);
+    s.write(&d.join("t.exr")).unwrap();
+    let j = common::json(["fit", "t.exr", "-o", "e.ptm.exr", "--basis", "auto"], d);
+    let c = &j["auto"]["candidates"];
+    assert!(
+        c[1]["skipped"].is_null() && c[1]["holdout_rms_error"].is_f64(),
+        "{j}"
+    );
+    assert!(
+        c[3]["skipped"].as_str().unwrap().contains("at least 44"),
+        "{j}"
+    );
+    assert!(c[3]["holdout_rms_error"].is_null());
+}

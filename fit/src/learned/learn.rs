@@ -423,13 +423,30 @@ pub(crate) fn learn(
         .collect();
     let mut keep = Vec::new();
     let mut kv = Vec::new();
-    for (i, &t) in sub.iter().enumerate() {
+    for i in 0..sub.len() {
         if planes.iter().any(|p| p[i] >= 0.0) {
-            keep.push(t);
+            keep.push(i);
             kv.extend(planes.iter().map(|p| p[i]));
         }
     }
     drop(planes);
+    // The held-out lights' K on the same texels: the learning keeps the tables of the
+    // alternation whose held-out RMS error was lowest (early stopping).
+    let held_planes: Vec<Vec<f32>> = held
+        .par_iter()
+        .map(|&l| {
+            let mut buf = vec![0f32; texels];
+            src.fill(l, 0, &mut buf);
+            keep.iter().map(|&i| buf[sub[i]]).collect()
+        })
+        .collect();
+    let held_check = HeldOut {
+        kv: held_planes,
+        cells: held
+            .iter()
+            .map(|&l| bilinear(GRID, uv[l].0, uv[l].1))
+            .collect(),
+    };
     let s = keep.len();
     if s == 0 {
         return Err(Error::Invalid(
@@ -488,6 +505,9 @@ pub(crate) fn learn(
     let mut f_table = deviance_start + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
     let mut j_prev = f_table + coef_ridge(&p, &c);
     let mut alternations = 0;
+    // Early stopping on the held-out lights (when the fit holds some out): the tables, the
+    // coefficients and the alternation of the lowest held-out RMS error so far.
+    let mut best = (held_check.rms(&p, &b, &c), b.clone(), c.clone(), 0u32);
     while alternations < MAX_ALTERNATIONS {
         alternations += 1;
         table_step(&p, &dtd, &mut b, &c, f_table);
@@ -499,10 +519,24 @@ pub(crate) fn learn(
         let j = f_table + coef_ridge(&p, &c);
         let fell = j_prev - j;
         j_prev = j;
+        if let Some(hd) = held_check.rms(&p, &b, &c) {
+            if best.0.is_some_and(|b0| hd < b0) {
+                best = (Some(hd), b.clone(), c.clone(), alternations);
+            } else if alternations >= best.3 + PATIENCE {
+                break;
+            }
+        }
         if fell < STOP * j.abs() {
             break;
         }
     }
+    let kept = if best.0.is_some() {
+        b = best.1;
+        c = best.2;
+        best.3
+    } else {
+        alternations
+    };
     let a = rows(&p, &b);
     let deviance = total_dev(&p, &a, &c);
     let rms_end = rms(&p, &a, &c);
@@ -526,6 +560,7 @@ pub(crate) fn learn(
         roughness: ROUGHNESS,
         texels: s,
         alternations,
+        kept,
         deviance_start: deviance_start / p.weight_sum,
         deviance: deviance / p.weight_sum,
         rms_start,
@@ -537,6 +572,53 @@ pub(crate) fn learn(
         tables,
         stats,
     })
+}
+
+/// Alternations without a lower held-out RMS error before the learning stops.
+const PATIENCE: u32 = 3;
+
+/// The held-out lights' K on the subsample and their grid cells.
+struct HeldOut {
+    /// K `[held light][texel]`, < 0 where a sample is missing.
+    kv: Vec<Vec<f32>>,
+    cells: Vec<[(usize, f64); 4]>,
+}
+
+impl HeldOut {
+    /// RMS of σ − K over the held-out samples under tables `b` and coefficients `c` (the
+    /// error a render sees; the deviance rewards confidence too much to stop on: it rose on
+    /// jersey from the first alternation while this fell); `None` without held-out lights.
+    fn rms(&self, p: &Problem, b: &[f64], c: &[f64]) -> Option<f64> {
+        if self.kv.is_empty() {
+            return None;
+        }
+        let k = p.k;
+        let per: Vec<(f64, f64)> = self
+            .kv
+            .par_iter()
+            .zip(&self.cells)
+            .map(|(kv, cells)| {
+                let mut a = vec![0f64; k];
+                for &(cell, w) in cells {
+                    for j in 0..k {
+                        a[j] += w * b[cell * k + j];
+                    }
+                }
+                let (mut d, mut m) = (0.0, 0.0);
+                for (x, &kx) in kv.iter().enumerate() {
+                    if kx < 0.0 {
+                        continue;
+                    }
+                    let z: f64 = (0..k).map(|j| a[j] * c[x * k + j]).sum();
+                    d += (sigmoid64(z) - kx as f64).powi(2);
+                    m += 1.0;
+                }
+                (d, m)
+            })
+            .collect();
+        let (d, m) = per.iter().fold((0.0, 0.0), |s, x| (s.0 + x.0, s.1 + x.1));
+        (m > 0.0).then(|| (d / m).sqrt())
+    }
 }
 
 /// (u, v) of grid node (column i, row j).
