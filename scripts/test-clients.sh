@@ -5,7 +5,8 @@
 # compared with Ptm::eval at every pixel centre (ptm6 and ptm11, both links, both (u, v) maps),
 # the same through the OSL MaterialX's generator writes for ND_ptm_occlusion_float (pinned
 # MaterialX of .deps/py, includes inlined; compiled by Cycles' OSL compiler), and the lit example
-# picture. Run by scripts/test.sh when PTM_TEST_CLIENTS=1.
+# picture; learned bases (learned11, learned6) through ptm_occlusion_learned.osl, the node group
+# and ND_ptm_occlusion_learned_float's generated OSL. Run by scripts/test.sh when PTM_TEST_CLIENTS=1.
 #   LIT_PNG=docs/blender_lit.png bash scripts/test-clients.sh   # also re-render the README picture
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,6 +27,7 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 .deps/py/bin/python integrations/materialx/mtlx_osl.py "$work/ptm_k.osl" >/dev/null
 .deps/py/bin/python integrations/materialx/mtlx_osl.py "$work/ptm_k_noflip.osl" --no-flip >/dev/null
+.deps/py/bin/python integrations/materialx/mtlx_osl.py "$work/ptm_k_learned.osl" --learned >/dev/null
 .deps/bpy/bin/python integrations/blender/test_blender.py target/release/ptm \
     target/release/examples/ptm_eval "$work/ptm_k.osl" "$work" ${LIT_PNG:+"$LIT_PNG"} 2>&1 \
     | grep -E '^(blender|Traceback|  File|[A-Za-z]*Error)' || { say "Blender test failed"; exit 1; }

@@ -7,8 +7,13 @@
 //!   MaterialX's `image` node and Blender's Image Texture node reach every coefficient by file
 //!   name and colour channel. ptm6: c0 = (u², u, uv), c1 = (v, v², 1, coverage) — the patent's
 //!   two images of three channels; ptm11: c0 = (u³, v³, u²v², u²v), c1 = (uv², u², v², uv),
-//!   c2 = (u, v, 1, coverage). Coverage is always the A of the last part. Error maps, when
-//!   present, go to `w.ptm.err.exr` (channels `err.rms`, `err.max`).
+//!   c2 = (u, v, 1, coverage); a learned basis of k terms: RGBA parts of four coefficients
+//!   `b0`, `b1`, … with zeros ([`Slot::Unused`]) up to the last part's A. Coverage is always
+//!   the A of the last part. Error maps, when present, go to `w.ptm.err.exr` (channels
+//!   `err.rms`, `err.max`). A learned basis also writes its table as images, since texture
+//!   systems cannot read a header: the **basis parts** `w.ptm.basis0.exr`, … (G × G RGBA,
+//!   float, B₄ᵢ … B₄ᵢ₊₃ in part i, zeros past the last term; row 0 is v = +1, so a bilinear
+//!   lookup with clamp wrapping reproduces [`crate::LearnedTable::terms`]: [`BASIS_LOOKUP`]).
 //!   Every part carries the file's `ptm:*` header plus `ptm:layout`, `ptm:part`, `ptm:parts`,
 //!   `ptm:partChannels` and `wrapmodes` = `periodic,periodic`; MIP-mapped files are tiled
 //!   64×64 `MIPMAP_LEVELS` `ROUND_DOWN`, as `maketx` writes.
@@ -35,7 +40,7 @@ use exr::prelude::*;
 use crate::exrio::{self, decode_text, encode_text, Decoded};
 use crate::header::{self, Attributes, Header};
 use crate::ptm::{channel_name, clamp_ringing, mip_sizes, Level};
-use crate::{Basis, Error, Ptm, PtmInfo, Result, SaveOptions};
+use crate::{Basis, Error, LearnedTable, Ptm, PtmInfo, Result, SaveOptions};
 
 /// Value of `ptm:layout` in every part of the renderer layout.
 pub const RGBA_LAYOUT: &str = "rgba/1";
@@ -77,6 +82,11 @@ pub enum Slot {
     Coeff(&'static str),
     /// The coverage map (1 where the file has none).
     Coverage,
+    /// Nothing: 0 in every texel. A learned basis's last part pads its coefficients with
+    /// these so that every part is RGBA and coverage its A (a texture system, OSL's
+    /// `texture()`, MaterialX's `image` and Blender's Image Texture read three or four
+    /// channels named R, G, B, A; one or two channels they read differently or not at all).
+    Unused,
 }
 
 impl Slot {
@@ -85,6 +95,7 @@ impl Slot {
         match self {
             Slot::Coeff(m) => format!("ptm.{m}"),
             Slot::Coverage => "coverage".into(),
+            Slot::Unused => "unused".into(),
         }
     }
 
@@ -93,6 +104,7 @@ impl Slot {
         match self {
             Slot::Coeff(m) => m,
             Slot::Coverage => "coverage",
+            Slot::Unused => "unused",
         }
     }
 }
@@ -103,38 +115,76 @@ pub const RGBA: [&str; 4] = ["R", "G", "B", "A"];
 /// The parts of the renderer layout of `basis`: slots in R, G, B(, A) order. Coefficients fill
 /// them in basis order, three per part for ptm6 and four for ptm11; coverage is the last slot.
 ///
-/// A learned basis of k terms fills four slots a part; coverage takes the slot after the last
-/// coefficient (so it is the A of the last part only when k ≡ 3 mod 4, and a part of its own,
-/// in R, when k ≡ 0 mod 4).
+/// A learned basis of k terms has ⌈(k + 1)/4⌉ RGBA parts: its coefficients four a part in
+/// basis order, then [`Slot::Unused`] up to the A of the last part, which is coverage (so
+/// `learned11`'s c2 is `b8 b9 b10 coverage`, `learned6`'s c1 `b4 b5 unused coverage`). With
+/// the zeros of the basis parts in the same places ([`basis_slots`]), Σₖ cₖ·Bₖ is the sum
+/// over parts of the 4-vector dot product of part cᵢ with basis part i.
 pub fn parts(basis: Basis) -> Vec<Vec<Slot>> {
-    let per = match basis {
-        Basis::Ptm6 => 3,
-        Basis::Ptm11 | Basis::Learned(_) => 4,
-    };
     let mut slots: Vec<Slot> = basis
         .monomials()
         .iter()
         .map(|m| Slot::Coeff(m.name))
         .collect();
+    if basis.is_learned() {
+        let n = (slots.len() + 1).div_ceil(4);
+        slots.resize(4 * n - 1, Slot::Unused);
+        slots.push(Slot::Coverage);
+        return slots.chunks(4).map(<[Slot]>::to_vec).collect();
+    }
+    let per = if basis == Basis::Ptm6 { 3 } else { 4 };
     slots.push(Slot::Coverage);
     let mut out: Vec<Vec<Slot>> = slots.chunks(per).map(<[Slot]>::to_vec).collect();
     // ptm6: 7 slots in chunks of 3 leave coverage alone; it becomes the A of the last part.
-    if !basis.is_learned() && out.last().is_some_and(|p| p.len() == 1) && out.len() > 1 {
+    if out.last().is_some_and(|p| p.len() == 1) && out.len() > 1 {
         let last = out.pop().unwrap();
         out.last_mut().unwrap().extend(last);
     }
     out
 }
 
-/// The stem shared by a layout's files: `w.ptm.exr`, `w.ptm.c1.exr` and `w.ptm.err.exr` all
-/// give `w.ptm`.
+/// Terms of a learned basis in one basis part (its R, G, B, A).
+pub const BASIS_PART_TERMS: usize = 4;
+
+/// Number of basis parts of `basis`: ⌈k/4⌉ for a learned basis of k terms, none for a
+/// polynomial one.
+pub fn basis_parts(basis: Basis) -> usize {
+    if basis.is_learned() {
+        basis.len().div_ceil(BASIS_PART_TERMS)
+    } else {
+        0
+    }
+}
+
+/// What the R, G, B, A of basis part `i` of a `terms`-term basis hold: `Some(k)`, the table of
+/// term k (B₄ᵢ₊꜀ in channel c), or `None`, zeros past the last term.
+pub fn basis_slots(terms: usize, i: usize) -> [Option<usize>; 4] {
+    std::array::from_fn(|c| Some(BASIS_PART_TERMS * i + c).filter(|&k| k < terms))
+}
+
+/// Name of the attribute of a basis part that states how it is read.
+pub const BASIS_LOOKUP_ATTR: &str = "ptm:basisLookup";
+
+/// The words of [`BASIS_LOOKUP_ATTR`]: the texel convention of the basis parts. A texel at
+/// column i of an image G wide has its centre at s = (i + 0.5)/G, so the grid coordinate
+/// x = (u + 1)/2·(G − 1) of [`crate::LearnedTable::terms`] is s = (0.5 + x)/G; clamp wrapping
+/// reads the edge texel beyond the centres of the first and last, as the table's read clamps.
+pub const BASIS_LOOKUP: &str = "basis part i holds B_(4i+c) in channel c (R, G, B, A = 0..3), 0 past the last term; texel (column x, row r) is ptm:learnedTable's grid column x, row G-1-r (row 0 of the image is v = +1); B_k(u, v) = bilinear lookup, clamp wrap, no MIP, at s = (0.5 + (u+1)/2*(G-1))/G, t = 1 - (0.5 + (v+1)/2*(G-1))/G (t = 0 the first scanline: OSL/OIIO texture()), i.e. uv = (s, (0.5 + (v+1)/2*(G-1))/G) in an image node whose v = 0 is the last row (Blender, MaterialX); then p = sum over parts i of dot(RGBA of part c_i, RGBA of basis part i)";
+
+/// `wrapmodes` of a basis part: lookups clamp to the edge texels.
+pub const BASIS_WRAPMODES: &str = "clamp,clamp";
+
+/// The stem shared by a layout's files: `w.ptm.exr`, `w.ptm.c1.exr`, `w.ptm.basis0.exr` and
+/// `w.ptm.err.exr` all give `w.ptm`.
 pub fn stem(path: &Path) -> PathBuf {
     let s = path.to_string_lossy();
     let mut s: &str = s.strip_suffix(".exr").unwrap_or(&s);
     if let Some((head, tail)) = s.rsplit_once('.') {
-        let is_part = tail.len() > 1
-            && tail.starts_with('c')
-            && tail[1..].bytes().all(|b| b.is_ascii_digit());
+        let numbered = |prefix: &str| {
+            tail.strip_prefix(prefix)
+                .is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+        };
+        let is_part = numbered("c") || numbered("basis");
         if is_part || tail == "err" {
             s = head;
         }
@@ -156,11 +206,20 @@ pub fn err_path(path: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
+/// File of basis part `i` of the renderer layout named by `path` (`w.ptm.exr` →
+/// `w.ptm.basis{i}.exr`).
+pub fn basis_part_path(path: &Path, i: usize) -> PathBuf {
+    let mut s = stem(path).into_os_string();
+    s.push(format!(".basis{i}.exr"));
+    PathBuf::from(s)
+}
+
 /// Every file the renderer layout of `basis` named by `path` consists of (without the optional
-/// error maps).
+/// error maps): its parts, then a learned basis's basis parts.
 pub fn rgba_paths(path: &Path, basis: Basis) -> Vec<PathBuf> {
     (0..parts(basis).len())
         .map(|i| part_path(path, i))
+        .chain((0..basis_parts(basis)).map(|i| basis_part_path(path, i)))
         .collect()
 }
 
@@ -441,7 +500,8 @@ impl PtmFile {
                     .values()
                     .next()
                     .is_some_and(|m| m.levels.len() > 1);
-                let ones = self.ones(mipped);
+                let ones = self.filled(1.0, mipped);
+                let zeros = self.filled(0.0, mipped);
                 let mut jobs: Vec<WriteJob<'_>> = Vec::new();
                 for (i, slots) in parts.iter().enumerate() {
                     let p = part_path(path, i);
@@ -466,6 +526,7 @@ impl PtmFile {
                     for (k, slot) in slots.iter().enumerate() {
                         let map = match slot {
                             Slot::Coverage => self.maps.get("coverage").unwrap_or(&ones),
+                            Slot::Unused => &zeros,
                             s => self.maps.get(&s.map_name()).ok_or_else(|| {
                                 format_err(path, format!("PTM lacks `{}`", s.map_name()))
                             })?,
@@ -478,6 +539,28 @@ impl PtmFile {
                         p.clone(),
                         Box::new(move || encode_single(&shown, w, h, channels, &attrs)),
                     ));
+                }
+                if basis.is_learned() {
+                    let table = LearnedTable::from_attrs(&self.attrs, basis.len(), path)?;
+                    for i in 0..basis_parts(basis) {
+                        let p = basis_part_path(path, i);
+                        let attrs = self.basis_part_attrs(&table, i);
+                        let shown = p.clone();
+                        let table = table.clone();
+                        jobs.push((
+                            p.clone(),
+                            Box::new(move || {
+                                let g = table.grid;
+                                let maps = basis_part_maps(&table, i);
+                                let channels = RGBA
+                                    .iter()
+                                    .zip(&maps)
+                                    .map(|(c, m)| (c.to_string(), m))
+                                    .collect();
+                                encode_single(&shown, g, g, channels, &attrs)
+                            }),
+                        ));
+                    }
                 }
                 let errs: Vec<(String, &Map)> = self
                     .maps
@@ -520,17 +603,62 @@ impl PtmFile {
         }
     }
 
-    /// A map of ones (coverage of a file without holes), with levels when `mipped`.
-    fn ones(&self, mipped: bool) -> Map {
-        let mut levels = vec![vec![1f32; self.width * self.height]];
+    /// A map holding `value` everywhere, with levels when `mipped`: ones for the coverage of a
+    /// file without holes, zeros for [`Slot::Unused`].
+    fn filled(&self, value: f32, mipped: bool) -> Map {
+        let mut levels = vec![vec![value; self.width * self.height]];
         if mipped {
             for (w, h) in mip_sizes(self.width, self.height) {
-                levels.push(vec![1f32; w * h]);
+                levels.push(vec![value; w * h]);
             }
         }
         let half = self.maps.values().next().is_some_and(|m| m.half);
         Map { levels, half }
     }
+
+    /// The header of basis part `i`: the PTM's attributes (the table among them) plus what
+    /// the part is and how a texture system reads it.
+    fn basis_part_attrs(&self, table: &LearnedTable, i: usize) -> Attributes {
+        let mut attrs = self.attrs.clone();
+        let text = |t: &str| AttributeValue::Text(encode_text(t));
+        attrs.insert("ptm:layout".into(), text(RGBA_LAYOUT));
+        attrs.insert("ptm:part".into(), text(&format!("basis{i}")));
+        attrs.insert(
+            "ptm:partChannels".into(),
+            AttributeValue::TextVector(
+                basis_slots(table.terms, i)
+                    .iter()
+                    .map(|t| encode_text(&t.map_or("unused".into(), |k| format!("B{k}"))))
+                    .collect(),
+            ),
+        );
+        attrs.insert(BASIS_LOOKUP_ATTR.into(), text(BASIS_LOOKUP));
+        attrs.insert("wrapmodes".into(), text(BASIS_WRAPMODES));
+        attrs
+    }
+}
+
+/// The four G × G float maps (R, G, B, A) of basis part `i` of `table`: image row r is the
+/// table's grid row G − 1 − r (row 0 at v = +1, as row 0 of a coefficient part is the far
+/// edge y = H), zeros past the last term.
+fn basis_part_maps(table: &LearnedTable, i: usize) -> Vec<Map> {
+    let g = table.grid;
+    basis_slots(table.terms, i)
+        .iter()
+        .map(|term| {
+            let mut level = vec![0f32; g * g];
+            if let Some(k) = *term {
+                let t = &table.values[k * g * g..(k + 1) * g * g];
+                for (r, row) in level.chunks_exact_mut(g).enumerate() {
+                    row.copy_from_slice(&t[(g - 1 - r) * g..(g - r) * g]);
+                }
+            }
+            Map {
+                levels: vec![level],
+                half: false,
+            }
+        })
+        .collect()
 }
 
 /// The [`Ptm`] of a file's header and maps (`take` hands out the map of a name), and how its
@@ -792,6 +920,23 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
                     ),
                 )
             })?;
+            if *slot == Slot::Unused {
+                // A renderer adds this slot times 0 (the basis part's zero there): it must be a
+                // number, and the writer's zero keeps the set's bytes what a conversion writes.
+                if let Some((level, t, x)) = first_nonzero(&map.levels) {
+                    return Err(format_err(
+                        &p,
+                        format!(
+                            "{}: channel {} is unused in {} and must hold 0, but holds {x} at \
+                             level {level}, texel {t}",
+                            shown(i),
+                            RGBA[k],
+                            basis.name()
+                        ),
+                    ));
+                }
+                continue;
+            }
             file.maps.insert(slot.map_name(), map);
         }
     }
@@ -809,6 +954,15 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
         .is_some_and(|m| m.levels.iter().flatten().all(|&c| c == 1.0))
     {
         file.maps.remove("coverage");
+    }
+    if basis.is_learned() {
+        // A header table this version refuses is `to_ptm`'s to refuse, in the words both
+        // layouts share; the basis parts are checked against a table that reads.
+        if let Ok(table) = LearnedTable::from_attrs(&file.attrs, basis.len(), path) {
+            for i in 0..basis_parts(basis) {
+                check_basis_part(path, &file.attrs, &table, i)?;
+            }
+        }
     }
     let ep = err_path(path);
     if ep.exists() {
@@ -831,6 +985,139 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
     Ok(file)
 }
 
+/// The first value of `levels` that is not 0: (level, texel, value).
+fn first_nonzero(levels: &[Vec<f32>]) -> Option<(usize, usize, f32)> {
+    levels
+        .iter()
+        .enumerate()
+        .find_map(|(l, v)| v.iter().position(|&x| x != 0.0).map(|t| (l, t, v[t])))
+}
+
+/// Checks basis part `i` of the renderer layout named by `path` against the header's `table`
+/// (`attrs`, part c0's): present, the same basis, link, map, version and table attributes,
+/// G × G with one level, R, G, B, A all there, every value finite, its terms' values those of
+/// the table bit for bit and zeros past the last term. What a renderer reads is then what
+/// [`LearnedTable::terms`] reads.
+fn check_basis_part(path: &Path, attrs: &Attributes, table: &LearnedTable, i: usize) -> Result<()> {
+    let p = basis_part_path(path, i);
+    let (g, k) = (table.grid, table.terms);
+    let name = format!("basis part basis{i}");
+    let basis = Basis::learned(k).expect("a learned basis's table");
+    if !p.exists() {
+        return Err(format_err(
+            &p,
+            format!(
+                "missing {name} of the rgba layout of {} ({} has basis parts basis0..basis{}: \
+                 its table as images, for texture systems)",
+                stem(path).display(),
+                basis.name(),
+                basis_parts(basis) - 1
+            ),
+        ));
+    }
+    let s = read_single(&p)?;
+    for key in [
+        "ptm:basis",
+        "ptm:link",
+        "ptm:uv",
+        "ptm:version",
+        crate::learned::GRID_ATTR,
+        crate::learned::TABLE_ATTR,
+    ] {
+        if s.attrs.get(key) != attrs.get(key) {
+            return Err(format_err(
+                &p,
+                format!(
+                    "{name}: `{key}` is {} but part c0 says {}",
+                    shown_attr(s.attrs.get(key)),
+                    shown_attr(attrs.get(key))
+                ),
+            ));
+        }
+    }
+    let want_part = format!("basis{i}");
+    match s.attrs.get("ptm:part") {
+        Some(AttributeValue::Text(t)) if decode_text(t) == want_part => {}
+        other => {
+            return Err(format_err(
+                &p,
+                format!(
+                    "{name}: `ptm:part` is {}, expected {want_part:?}",
+                    shown_attr(other)
+                ),
+            ))
+        }
+    }
+    if (s.width, s.height) != (g, g) {
+        return Err(format_err(
+            &p,
+            format!(
+                "{name} is {}×{} but `{}` is {g}: a basis part is the {g}×{g} table",
+                s.width,
+                s.height,
+                crate::learned::GRID_ATTR
+            ),
+        ));
+    }
+    for (c, term) in basis_slots(k, i).into_iter().enumerate() {
+        let what = term.map_or("unused".into(), |t| format!("B{t}"));
+        let map = s
+            .maps
+            .get(RGBA[c])
+            .ok_or_else(|| format_err(&p, format!("{name} lacks channel {} ({what})", RGBA[c])))?;
+        if map.levels.len() != 1 {
+            return Err(format_err(
+                &p,
+                format!(
+                    "{name} has {} resolution levels; a basis part has one (a lookup must read \
+                     the table itself, not a filtered copy)",
+                    map.levels.len()
+                ),
+            ));
+        }
+        for (t, &x) in map.levels[0].iter().enumerate() {
+            let (col, row) = (t % g, t / g);
+            if !x.is_finite() {
+                return Err(format_err(
+                    &p,
+                    format!(
+                        "{name}: channel {} ({what}) is {x} at column {col}, row {row}: not a \
+                         number a renderer can use",
+                        RGBA[c]
+                    ),
+                ));
+            }
+            let want = term.map_or(0.0, |term| {
+                table.values[term * g * g + (g - 1 - row) * g + col]
+            });
+            if x.to_bits() == want.to_bits() {
+                continue;
+            }
+            return Err(format_err(
+                &p,
+                match term {
+                    None => format!(
+                        "{name}: channel {} holds {x} at column {col}, row {row}, but {} has {k} \
+                         terms (B0..B{}), so this channel is unused and must hold 0: a table of \
+                         more terms than the coefficient planes?",
+                        RGBA[c],
+                        basis.name(),
+                        k - 1
+                    ),
+                    Some(_) => format!(
+                        "{name}: {what} is {x} at column {col}, row {row} (grid column {col}, row \
+                         {}) but `{}` holds {want} there: the part and the header disagree \
+                         (a texture system reads the part)",
+                        g - 1 - row,
+                        crate::learned::TABLE_ATTR
+                    ),
+                },
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Loads a PTM in either layout (see [`PtmFile::load`]).
 pub fn load(path: &Path) -> Result<Ptm> {
     let (file, _) = PtmFile::load(path)?;
@@ -845,12 +1132,18 @@ pub fn save(ptm: &Ptm, path: &Path, opts: &SaveOptions, layout: Layout) -> Resul
     Ok(files)
 }
 
-/// After a renderer-layout write without error maps, removes the error file an earlier write
-/// left (it would describe other coefficients).
+/// After a renderer-layout write, removes the error file and the basis parts an earlier write
+/// left that this one did not write (they would describe other coefficients or another basis).
 pub fn remove_stale_errors(path: &Path, layout: Layout, written: &[PathBuf]) {
-    let ep = err_path(path);
-    if layout == Layout::Rgba && !written.contains(&ep) && ep.exists() {
-        let _ = std::fs::remove_file(&ep);
+    if layout != Layout::Rgba {
+        return;
+    }
+    let most = crate::basis::MAX_LEARNED_TERMS.div_ceil(BASIS_PART_TERMS);
+    let stale = std::iter::once(err_path(path)).chain((0..most).map(|i| basis_part_path(path, i)));
+    for p in stale {
+        if !written.contains(&p) && p.exists() {
+            let _ = std::fs::remove_file(&p);
+        }
     }
 }
 

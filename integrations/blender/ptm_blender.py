@@ -4,10 +4,16 @@ Two ways to evaluate K, both taking the key light's direction from a named light
 through drivers (a sun's +Z axis; for a point, spot or area light, from the shading point
 towards the light's position):
 
-- ``mode="osl"``: a Script node running integrations/osl/ptm_occlusion.osl (Cycles, CPU, with
-  Open Shading Language enabled; ``build_material`` switches it on).
+- ``mode="osl"``: a Script node running integrations/osl/ptm_occlusion.osl, or
+  ptm_occlusion_learned.osl for a learned basis (Cycles, CPU, with Open Shading Language
+  enabled; ``build_material`` switches it on).
 - ``mode="nodes"``: a node group made of Blender's own Image Texture, Separate Color, Vector
-  Math and Math nodes, so EEVEE and GPU Cycles work too.
+  Math and Math nodes, so EEVEE and GPU Cycles work too; for a learned basis it also reads the
+  basis parts (``w.ptm.basis0.exr``, …) at the light's (u, v).
+
+A learned file's basis parts are checked before anything is built (integrations/osl/
+ptm_params.py: their size, finite values, term count and agreement with the header's table);
+a bad one raises ``ValueError`` naming the file and the figures.
 
 What K darkens (``output=``):
 
@@ -34,6 +40,7 @@ Blender's own Python has no OpenEXR module: the header is read here by hand (``r
 import math
 import os
 import struct
+import sys
 
 import bpy
 
@@ -57,6 +64,9 @@ _find_oslquery()
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 OSL_SHADER = os.path.join(HERE, "..", "osl", "ptm_occlusion.osl")
+OSL_LEARNED = os.path.join(HERE, "..", "osl", "ptm_occlusion_learned.osl")
+sys.path.insert(0, os.path.join(HERE, "..", "osl"))
+import ptm_params  # noqa: E402  the parts' reader (standard library only), shared with OSL users
 
 # Slots of the renderer layout: (part, channel) of each monomial, in basis order.
 PARTS = {
@@ -100,21 +110,24 @@ def read_header(path):
 
 
 def stem_of(path):
-    """`w.ptm.c0.exr` / `w.ptm.exr` → `w.ptm`."""
-    s = path[:-4] if path.endswith(".exr") else path
-    head, _, tail = s.rpartition(".")
-    if head and tail[:1] == "c" and tail[1:].isdigit():
-        s = head
-    return s
+    """`w.ptm.c0.exr` / `w.ptm.basis0.exr` / `w.ptm.exr` → `w.ptm`."""
+    return ptm_params.stem_of(path)
 
 
 def ptm_info(path):
-    """(stem, basis, link, uv) of the renderer-layout PTM that `path` names."""
+    """(stem, basis, link, uv) of the renderer-layout PTM that `path` names. A learned basis
+    (`learnedN`) has its basis parts checked (ptm_params.learned_params: size, finite values,
+    the term count, the header's table); `learned(path)` gives its terms and grid."""
     stem = stem_of(path)
     h = read_header(stem + ".c0.exr")
     if h.get("ptm:layout") != "rgba/1":
         raise ValueError(f"{stem}.c0.exr: not a PTM in the renderer layout (ptm fit --layout rgba)")
     basis, link, uv = h["ptm:basis"], h.get("ptm:link", "identity"), h.get("ptm:uv", "projected")
+    if basis.startswith("learned"):
+        ptm_params.learned_params(stem + ".c0.exr")
+        if (link, uv) != ("logistic", "hemispherical"):
+            raise ValueError(f"{stem}.c0.exr: a learned basis is logistic and hemispherical, not {link}, {uv}")
+        return stem, basis, link, uv
     if basis not in PARTS or link not in ("identity", "logistic") or uv not in ("projected", "hemispherical"):
         raise ValueError(f"{stem}.c0.exr: unknown basis, link or uv: {basis}, {link}, {uv}")
     return stem, basis, link, uv
@@ -213,9 +226,94 @@ class _G:
         return out
 
 
+def _image_node(g, path, interpolation, extension):
+    img = bpy.data.images.load(path, check_existing=True)
+    img.colorspace_settings.name = "Non-Color"
+    img.alpha_mode = "CHANNEL_PACKED"
+    return g.node("ShaderNodeTexImage", image=img, interpolation=interpolation, extension=extension)
+
+
+def _rgba(g, tex):
+    """The R, G, B, A sockets of an Image Texture node."""
+    sep = g.node("ShaderNodeSeparateColor")
+    g.tree.links.new(tex.outputs["Color"], sep.inputs[0])
+    return [sep.outputs[i] for i in range(3)] + [tex.outputs["Alpha"]]
+
+
+def _light_frame(g, gin):
+    """(l·T, l·B, l·N) with T the UV tangent made orthogonal to N, B = N × T."""
+    geo = g.node("ShaderNodeNewGeometry")
+    tan = g.node("ShaderNodeTangent", direction_type="UV_MAP")
+    n = geo.outputs["Normal"]
+    lnorm = g.vmath("NORMALIZE", gin.outputs["Light"], gin.outputs["Light"])
+    t_raw = tan.outputs["Tangent"]
+    proj = g.vmath("DOT_PRODUCT", t_raw, n)
+    scale_n = g.node("ShaderNodeVectorMath", operation="SCALE")
+    g.tree.links.new(n, scale_n.inputs[0])
+    g.tree.links.new(proj, scale_n.inputs["Scale"])
+    t = g.vmath("NORMALIZE", g.vmath("SUBTRACT", t_raw, scale_n.outputs["Vector"]), n)
+    b = g.vmath("CROSS_PRODUCT", n, t)
+    return g.vmath("DOT_PRODUCT", lnorm, t), g.vmath("DOT_PRODUCT", lnorm, b), g.vmath("DOT_PRODUCT", lnorm, n)
+
+
+def _sigmoid(g, p):
+    e = g.math("EXPONENT", g.math("MULTIPLY", g.math("ABSOLUTE", p), -1.0))
+    sig = g.math("DIVIDE", 1.0, g.math("ADD", e, 1.0))
+    pos = g.math("GREATER_THAN", p, -1e-30)  # 1 where p >= 0
+    return g.add(g.mul(pos, sig), g.mul(g.math("SUBTRACT", 1.0, pos), e, sig))
+
+
+def learned_group(stem, interpolation="Linear"):
+    """The node group of `occlusion_group` for a learned basis: K = σ(Σᵢ dot(cᵢ, basisᵢ)), the
+    coefficient parts cᵢ read at the UV like any part, the basis parts at the light's
+    hemispherical (u, v), uv = ½ + (u, v)·(G − 1)/(2G) (the texel convention of
+    docs/FORMAT.md: (½ + (u + 1)/2·(G − 1))/G), Linear and Extend (clamp), whatever
+    `interpolation` the coefficients get. The basis parts are checked first (ptm_params)."""
+    p = ptm_params.learned_params(stem + ".c0.exr")
+    name = f"PTM {os.path.basename(stem)} {p['basis']} {interpolation}"
+    if name in bpy.data.node_groups:
+        return bpy.data.node_groups[name]
+    tree = bpy.data.node_groups.new(name, "ShaderNodeTree")
+    tree.interface.new_socket("Vector", in_out="INPUT", socket_type="NodeSocketVector")
+    tree.interface.new_socket("Light", in_out="INPUT", socket_type="NodeSocketVector")
+    for out in ("K", "Visibility", "Coverage"):
+        tree.interface.new_socket(out, in_out="OUTPUT", socket_type="NodeSocketFloat")
+    g = _G(tree)
+    gin = g.node("NodeGroupInput")
+    gout = g.node("NodeGroupOutput")
+    coeffs = []
+    for part in p["parts"]:
+        tex = _image_node(g, part, interpolation, "REPEAT")
+        tree.links.new(gin.outputs["Vector"], tex.inputs["Vector"])
+        coeffs.append(_rgba(g, tex))
+    pu, pv, pz = _light_frame(g, gin)
+    r = g.math("SQRT", g.add(g.mul(pu, pu), g.mul(pv, pv)))
+    theta = g.math("ARCTAN2", r, pz)
+    s = g.math("DIVIDE", g.math("DIVIDE", theta, math.pi / 2), r)  # Blender: x / 0 = 0
+    step = (p["grid"] - 1) / (2 * p["grid"])
+    st = g.node("ShaderNodeCombineXYZ")
+    for i, m in enumerate((pu, pv)):
+        tree.links.new(g.math("ADD", g.math("MULTIPLY", g.mul(m, s), step), 0.5), st.inputs[i])
+    terms = []
+    for i, table in enumerate(p["basis_parts"]):
+        tex = _image_node(g, table, "Linear", "EXTEND")
+        tree.links.new(st.outputs["Vector"], tex.inputs["Vector"])
+        terms += [g.mul(c, b) for c, b in zip(coeffs[i], _rgba(g, tex))]
+    k = _sigmoid(g, g.add(*terms))
+    below = g.math("LESS_THAN", pz, 1e-12)  # at or below the horizon: K = 1
+    k = g.math("MAXIMUM", g.math("ADD", k, 0.0, clamp=True), below)
+    tree.links.new(k, gout.inputs["K"])
+    tree.links.new(g.math("SUBTRACT", 1.0, k), gout.inputs["Visibility"])
+    tree.links.new(coeffs[-1][3], gout.inputs["Coverage"])
+    return tree
+
+
 def occlusion_group(stem, basis, link, uv, interpolation="Linear"):
     """A node group (inputs Vector = UV, Light; outputs K, Visibility, Coverage) of Blender's
-    own nodes evaluating K = clamp(link(p(u, v)), 0, 1) from the PTM's parts."""
+    own nodes evaluating K = clamp(link(p(u, v)), 0, 1) from the PTM's parts (a learned basis:
+    `learned_group`)."""
+    if basis.startswith("learned"):
+        return learned_group(stem, interpolation)
     name = f"PTM {os.path.basename(stem)} {basis} {link} {uv} {interpolation}"
     if name in bpy.data.node_groups:
         return bpy.data.node_groups[name]
@@ -229,30 +327,11 @@ def occlusion_group(stem, basis, link, uv, interpolation="Linear"):
     gout = g.node("NodeGroupOutput")
     coeff = {}
     for k, slots in enumerate(PARTS[basis]):
-        img = bpy.data.images.load(f"{stem}.c{k}.exr", check_existing=True)
-        img.colorspace_settings.name = "Non-Color"
-        img.alpha_mode = "CHANNEL_PACKED"
-        tex = g.node("ShaderNodeTexImage", image=img, interpolation=interpolation, extension="REPEAT")
+        tex = _image_node(g, f"{stem}.c{k}.exr", interpolation, "REPEAT")
         tree.links.new(gin.outputs["Vector"], tex.inputs["Vector"])
-        sep = g.node("ShaderNodeSeparateColor")
-        tree.links.new(tex.outputs["Color"], sep.inputs[0])
-        for i, m in enumerate(slots):
-            coeff[m] = sep.outputs[i] if i < 3 else tex.outputs["Alpha"]
-    geo = g.node("ShaderNodeNewGeometry")
-    tan = g.node("ShaderNodeTangent", direction_type="UV_MAP")
-    n = geo.outputs["Normal"]
-    lnorm = g.vmath("NORMALIZE", gin.outputs["Light"], gin.outputs["Light"])
-    # T = tangent made orthogonal to N, B = N × T.
-    t_raw = tan.outputs["Tangent"]
-    proj = g.vmath("DOT_PRODUCT", t_raw, n)
-    scale_n = g.node("ShaderNodeVectorMath", operation="SCALE")
-    tree.links.new(n, scale_n.inputs[0])
-    tree.links.new(proj, scale_n.inputs["Scale"])
-    t = g.vmath("NORMALIZE", g.vmath("SUBTRACT", t_raw, scale_n.outputs["Vector"]), n)
-    b = g.vmath("CROSS_PRODUCT", n, t)
-    pu = g.vmath("DOT_PRODUCT", lnorm, t)
-    pv = g.vmath("DOT_PRODUCT", lnorm, b)
-    pz = g.vmath("DOT_PRODUCT", lnorm, n)
+        for m, socket in zip(slots, _rgba(g, tex)):
+            coeff[m] = socket
+    pu, pv, pz = _light_frame(g, gin)
     if uv == "hemispherical":
         r = g.math("SQRT", g.add(g.mul(pu, pu), g.mul(pv, pv)))
         theta = g.math("ARCTAN2", r, pz)
@@ -268,13 +347,7 @@ def occlusion_group(stem, basis, link, uv, interpolation="Linear"):
             a, bb = POWERS[m]
             terms.append(g.mul(coeff[m], *([mu] * a + [mv] * bb)) if a + bb else coeff[m])
     p = g.add(*terms)
-    if link == "logistic":
-        e = g.math("EXPONENT", g.math("MULTIPLY", g.math("ABSOLUTE", p), -1.0))
-        sig = g.math("DIVIDE", 1.0, g.math("ADD", e, 1.0))
-        pos = g.math("GREATER_THAN", p, -1e-30)  # 1 where p >= 0
-        kval = g.add(g.mul(pos, sig), g.mul(g.math("SUBTRACT", 1.0, pos), e, sig))
-    else:
-        kval = p
+    kval = _sigmoid(g, p) if link == "logistic" else p
     below = g.math("LESS_THAN", pz, 1e-12)  # at or below the horizon: K = 1
     k = g.math("MAXIMUM", g.math("ADD", kval, 0.0, clamp=True), below)
     tree.links.new(k, gout.inputs["K"])
@@ -447,16 +520,23 @@ def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.
         bpy.context.scene.render.engine = "CYCLES"
         bpy.context.scene.cycles.device = "CPU"
         bpy.context.scene.cycles.shading_system = True
+        learned = basis.startswith("learned")
+        shader = OSL_LEARNED if learned else OSL_SHADER
         node = tree.nodes.new("ShaderNodeScript")
         node.mode = "EXTERNAL"
-        node.filepath = os.path.abspath(OSL_SHADER)
+        node.filepath = os.path.abspath(shader)
         node.update()
         if "stem" not in node.inputs:
-            raise RuntimeError(f"{OSL_SHADER}: Blender did not compile the OSL shader")
+            raise RuntimeError(f"{shader}: Blender did not compile the OSL shader")
         node.inputs["stem"].default_value = os.path.abspath(stem)
-        node.inputs["basis"].default_value = 11 if basis == "ptm11" else 6
-        node.inputs["link"].default_value = 1 if link == "logistic" else 0
-        node.inputs["uvmap"].default_value = 1 if uv == "hemispherical" else 0
+        if learned:
+            params = ptm_params.learned_params(stem + ".c0.exr")
+            node.inputs["terms"].default_value = params["terms"]
+            node.inputs["grid"].default_value = params["grid"]
+        else:
+            node.inputs["basis"].default_value = 11 if basis == "ptm11" else 6
+            node.inputs["link"].default_value = 1 if link == "logistic" else 0
+            node.inputs["uvmap"].default_value = 1 if uv == "hemispherical" else 0
         node.inputs["interp"].default_value = {"Closest": "closest", "Linear": "bilinear",
                                                 "Cubic": "bicubic"}.get(interpolation, "smartcubic")
         tree.links.new(mapping.outputs["Vector"], node.inputs["UV"])

@@ -2,8 +2,10 @@
 Cycles CPU emitting K (OSL script node and Blender-node group) under several light directions
 and compares every pixel centre with the Rust `Ptm::eval_dir` (fit/examples/ptm_eval.rs).
 The same for the OSL that MaterialX's generator writes for ND_ptm_occlusion_float
-(integrations/materialx/mtlx_osl.py makes MTLX_OSL), compiled by Cycles' OSL compiler: a
-compile error fails the test with the compiler's message.
+(integrations/materialx/mtlx_osl.py makes MTLX_OSL, and its `_learned` twin for
+ND_ptm_occlusion_learned_float), compiled by Cycles' OSL compiler: a compile error fails the
+test with the compiler's message. Learned bases (learned11, learned6) go through
+ptm_occlusion_learned.osl, the node group and the learned MaterialX OSL alike.
 The README's OSL shader group is built as written and lit: its shadowing equals 1 − Ptm::eval.
 The README's Blender examples run as written (the Python block in a fresh default scene, the
 ptm_scene.py command line); output="lit" occludes the key light only (composite = Image − key
@@ -35,6 +37,10 @@ CASES = [
     ("ptm6", "logistic", "hemispherical"),
     ("ptm11", "identity", "hemispherical"),
     ("ptm11", "logistic", "projected"),
+    # Learned bases (always logistic, hemispherical): three basis parts beside the coefficient
+    # parts' last A (learned11), and a padded last part (learned6: c1 = b4 b5 unused coverage).
+    ("learned11", "logistic", "hemispherical"),
+    ("learned6", "logistic", "hemispherical"),
 ]
 
 
@@ -130,12 +136,19 @@ def mtlx_material(oso, stem, basis, link, uv, light_obj):
     if "uv" not in node.inputs or "out" not in node.outputs:
         print(f"blender: FAILED: the Script node did not load {oso} (inputs {list(node.inputs.keys())})")
         sys.exit(1)
-    nparts = 3 if basis == "ptm11" else 2
-    for k in range(nparts):
-        node.inputs[f"part{k}"].default_value = os.path.abspath(f"{stem}.c{k}.exr")
-    node.inputs["basis"].default_value = 11 if basis == "ptm11" else 6
-    node.inputs["link"].default_value = 1 if link == "logistic" else 0
-    node.inputs["uvmap"].default_value = 1 if uv == "hemispherical" else 0
+    if basis.startswith("learned"):
+        params = ptm_blender.ptm_params.learned_params(stem + ".c0.exr")
+        for k, (part, table) in enumerate(zip(params["parts"], params["basis_parts"])):
+            node.inputs[f"part{k}"].default_value = os.path.abspath(part)
+            node.inputs[f"basis{k}"].default_value = os.path.abspath(table)
+        node.inputs["grid"].default_value = params["grid"]
+    else:
+        nparts = 3 if basis == "ptm11" else 2
+        for k in range(nparts):
+            node.inputs[f"part{k}"].default_value = os.path.abspath(f"{stem}.c{k}.exr")
+        node.inputs["basis"].default_value = 11 if basis == "ptm11" else 6
+        node.inputs["link"].default_value = 1 if link == "logistic" else 0
+        node.inputs["uvmap"].default_value = 1 if uv == "hemispherical" else 0
     node.inputs["filtertype"].default_value = "closest"
     texco = tree.nodes.new("ShaderNodeTexCoord")
     tree.links.new(texco.outputs["UV"], node.inputs["uv"])
@@ -459,12 +472,15 @@ def main():
     mtlx_oso = compile_osl(os.path.abspath(MTLX_OSL))
     # The same shader generated without GenOptions.fileTextureVerticalFlip (MaterialX's default).
     noflip_oso = compile_osl(os.path.abspath(MTLX_OSL[:-4] + "_noflip.osl"))
+    # ND_ptm_occlusion_learned_float's (mtlx_osl.py --learned).
+    learned_oso = compile_osl(os.path.abspath(MTLX_OSL[:-4] + "_learned.osl"))
     flipped = {}
     print(f"blender: MaterialX-generated OSL ({open(MTLX_OSL).read().count(chr(10))} lines) compiled by Cycles' OSL compiler")
     for basis, link, uv in CASES:
         name = os.path.join(WORK, f"{basis}-{link}.ptm.exr")
+        model = [] if basis.startswith("learned") else ["--link", link, "--uv", uv]
         subprocess.run([PTM, "bake", "--res", str(RES), "--spp", "4", "--dirs", "64", "--fit", basis,
-                        "--link", link, "--uv", uv, "--layout", "rgba", "-o", name],
+                        *model, "--layout", "rgba", "-o", name],
                        check=True, capture_output=True)
         ref = json.loads(subprocess.run([EVAL, ptm_blender.stem_of(name) + ".c0.exr"]
                                         + [",".join(map(str, d)) for d in DIRS],
@@ -473,8 +489,9 @@ def main():
         for mode in modes:
             sc, plane, sun = scene_setup()
             if mode.startswith("mtlx-osl"):
-                mat = mtlx_material(noflip_oso if mode.endswith("noflip") else mtlx_oso,
-                                    ptm_blender.stem_of(name), basis, link, uv, sun)
+                oso = noflip_oso if mode.endswith("noflip") else (
+                    learned_oso if basis.startswith("learned") else mtlx_oso)
+                mat = mtlx_material(oso, ptm_blender.stem_of(name), basis, link, uv, sun)
             else:
                 mat = ptm_blender.build_material(name, light="Key", mode=mode, output="k",
                                                  interpolation="Closest")

@@ -12,7 +12,7 @@ fileTextureVerticalFlip: MaterialX's image uv has (0, 0) at the image's bottom-l
 texture() t = 0 is the file's first row (its top). The OSL generator flips v only when the
 GenOptions say so (default: not), so a renderer must set it (as `generate(flip=True)` does).
 
-    python mtlx_osl.py OUT.osl [--no-flip]
+    python mtlx_osl.py OUT.osl [--no-flip] [--learned]   # --learned: ND_ptm_occlusion_learned_float
 """
 import os
 import re
@@ -23,24 +23,31 @@ import MaterialX.PyMaterialXGenOsl as mx_osl
 import MaterialX.PyMaterialXGenShader as mx_gen
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-PARAMS = [("uv", "vector3", "0, 0, 0"), ("light", "vector3", "0, 0, 1"),
-          ("tangent", "vector3", "1, 0, 0"), ("part0", "filename", ""), ("part1", "filename", ""),
-          ("part2", "filename", ""), ("basis", "integer", "6"), ("link", "integer", "0"),
-          ("uvmap", "integer", "0"), ("filtertype", "string", "linear")]
+COMMON = [("uv", "vector3", "0, 0, 0"), ("light", "vector3", "0, 0, 1"),
+          ("tangent", "vector3", "1, 0, 0")]
+PARAMS = COMMON + [("part0", "filename", ""), ("part1", "filename", ""),
+                   ("part2", "filename", ""), ("basis", "integer", "6"), ("link", "integer", "0"),
+                   ("uvmap", "integer", "0"), ("filtertype", "string", "linear")]
+# ND_ptm_occlusion_learned_float (`--learned`): parts, basis parts, the grid side.
+PARAMS_LEARNED = COMMON + [(f"part{i}", "filename", "") for i in range(4)] + \
+    [(f"basis{i}", "filename", "") for i in range(4)] + \
+    [("grid", "integer", "17"), ("filtertype", "string", "linear")]
 
 
-def graph_doc():
-    """ptm_occlusion.mtlx plus NG_ptm_k: its K with every input a nodegraph input."""
+def graph_doc(learned=False):
+    """ptm_occlusion.mtlx plus NG_ptm_k: the K of its node (ptm_occlusion, or
+    ptm_occlusion_learned) with every input a nodegraph input."""
     doc = mx.createDocument()
     mx.readFromXmlFile(doc, os.path.join(HERE, "ptm_occlusion.mtlx"))
     ng = doc.addNodeGraph("NG_ptm_k")
-    for name, typ, val in PARAMS:
+    params = PARAMS_LEARNED if learned else PARAMS
+    for name, typ, val in params:
         ng.addInput(name, typ).setValueString(val)
     uv2 = ng.addNode("convert", "uv2", "vector2")
     uv2.addInput("in", "vector3").setInterfaceName("uv")
-    k = ng.addNode("ptm_occlusion", "K", "float")
+    k = ng.addNode("ptm_occlusion_learned" if learned else "ptm_occlusion", "K", "float")
     k.addInput("texcoord", "vector2").setConnectedNode(uv2)
-    for name, typ, _ in PARAMS:
+    for name, typ, _ in params:
         if name != "uv":
             k.addInput("light_dir" if name == "light" else name, typ).setInterfaceName(name)
     ng.addOutput("out", "float").setConnectedNode(k)
@@ -69,9 +76,9 @@ def flatten(src, dirs, seen=None):
     return "\n".join(out) + "\n"
 
 
-def generate(flip=True):
+def generate(flip=True, learned=False):
     """(self-contained OSL source, shader name) for NG_ptm_k's output."""
-    doc = graph_doc()
+    doc = graph_doc(learned)
     lib = mx.createDocument()
     search = mx.getDefaultDataSearchPath()
     mx.loadLibraries(mx.getDefaultDataLibraryFolders(), search, lib)
@@ -82,7 +89,7 @@ def generate(flip=True):
     ctx = mx_gen.GenContext(gen)
     ctx.registerSourceCodeSearchPath(search)
     ctx.getOptions().fileTextureVerticalFlip = flip
-    name = "ptm_k" if flip else "ptm_k_noflip"
+    name = ("ptm_k_learned" if learned else "ptm_k") + ("" if flip else "_noflip")
     shader = gen.generate(name, doc.getNodeGraph("NG_ptm_k").getOutput("out"), ctx)
     src = shader.getSourceCode(mx_gen.PIXEL_STAGE)
     inc = [os.path.join(d, "libraries", "stdlib", "genosl", "include")
@@ -91,6 +98,6 @@ def generate(flip=True):
 
 
 if __name__ == "__main__":
-    src, _ = generate(flip="--no-flip" not in sys.argv[2:])
+    src, _ = generate(flip="--no-flip" not in sys.argv[2:], learned="--learned" in sys.argv[2:])
     open(sys.argv[1], "w").write(src)
     print(f"wrote {sys.argv[1]} ({src.count(chr(10))} lines)")

@@ -59,7 +59,16 @@ OPS = {
     "dotproduct": lambda i: np.sum(np.asarray(i["in1"]) * np.asarray(i["in2"]), axis=-1),
     "crossproduct": lambda i: np.cross(i["in1"], i["in2"]),
     "extract": lambda i: np.asarray(i["in"])[..., int(i["index"])],
+    "combine2": lambda i: np.stack(np.broadcast_arrays(np.asarray(i["in1"], dtype=np.float64),
+                                                       np.asarray(i["in2"], dtype=np.float64)), axis=-1),
+    # Only the conversions in CONVERTS, which keep the value as it is.
+    "convert": lambda i: np.asarray(i["in"], dtype=np.float64),
 }
+# The convert nodedefs OPS["convert"] implements: integer → float. Others (a float promoted to a
+# colour, a colour3 widened to four lanes with alpha 1, …) change the lanes and are refused.
+CONVERTS = {"ND_convert_integer_float"}
+# Nodes whose float inputs are not promoted to their vector output's lanes.
+NO_PROMOTION = {"extract", "combine2", "convert"}
 # The conditionals: in1 where value1 <op> value2, else in2.
 IFS = {"ifgreater": np.greater, "ifgreatereq": np.greater_equal, "ifequal": np.equal}
 
@@ -126,8 +135,10 @@ class Evaluator:
             return self._image(node, inputs)
         if cat not in OPS and cat not in IFS:
             raise Unsupported(f"{node.getNamePath()}: no numpy evaluation of {nd.getName()} ({cat})")
+        if cat == "convert" and nd.getName() not in CONVERTS:
+            raise Unsupported(f"{node.getNamePath()}: no numpy evaluation of {nd.getName()}")
         out_size = SIZES.get(nd.getType(), 0)
-        if out_size > 1 and cat != "extract":  # a float operand of a vector node acts per lane
+        if out_size > 1 and cat not in NO_PROMOTION:  # a float operand of a vector node acts per lane
             for ndi in nd.getActiveInputs():
                 if ndi.getType() == "float" and ndi.getName() not in ("value1", "value2"):
                     inputs[ndi.getName()] = _vec(inputs[ndi.getName()], out_size)

@@ -37,12 +37,16 @@ def signature(path):
     return params
 
 
-def readme_group(readme=README):
-    """The shader group of docs/pipeline.md, checked against the shaders' signatures: a list of layers
-    (shader, layer, {param: (type, [values])}) and of connections (src, out, dst, in)."""
+MARKERS = ("<!-- readme-osl -->", "<!-- readme-osl-learned -->")
+
+
+def readme_group(readme=README, marker=MARKERS[0]):
+    """The shader group of docs/pipeline.md after `marker`, checked against the shaders'
+    signatures: a list of layers (shader, layer, {param: (type, [values])}) and of connections
+    (src, out, dst, in)."""
     text = open(readme).read()
-    assert "<!-- readme-osl -->\n```\n" in text, "docs/pipeline.md has no <!-- readme-osl --> block"
-    block = text.split("<!-- readme-osl -->\n```\n", 1)[1].split("```", 1)[0]
+    assert f"{marker}\n```\n" in text, f"docs/pipeline.md has no {marker} block"
+    block = text.split(f"{marker}\n```\n", 1)[1].split("```", 1)[0]
     layers, connections, pending = [], [], {}
     sigs = {}
     for stmt in (x.split() for x in block.split(";")):
@@ -83,7 +87,38 @@ def readme_group(readme=README):
     return layers, connections
 
 
+def learned_shader_reads_what_the_layout_writes():
+    """ptm_occlusion_learned.osl names the files the renderer layout writes (stem + ".c%d.exr",
+    stem + ".basis%d.exr"), reads the basis parts bilinearly with clamp wrapping and no MIP
+    filtering at the texel convention of docs/FORMAT.md, and counts ceil((k + 1)/4) coefficient
+    parts and ceil(k/4) basis parts, checked as text (no OSL compiler here; the Blender test
+    compiles and renders it)."""
+    path = os.path.join(HERE, "ptm_occlusion_learned.osl")
+    src = re.sub(r"//[^\n]*", "", open(path).read())
+    for want in ('format(".c%d.exr"', 'format(".basis%d.exr"', '"wrap", "clamp"', '"interp", "linear"',
+                 '"width", 0.0', "(terms + 4) / 4", "(terms + 3) / 4",
+                 "(0.5 + (mu + 1) * 0.5 * (grid - 1)) / grid", "1 - (0.5 + (mv + 1) * 0.5 * (grid - 1)) / grid"):
+        assert want in src, f"{path}: no {want!r}"
+    # The part counts the shader computes, against the layout's rule for every k.
+    for k in range(1, 17):
+        assert (k + 4) // 4 == -(-(k + 1) // 4) and (k + 3) // 4 == -(-k // 4), k
+    sig = signature(path)
+    for name, ty in (("stem", "string"), ("terms", "int"), ("grid", "int"), ("light_dir", "vector")):
+        assert sig.get(name) == (ty, False), f"{path}: {name} is {sig.get(name)}, not input {ty}"
+    # The polynomial shader's parameters, but terms and grid for basis, link and uvmap (a
+    # learned file is always logistic and hemispherical).
+    poly = signature(os.path.join(HERE, "ptm_occlusion.osl"))
+    for name in ("basis", "link", "uvmap"):
+        del poly[name]
+    assert sig == {**poly, "terms": ("int", False), "grid": ("int", False)}, (sig, poly)
+    for name in ("K", "Visibility", "Coverage"):
+        assert sig.get(name) == ("float", True), f"{path}: output {name} is {sig.get(name)}"
+
+
 if __name__ == "__main__":
-    layers, connections = readme_group()
-    n = sum(len(p) for _, _, p in layers) + len(connections)
-    print(f"osl: README example's {len(layers)} layers, {n} parameters and connections match the shaders")
+    for marker in MARKERS:
+        layers, connections = readme_group(marker=marker)
+        n = sum(len(p) for _, _, p in layers) + len(connections)
+        print(f"osl: docs/pipeline.md {marker}: {len(layers)} layers, {n} parameters and connections match the shaders")
+    learned_shader_reads_what_the_layout_writes()
+    print("osl: ptm_occlusion_learned.osl reads the coefficient and basis parts as docs/FORMAT.md lays them out")
