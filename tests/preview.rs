@@ -411,8 +411,8 @@ fn a_builtin_caster_shadows_the_view_and_a_missed_shadow_is_warned() {
 fn preview_renders_a_learned_file_and_names_a_bad_one() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("learned.ptm.exr");
-    let ptm = ptm_runtime::synthetic::learned_ptm(6, 17, 16, 16, 2);
-    ptm.save(&path, &SaveOptions::default()).unwrap();
+    let learned = ptm_runtime::synthetic::learned_ptm(6, 17, 16, 16, 2);
+    learned.save(&path, &SaveOptions::default()).unwrap();
     let png = dir.path().join("l.png");
     let j = run_json(&["--ptm", p(&path), "-o", p(&png), "--size", "48,40"]);
     assert_eq!(j["variant"], "learned6+grid17+logistic+hemispherical");
