@@ -124,7 +124,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     ];
     let top = None;
     let oblique = Some(Perspective {
-        eye: [-1.0 * tw, -1.0 * th, 1.5 * th],
+        eye: [-tw, -th, 1.5 * th],
         target: [4.0 * tw, 4.0 * th, 0.0],
         fov_y_deg: 60.0,
     });
