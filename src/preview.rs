@@ -202,14 +202,10 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
             // Either layout (`ptm fit --layout rgba`'s parts, named by any part or the stem).
             // Its errors name the file.
             let ptm = ptm_format::layout::load(path)?;
-            if ptm.basis.is_learned() {
-                anyhow::bail!(
-                    "{}: basis {}: learned basis: not supported by this reader yet; use \
-                     Ptm::eval / ptm eval",
-                    path.display(),
-                    ptm.basis.name()
-                );
-            }
+            // What the renderer requires of it beyond the format (a learned basis's table
+            // among it), said of the file here rather than of the scene later.
+            ptm_runtime::scene::check_ptm(&ptm)
+                .with_context(|| crate::outputs::Named::new("reading", path))?;
             Scene::over_ptm(ptm, 1, [1, 1])
         }
         None => {

@@ -404,3 +404,59 @@ fn a_builtin_caster_shadows_the_view_and_a_missed_shadow_is_warned() {
         bad.stderr
     );
 }
+
+/// Issue #22: a learned file renders on the plane and on a mesh (the variant says so); a learned
+/// file whose header disagrees with its table is refused naming the file.
+#[test]
+fn preview_renders_a_learned_file_and_names_a_bad_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("learned.ptm.exr");
+    let learned = ptm_runtime::synthetic::learned_ptm(6, 17, 16, 16, 2);
+    learned.save(&path, &SaveOptions::default()).unwrap();
+    let png = dir.path().join("l.png");
+    let j = run_json(&["--ptm", p(&path), "-o", p(&png), "--size", "48,40"]);
+    assert_eq!(j["variant"], "learned6+grid17+logistic+hemispherical");
+    assert_eq!(png_size(&png), (48, 40));
+    // σ never leaves [0, 1]: nothing clamped.
+    assert_eq!(j["k_unclamped"]["clamped_fraction"], 0.0);
+    let j = run_json(&[
+        "--ptm",
+        p(&path),
+        "-o",
+        p(&png),
+        "--size",
+        "48,40",
+        "--mesh",
+        "sphere",
+    ]);
+    let variant = j["variant"].as_str().unwrap();
+    assert!(
+        variant.starts_with("learned6+grid17+logistic+hemispherical") && variant.contains("mesh"),
+        "{variant}"
+    );
+    // The same file with `ptm:basis` learned5: its header's table holds 6 terms, its basis 5.
+    let bytes = std::fs::read(&path).unwrap();
+    let at: Vec<usize> = bytes
+        .windows(8)
+        .enumerate()
+        .filter(|(_, w)| *w == b"learned6")
+        .map(|(i, _)| i)
+        .collect();
+    assert!(!at.is_empty(), "the header names its basis");
+    let mut bad = bytes.clone();
+    for i in at {
+        bad[i + 7] = b'5';
+    }
+    let bad_path = dir.path().join("bad.ptm.exr");
+    std::fs::write(&bad_path, bad).unwrap();
+    let out = ptm(
+        ["preview", "--ptm", p(&bad_path), "-o", p(&png)],
+        dir.path(),
+    );
+    assert!(!out.ok, "a bad learned file rendered");
+    assert!(
+        out.stderr.contains("bad.ptm.exr") && out.stderr.contains("learned5"),
+        "{}",
+        out.stderr
+    );
+}

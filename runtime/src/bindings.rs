@@ -50,10 +50,12 @@ pub mod shade {
     pub const PLANE: Binding = b("plane", 11);
     /// Mesh path: the tangent-space normal map.
     pub const NORMAL_MAP: Binding = b("normal_tex", 12);
+    /// A learned basis's tables, node-major (`SceneBuffers::learned`).
+    pub const LEARNED: Binding = b("learned", 13);
     /// Every binding of the shading pass.
     pub const ALL: &[Binding] = &[
         FRAME, LIGHTS, COEFFS, ALBEDO, OPACITY, SAT, MIP, MIP_LEVELS, SEP_MAP, PTM_LEVELS,
-        COVERAGE, PLANE, NORMAL_MAP,
+        COVERAGE, PLANE, NORMAL_MAP, LEARNED,
     ];
 }
 

@@ -127,6 +127,12 @@ impl Renderer {
                 gpu.storage("coeffs", bytemuck::cast_slice(&p.coeffs)),
             ));
         }
+        if v.basis.is_some_and(ptm_format::Basis::is_learned) {
+            entries.push((
+                b::LEARNED.index,
+                gpu.storage("learned table", bytemuck::cast_slice(&p.learned)),
+            ));
+        }
         if v.albedo_texture {
             entries.push((
                 b::ALBEDO.index,

@@ -4,7 +4,7 @@
 //! World space is the swatch frame: the acceptor is the plane z = 0, tangent +X, bitangent +Y,
 //! normal +Z. Lengths are swatch units (the PTM tile is `ptm.tile` = [W, H] of them).
 
-use ptm_format::{Link, Ptm, UvMap};
+use ptm_format::{LearnedTable, Link, Ptm, UvMap};
 
 pub use crate::blur::Blur;
 pub use crate::caster::{Caster, MAX_CASTER_SIDE};
@@ -152,13 +152,6 @@ impl Scene {
         if w == 0 || h == 0 {
             return Err(Error::Scene(format!("output size {w}×{h} is empty")));
         }
-        if let Some(p) = self.ptm.as_ref().filter(|p| p.basis.is_learned()) {
-            return Err(Error::Scene(format!(
-                "the PTM's basis is {}: learned basis: not supported by this reader yet; use \
-                 Ptm::eval / ptm eval",
-                p.basis.name()
-            )));
-        }
         if w.max(h) > MAX_IMAGE_SIDE {
             return Err(Error::Scene(format!(
                 "output size {w}×{h} exceeds {MAX_IMAGE_SIDE} pixels a side (the largest render \
@@ -221,28 +214,16 @@ impl Scene {
         let mut warnings = Vec::new();
         let mut basis = None;
         let mut coverage = Vec::new();
+        let mut learned = Vec::new();
+        let mut learned_grid = 0;
         let (mut link, mut uv) = (Link::Identity, UvMap::Projected);
         if let Some(ptm) = &self.ptm {
+            check_ptm(ptm)?;
             let n = ptm.basis.len();
-            if ptm.width == 0 || ptm.height == 0 || ptm.planes.len() != n {
-                return Err(Error::Scene(format!(
-                    "PTM is {}×{} with {} planes; {} needs {n} and a non-empty image",
-                    ptm.width,
-                    ptm.height,
-                    ptm.planes.len(),
-                    ptm.basis.name()
-                )));
-            }
-            if !ptm.mips.is_empty() || ptm.coverage.is_some() {
-                // Stored levels must be the round-down chain with every plane, coverage a
-                // fraction per texel: the lookups trust their sizes.
-                ptm.validate()?;
-            }
-            if !(ptm.tile[0] > 0.0 && ptm.tile[1] > 0.0) {
-                return Err(Error::Scene(format!(
-                    "PTM tile size {:?} must be positive",
-                    ptm.tile
-                )));
+            if ptm.basis.is_learned() {
+                let table = learned_table(ptm)?;
+                learned = node_major(table);
+                learned_grid = table.grid as u32;
             }
             // Texel-major (all coefficients of a texel together): one cache line per lookup.
             let texels = ptm.width * ptm.height;
@@ -368,6 +349,7 @@ impl Scene {
 
         let variant = Variant {
             basis,
+            learned_grid,
             albedo_texture: self.albedo_texture.is_some(),
             caster: self.caster.as_ref().map(|_| self.blur),
             colored: self.caster.is_some() && self.colored_shadow,
@@ -399,6 +381,7 @@ impl Scene {
             coeffs,
             ptm_levels,
             coverage,
+            learned,
             albedo,
             plane,
             plane_gpu,
@@ -411,6 +394,75 @@ impl Scene {
             normal_map: Vec::new(),
         })
     }
+}
+
+/// What [`Scene::prepare`] requires of a PTM before it lays it out (the shader trusts the
+/// sizes): planes for every term of a non-empty image, stored MIP levels of the round-down
+/// chain with every plane and coverage a fraction per texel ([`Ptm::validate`], when it has
+/// either), a learned basis's table of its term count, a positive tile. A caller that read the
+/// PTM from a file can check it first to name the file in the error.
+pub fn check_ptm(ptm: &Ptm) -> Result<()> {
+    let n = ptm.basis.len();
+    if ptm.width == 0 || ptm.height == 0 || ptm.planes.len() != n {
+        return Err(Error::Scene(format!(
+            "PTM is {}×{} with {} planes; {} needs {n} and a non-empty image",
+            ptm.width,
+            ptm.height,
+            ptm.planes.len(),
+            ptm.basis.name()
+        )));
+    }
+    if !ptm.mips.is_empty() || ptm.coverage.is_some() {
+        // Stored levels must be the round-down chain with every plane, coverage a fraction per
+        // texel: the lookups trust their sizes.
+        ptm.validate()?;
+    }
+    if ptm.basis.is_learned() {
+        learned_table(ptm)?;
+    }
+    if !(ptm.tile[0] > 0.0 && ptm.tile[1] > 0.0) {
+        return Err(Error::Scene(format!(
+            "PTM tile size {:?} must be positive",
+            ptm.tile
+        )));
+    }
+    Ok(())
+}
+
+/// The table of a learned PTM, checked as the shader trusts it: present, `basis.len()` terms of
+/// finite values on a grid of 2 ..= [`ptm_format::learned::MAX_GRID`] nodes a side, for the
+/// logistic link over the hemispherical map (the only file a learned basis makes).
+fn learned_table(ptm: &Ptm) -> Result<&LearnedTable> {
+    let what = format!("the {} table", ptm.basis.name());
+    let Some(table) = &ptm.learned else {
+        return Err(Error::Scene(format!(
+            "the PTM's basis is {} but it carries no table (`Ptm::learned`)",
+            ptm.basis.name()
+        )));
+    };
+    table
+        .check(ptm.basis.len(), &what)
+        .map_err(|e| Error::Scene(format!("the PTM's basis is {}: {e}", ptm.basis.name())))?;
+    if ptm.link != Link::Logistic || ptm.uv != UvMap::Hemispherical {
+        return Err(Error::Scene(format!(
+            "the PTM's basis is {}: a learned basis is defined for the logistic link over the \
+             hemispherical (u, v) map, not {} over {}",
+            ptm.basis.name(),
+            ptm.link.name(),
+            ptm.uv.name()
+        )));
+    }
+    Ok(table)
+}
+
+/// A learned table node-major, as the shader reads it: the k values B₀ … B_{k−1} of grid node
+/// (column i, row j) at `(j·G + i)·k` (the file's `LearnedTable::values` are term-major), so
+/// each of the four bilinear taps reads one run of k floats, as a texel's coefficients are read.
+fn node_major(table: &LearnedTable) -> Vec<f32> {
+    let (k, g2) = (table.terms, table.cells());
+    (0..g2 * k)
+        .map(|i| table.values[(i % k) * g2 + i / k])
+        .collect()
 }
 
 /// Appends a PTM's stored MIP levels (sizes halved and rounded down, to 1×1) to its texel-major
@@ -508,6 +560,9 @@ impl std::fmt::Display for Warning {
 pub struct Variant {
     /// The PTM's basis; `None` without a PTM (unoccluded cloth).
     pub basis: Option<ptm_format::Basis>,
+    /// A learned basis's grid side G (a constant of its source: `LEARNED_GRID`); 0 for a
+    /// polynomial basis or without a PTM.
+    pub learned_grid: u32,
     /// Albedo from a texture rather than a constant.
     pub albedo_texture: bool,
     /// The blur method when there is a caster.
@@ -530,20 +585,32 @@ pub struct Variant {
 }
 
 impl Variant {
-    /// Every distinct variant, for validation tests.
+    /// Every distinct variant, for validation tests: no PTM, ptm6 and ptm11 with every link
+    /// and map, and the learned bases the fitter makes (6 and 11 terms on its 17 × 17 grid),
+    /// logistic over the hemispherical map as every learned file is.
     pub fn all() -> Vec<Variant> {
+        use ptm_format::Basis;
         let mut out = Vec::new();
         for basis in [
             None,
-            Some(ptm_format::Basis::Ptm6),
-            Some(ptm_format::Basis::Ptm11),
+            Some(Basis::Ptm6),
+            Some(Basis::Ptm11),
+            Some(Basis::Learned(6)),
+            Some(Basis::Learned(11)),
         ] {
+            let learned = basis.is_some_and(Basis::is_learned);
+            let learned_grid = if learned { 17 } else { 0 };
+            let (links, uvs): (&[Link], &[UvMap]) = if learned {
+                (&[Link::Logistic], &[UvMap::Hemispherical])
+            } else {
+                (&Link::ALL, &UvMap::ALL)
+            };
             // Link, map, MIP chain and coverage exist only with a PTM.
             let mut ptm_kinds = vec![(Link::Identity, UvMap::Projected, false, false)];
             if basis.is_some() {
                 ptm_kinds.clear();
-                for link in Link::ALL {
-                    for uv in UvMap::ALL {
+                for &link in links {
+                    for &uv in uvs {
                         for ptm_mip in [false, true] {
                             for coverage in [false, true] {
                                 ptm_kinds.push((link, uv, ptm_mip, coverage));
@@ -561,6 +628,7 @@ impl Variant {
                         for &(link, uv, ptm_mip, coverage) in &ptm_kinds {
                             out.push(Variant {
                                 basis,
+                                learned_grid,
                                 albedo_texture,
                                 caster,
                                 colored,
@@ -579,6 +647,7 @@ impl Variant {
                     for &(link, uv, ptm_mip, coverage) in &ptm_kinds {
                         out.push(Variant {
                             basis,
+                            learned_grid,
                             albedo_texture,
                             caster: None,
                             colored: false,
@@ -599,6 +668,9 @@ impl Variant {
     /// Short name, e.g. `ptm11+albedo+sat+colored`.
     pub fn name(&self) -> String {
         let mut parts = vec![self.basis.map_or("nok", |b| b.name()).to_string()];
+        if self.learned_grid > 0 {
+            parts.push(format!("grid{}", self.learned_grid));
+        }
         if self.link != Link::Identity {
             parts.push(self.link.name().into());
         }
@@ -688,6 +760,11 @@ pub struct SceneBuffers {
     /// or else coefficients averaged 2×2 ([`crate::mip::build_ptm_chain`]); empty when the view
     /// never minifies the PTM.
     pub ptm_levels: Vec<PtmLevel>,
+    /// A learned basis's k tables node-major: Bₜ at grid node (column i, row j) at
+    /// `learned[(j·G + i)·k + t]` (G = `variant.learned_grid`), read bilinearly at the
+    /// hemispherical (u, v) as `ptm_format::LearnedTable::terms` reads them; shared by every MIP
+    /// level; empty for a polynomial basis.
+    pub learned: Vec<f32>,
     /// The PTM's coverage (0 = a hole, 1 = all cloth) per texel of every level in
     /// `ptm_levels` (texel offsets as for `coeffs`), box-averaged level by level; level 0 only
     /// without a chain; empty when the file has none ([`crate::mip::coverage_chain`]).

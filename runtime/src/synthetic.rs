@@ -1,9 +1,10 @@
 //! Deterministic synthetic inputs for benchmarks, reports and tests, the one place they are
-//! built: PTMs (random coefficients, with a hole, a smooth cloth, a texel checkerboard, a
-//! constant K), casters (random RGBA, a leafy one whose discs of varying alpha give soft shadows
-//! with edges at every scale, the half-plane edge of the analytic penumbra profiles) and the
-//! `strip` scene those profiles are measured on. Every value is a hash of its index and a seed,
-//! so a test, the benchmark and the report see the same inputs on every machine.
+//! built: PTMs (random coefficients, a learned basis's random tables, with a hole, a smooth
+//! cloth, a texel checkerboard, a constant K), casters (random RGBA, a leafy one whose discs of
+//! varying alpha give soft shadows with edges at every scale, the half-plane edge of the
+//! analytic penumbra profiles) and the `strip` scene those profiles are measured on. Every
+//! value is a hash of its index and a seed, so a test, the benchmark and the report see the
+//! same inputs on every machine.
 
 use crate::scene::{Blur, Caster, Light, Scene};
 
@@ -45,6 +46,48 @@ pub fn random_ptm(basis: Basis, width: usize, height: usize, seed: u64) -> Ptm {
         tile: [1.0, 1.0],
         planes,
         learned: None,
+    }
+}
+
+/// A `width × height` PTM of the learned basis of `terms` terms on a `grid` × `grid` table,
+/// keyed by `seed`, logistic over the hemispherical map as every learned file is: term t's
+/// table is a wave cos(π(t + 1)u/2 + t)·cos(π(t mod 3)v/2 − t/2) plus a hashed ripple in
+/// [−0.2, 0.2) at every node (so reads between nodes matter), the coefficients random in
+/// [−2, 2) (K spans much of (0, 1)). Tile 1 × 1, no MIP levels or coverage.
+pub fn learned_ptm(terms: usize, grid: usize, width: usize, height: usize, seed: u64) -> Ptm {
+    let basis = Basis::learned(terms).expect("1 ..= 16 terms");
+    let node = |i: usize| -1.0 + 2.0 * i as f32 / (grid - 1) as f32;
+    let half_pi = std::f32::consts::FRAC_PI_2;
+    let values = (0..terms * grid * grid)
+        .map(|n| {
+            let (t, j, i) = (n / (grid * grid), n / grid % grid, n % grid);
+            let wave = ((t + 1) as f32 * half_pi * node(i) + t as f32).cos()
+                * ((t % 3) as f32 * half_pi * node(j) - 0.5 * t as f32).cos();
+            wave + rand(seed ^ 0x7ab1e ^ ((n as u64) << 20), -0.2, 0.2)
+        })
+        .collect();
+    let planes = (0..terms)
+        .map(|k| {
+            (0..width * height)
+                .map(|t| rand(seed * 1_000_003 + (k * 65_537 + t) as u64, -2.0, 2.0))
+                .collect()
+        })
+        .collect();
+    Ptm {
+        basis,
+        width,
+        height,
+        link: Link::Logistic,
+        uv: UvMap::Hemispherical,
+        mips: Vec::new(),
+        coverage: None,
+        tile: [1.0, 1.0],
+        planes,
+        learned: Some(ptm_format::LearnedTable {
+            grid,
+            terms,
+            values,
+        }),
     }
 }
 

@@ -120,3 +120,11 @@ fn golden_ptm6_sat_under_rectangular_lights() {
     s.lights[1].rect = Some([1.0, 0.001]);
     check_golden("ptm6_sat_rect", &s);
 }
+
+#[test]
+fn golden_learned11_sat() {
+    // A learned basis's tables read at every pixel's (u, v), under the same lights and caster.
+    let mut s = scene(Basis::Ptm11, Blur::Sat, false);
+    s.ptm = Some(ptm_runtime::synthetic::learned_ptm(11, 17, 12, 10, 11));
+    check_golden("learned11_sat", &s);
+}

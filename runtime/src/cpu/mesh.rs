@@ -10,7 +10,7 @@
 
 use rayon::prelude::*;
 
-use super::shade::{ptm_k, tile_bilinear, Twin};
+use super::shade::{tile_bilinear, Twin};
 use crate::layout::{Frame, MeshVertex};
 use crate::output::Image;
 use crate::scene::SceneBuffers;
@@ -208,7 +208,7 @@ pub fn shade_mesh(t: &Twin, m: &MeshOut) -> V3 {
         }
         let mut visible = 1.0;
         if let Some(c) = &c {
-            visible *= 1.0 - ptm_k(v_, c, lt);
+            visible *= 1.0 - t.ptm_k(c, lt);
         }
         let cos_l = dot(ns, l).max(0.0);
         let sheen = sheen_brdf(f, ns, v, l);

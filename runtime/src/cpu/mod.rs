@@ -15,7 +15,7 @@ use rayon::prelude::*;
 
 use crate::output::Image;
 use crate::scene::SceneBuffers;
-use shade::{pixel_world, ptm_k_unclamped, ptm_lod, OpacityFn, Twin};
+use shade::{pixel_world, ptm_lod, OpacityFn, Twin};
 
 /// Renders the prepared scene on the CPU (row-parallel; each pixel is independent, so the
 /// result does not depend on the thread count); a mesh scene through [`mesh::render`].
@@ -71,8 +71,7 @@ pub struct KExcursion {
 /// K before clamping at every pixel for every light, exactly as the shader evaluates it;
 /// `None` without a PTM or without a light above the acceptor.
 pub fn k_excursion(p: &SceneBuffers) -> Option<KExcursion> {
-    let basis = p.variant.basis?;
-    if p.variant.mesh {
+    if p.variant.basis.is_none() || p.variant.mesh {
         // Reported for the plane path (the mesh path's tangent frames are per pixel).
         return None;
     }
@@ -101,7 +100,7 @@ pub fn k_excursion(p: &SceneBuffers) -> Option<KExcursion> {
                         continue;
                     }
                     let l = d.map(|x| x / len);
-                    let k = ptm_k_unclamped(basis, p.variant.link, p.variant.uv, &c, l);
+                    let k = twin.ptm_k_unclamped(&c, l);
                     lo = lo.min(k);
                     hi = hi.max(k);
                     out += u64::from(!(0.0..=1.0).contains(&k));
@@ -139,7 +138,8 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
         "shade.wgsl" => shade::vs_main, shade::view_dir, shade::pixel_world,
             shade::tile_bilinear, shade::ptm_lod, shade::level_axis, shade::level_bilinear,
             shade::Twin::ptm_level, shade::Twin::ptm_coeffs, shade::ptm_hemispherical,
-            shade::ptm_sigmoid, shade::ptm_k, shade::Twin::coverage_level,
+            shade::ptm_sigmoid, shade::learned_bilinear, shade::Twin::learned_eval,
+            shade::Twin::ptm_k, shade::Twin::coverage_level,
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
             shade::caster_texel_coords, shade::Twin::light_opacity, shade::Twin::shade,
             shade::Twin::fs_main;

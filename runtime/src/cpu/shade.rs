@@ -9,7 +9,7 @@ use std::any::Any;
 
 use crate::blur::{Bound, Kernel, Method};
 use crate::layout::{Frame, LightGpu, PlaneGpu, PtmLevel};
-use crate::scene::{SceneBuffers, Variant};
+use crate::scene::SceneBuffers;
 
 /// The least half-side of a rectangular light's box kernel, in texels (`RECT_MIN` in WGSL): a
 /// thin light's kernel is a line, which sees the texel it crosses.
@@ -146,29 +146,25 @@ pub fn ptm_sigmoid(p: f32) -> f32 {
     }
 }
 
-/// K of `link` and `uv` before the clamp for the unit light direction l: what `ptm_k` clamps.
-pub fn ptm_k_unclamped(
-    basis: ptm_format::Basis,
-    link: Link,
-    uv: UvMap,
-    c: &[f32],
-    l: [f32; 3],
-) -> f32 {
-    let [u, v] = match uv {
-        UvMap::Projected => [l[0], l[1]],
-        UvMap::Hemispherical => ptm_hemispherical(l),
-    };
-    let p = basis.eval(&c[..basis.len()], u, v);
-    match link {
-        Link::Identity => p,
-        Link::Logistic => ptm_sigmoid(p),
-    }
-}
-
-/// K of the variant's link and (u, v) map for the unit light direction l, clamped to [0, 1].
-pub fn ptm_k(v: &Variant, c: &[f32], l: [f32; 3]) -> f32 {
-    let basis = v.basis.expect("ptm_k without a PTM");
-    ptm_k_unclamped(basis, v.link, v.uv, c, l).clamp(0.0, 1.0)
+/// The four table nodes (x0y0, x1y0, x0y1, x1y1) of the cell holding hemispherical `uv` on a
+/// `grid` × `grid` table and their bilinear weights: `ptm_format::learned::bilinear` in f32
+/// ((u, v) clamped to [−1, 1]², grid coordinates clamped to [0, G − 1], the cell's lower node at
+/// most G − 2, so u = 1 reads node G − 1 with weight 1).
+pub fn learned_bilinear(grid: u32, uv: [f32; 2]) -> ([usize; 4], [f32; 4]) {
+    let s = (grid - 1) as f32;
+    let x = uv.map(|u| ((u.clamp(-1.0, 1.0) + 1.0) * 0.5 * s).clamp(0.0, s));
+    let i0 = x.map(|x| (x.floor() as u32).min(grid - 2));
+    let a = [x[0] - i0[0] as f32, x[1] - i0[1] as f32];
+    let (c, g) = ((i0[1] * grid + i0[0]) as usize, grid as usize);
+    (
+        [c, c + 1, c + g, c + g + 1],
+        [
+            (1.0 - a[0]) * (1.0 - a[1]),
+            a[0] * (1.0 - a[1]),
+            (1.0 - a[0]) * a[1],
+            a[0] * a[1],
+        ],
+    )
 }
 
 /// Continuous caster texel coordinates (column, row from the far edge) of a caster-plane point.
@@ -236,6 +232,49 @@ impl Twin<'_> {
             }
         }
         c
+    }
+
+    /// p = Σₖ cₖ·Bₖ(u, v) of a learned basis: each table read bilinearly at `uv` (the
+    /// node-major `learned` buffer), dotted with the coefficients.
+    pub fn learned_eval(&self, c: &[f32], uv: [f32; 2]) -> f32 {
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        let (i, w) = learned_bilinear(self.p.variant.learned_grid, uv);
+        let t = &self.p.learned;
+        let mut p = 0f32;
+        for k in 0..n {
+            p += c[k]
+                * (w[0] * t[i[0] * n + k]
+                    + w[1] * t[i[1] * n + k]
+                    + w[2] * t[i[2] * n + k]
+                    + w[3] * t[i[3] * n + k]);
+        }
+        p
+    }
+
+    /// K of the variant's link, (u, v) map and basis (the monomials, or the learned tables)
+    /// before the clamp, for the unit light direction l: what `ptm_k` clamps.
+    pub fn ptm_k_unclamped(&self, c: &[f32], l: [f32; 3]) -> f32 {
+        let v = &self.p.variant;
+        let basis = v.basis.expect("ptm_k without a PTM");
+        let uv = match v.uv {
+            UvMap::Projected => [l[0], l[1]],
+            UvMap::Hemispherical => ptm_hemispherical(l),
+        };
+        let p = if basis.is_learned() {
+            self.learned_eval(c, uv)
+        } else {
+            basis.eval(&c[..basis.len()], uv[0], uv[1])
+        };
+        match v.link {
+            Link::Identity => p,
+            Link::Logistic => ptm_sigmoid(p),
+        }
+    }
+
+    /// K of the variant's link, (u, v) map and basis for the unit light direction l, clamped
+    /// to [0, 1].
+    pub fn ptm_k(&self, c: &[f32], l: [f32; 3]) -> f32 {
+        self.ptm_k_unclamped(c, l).clamp(0.0, 1.0)
     }
 
     /// Bilinearly filtered coverage of MIP level `level` at p.
@@ -359,7 +398,7 @@ impl Twin<'_> {
             let l = to_light.map(|x| x / d);
             let mut visible = [1f32; 3];
             if let Some(c) = &c {
-                let k = ptm_k(&self.p.variant, c, l);
+                let k = self.ptm_k(c, l);
                 visible = visible.map(|v| v * (1.0 - k));
             }
             if self.p.variant.caster.is_some() {
@@ -396,6 +435,28 @@ mod tests {
     use super::*;
     use ptm_format::{Basis, Ptm};
 
+    /// The twin of a prepared 1×1 scene over `ptm`.
+    fn twin_k(ptm: &Ptm, l: [f32; 3]) -> f32 {
+        let p = crate::Scene::over_ptm(ptm.clone(), 1, [1, 1])
+            .prepare()
+            .unwrap();
+        let twin = Twin {
+            p: &p,
+            blur: None,
+            opacity: None,
+        };
+        twin.ptm_k(&ptm.coeffs(0, 0), l)
+    }
+
+    /// Directions from the zenith down to 0.5° above the horizon, azimuths all round.
+    fn directions() -> impl Iterator<Item = [f64; 3]> {
+        (0..200).map(|i| {
+            let el = (90.0 - 89.5 * i as f64 / 199.0).to_radians();
+            let az = 2.399 * i as f64;
+            [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()]
+        })
+    }
+
     #[test]
     fn twin_k_equals_the_fit_crates_eval_dir_for_every_link_and_map() {
         // The runtime and ptm-fit must agree on what a file means (ptm_hemispherical uses
@@ -408,22 +469,89 @@ mod tests {
                     let mut ptm = Ptm::new(basis, 1, 1, [1.0, 1.0], planes.clone());
                     ptm.link = link;
                     ptm.uv = uv;
-                    let c: Vec<f32> = planes.iter().map(|p| p[0]).collect();
-                    for i in 0..200 {
-                        // Elevations from the zenith down to 0.5° above the horizon.
-                        let el = (90.0 - 89.5 * i as f64 / 199.0).to_radians();
-                        let az = 2.399 * i as f64;
-                        let l = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+                    for l in directions() {
                         let want = ptm.eval_dir(0, 0, l);
-                        let lf = l.map(|x| x as f32);
-                        let got = ptm_k_unclamped(basis, link, uv, &c, lf).clamp(0.0, 1.0);
+                        let got = twin_k(&ptm, l.map(|x| x as f32));
                         assert!(
                             (got - want).abs() < 2e-5,
                             "{} {link:?} {uv:?} elevation {:.2}°: twin {got} vs eval_dir {want}",
                             basis.name(),
-                            el.to_degrees()
+                            l[2].asin().to_degrees()
                         );
                     }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn twin_k_of_a_learned_basis_equals_eval_dir() {
+        // Tables of hashed values in [−1.5, 1.5) on grids of 2 (one cell: the clamp of the
+        // lower node to G − 2 everywhere), 5 and 17 nodes; 1, 6 and 16 terms.
+        for (terms, grid) in [(6, 17), (16, 5), (1, 2), (11, 17)] {
+            let basis = Basis::learned(terms).unwrap();
+            let unit =
+                |key: u64| ptm_format::hash::unit_f64(ptm_format::hash::splitmix64(key)) as f32;
+            let values = (0..terms * grid * grid)
+                .map(|i| 3.0 * unit(i as u64 + 77) - 1.5)
+                .collect();
+            // |c| in [1, 2), alternating signs: K moves with the direction.
+            let planes = (0..terms)
+                .map(|k| vec![(1.0 + unit(k as u64)) * if k % 2 == 0 { 1.0 } else { -1.0 }])
+                .collect();
+            let mut ptm = Ptm::new(basis, 1, 1, [1.0, 1.0], planes);
+            ptm.link = Link::Logistic;
+            ptm.uv = UvMap::Hemispherical;
+            ptm.learned = Some(ptm_format::LearnedTable {
+                grid,
+                terms,
+                values,
+            });
+            ptm.validate().unwrap();
+            let mut spread = (f32::INFINITY, f32::NEG_INFINITY);
+            for l in directions() {
+                let want = ptm.eval_dir(0, 0, l);
+                let got = twin_k(&ptm, l.map(|x| x as f32));
+                spread = (spread.0.min(want), spread.1.max(want));
+                assert!(
+                    (got - want).abs() < 2e-5,
+                    "learned{terms} grid {grid} elevation {:.2}°: twin {got} vs eval_dir {want}",
+                    l[2].asin().to_degrees()
+                );
+            }
+            // The directions reach across the table: K is not one value.
+            assert!(
+                spread.1 - spread.0 > 0.02,
+                "learned{terms}: K in {spread:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn learned_bilinear_takes_the_formats_nodes_and_weights() {
+        // On and between nodes, on the edges and corners, outside the square.
+        for grid in [2u32, 3, 17] {
+            let s = (grid - 1) as f32;
+            let mut at: Vec<[f32; 2]> = (0..=2 * (grid - 1))
+                .map(|i| -1.0 + i as f32 / s)
+                .flat_map(|u| [[u, -1.0], [u, 1.0], [1.0, u], [u, 0.3 * u]])
+                .collect();
+            at.extend([[1.5, -2.0], [-1.0, -1.0], [1.0, 1.0], [0.999_999, 0.0]]);
+            for uv in at {
+                // Weights per node: at a node, f32 and f64 may pick adjacent cells, with weight
+                // 0 on the nodes they do not share.
+                let (idx, w) = learned_bilinear(grid, uv);
+                let want = ptm_format::learned::bilinear(grid as usize, uv[0] as f64, uv[1] as f64);
+                let mut dense = vec![[0f64; 2]; (grid * grid) as usize];
+                for t in 0..4 {
+                    dense[idx[t]][0] += w[t] as f64;
+                    dense[want[t].0][1] += want[t].1;
+                }
+                for (node, [got, want]) in dense.iter().enumerate() {
+                    assert!(
+                        (got - want).abs() < 1e-5,
+                        "grid {grid} at {uv:?}, node {node}: weight {got} vs {want}"
+                    );
                 }
             }
         }

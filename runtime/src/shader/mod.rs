@@ -2,9 +2,10 @@
 //! remove bindings, so what a scene lacks is cut out of the text), and naga validation.
 //!
 //! Directives are whole lines `//#if NAME`, `//#else`, `//#endif` (nestable); placeholders
-//! `{{NC}}`, `{{PTM_EVAL}}`, `{{BLUR}}` (the blur method's file), `{{CHANNELS}}` (its image's
-//! channels). The PTM polynomial is generated from the fit
-//! crate's monomial table, so the shader and `Basis::eval` cannot disagree on the order.
+//! `{{NC}}`, `{{PTM_EVAL}}`, `{{GRID}}` (a learned basis's grid side), `{{BLUR}}` (the blur
+//! method's file), `{{CHANNELS}}` (its image's channels). The PTM polynomial is generated from
+//! the format crate's monomial table, so the shader and `Basis::eval` cannot disagree on the
+//! order; a learned basis replaces it by the bilinear read of its table (`learned_eval`).
 
 use ptm_format::{Basis, Link, UvMap};
 
@@ -25,6 +26,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     }
     if v.basis.is_some() && v.coverage {
         d.push("PTM_COVERAGE");
+    }
+    if v.basis.is_some_and(Basis::is_learned) {
+        d.push("PTM_LEARNED");
     }
     if v.basis.is_some() && v.link == Link::Logistic {
         d.push("PTM_LOGISTIC");
@@ -47,8 +51,12 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     d
 }
 
-/// The WGSL expression Σ c\[i\]·u^a·v^b in basis order, e.g. `c[0] * (u * u) + c[1] * (u) + …`.
+/// The WGSL expression Σ c\[i\]·u^a·v^b in basis order, e.g. `c[0] * (u * u) + c[1] * (u) + …`;
+/// for a learned basis the table's read, `learned_eval(c, uv)` (shade.wgsl, `PTM_LEARNED`).
 pub fn ptm_eval_expr(basis: Basis) -> String {
+    if basis.is_learned() {
+        return "learned_eval(c, uv)".into();
+    }
     let terms: Vec<String> = basis
         .monomials()
         .iter()
@@ -130,6 +138,7 @@ pub fn shade_source(v: &Variant) -> Result<String> {
     Ok(src
         .replace("{{NC}}", &nc.to_string())
         .replace("{{PTM_EVAL}}", &eval)
+        .replace("{{GRID}}", &v.learned_grid.to_string())
         .replace("{{CHANNELS}}", &v.sat_channels().to_string()))
 }
 
@@ -159,8 +168,9 @@ mod tests {
     fn every_shade_variant_validates_with_naga() {
         let all = Variant::all();
         // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
-        // and without coverage; × albedo × (caster, or a mesh with or without a normal map).
-        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2) * 2 * (9 + 2));
+        // and without coverage, or learned6 or learned11 (logistic, hemispherical) × MIP chain
+        // × coverage; × albedo × (caster, or a mesh with or without a normal map).
+        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 2));
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -188,6 +198,7 @@ mod tests {
     fn variants_without_a_feature_have_no_binding_for_it() {
         let v = Variant {
             basis: None,
+            learned_grid: 0,
             albedo_texture: false,
             caster: None,
             colored: false,
@@ -244,6 +255,38 @@ mod tests {
             for name in hemispherical {
                 let want = ptm && v.uv == UvMap::Hemispherical;
                 assert_eq!(src.contains(name), want, "{}: {name}", v.name());
+            }
+        }
+    }
+
+    #[test]
+    fn only_learned_variants_have_the_table_its_binding_and_its_lookup() {
+        // A polynomial scene's WGSL never mentions the learned basis: no binding, no grid
+        // constant, no lookup, not even a comment; a learned scene's has all three and no
+        // polynomial.
+        let all = Variant::all();
+        assert!(all.iter().any(|v| v.basis.is_some_and(Basis::is_learned)));
+        for v in all {
+            let src = shade_source(&v).unwrap();
+            let learned = v.basis.is_some_and(Basis::is_learned);
+            assert_eq!(
+                src.to_lowercase().contains("learned"),
+                learned,
+                "{}",
+                v.name()
+            );
+            let module = validate(&v.name(), &src).unwrap();
+            let bound = crate::bindings::reflect(&module)
+                .contains(&("learned".to_string(), crate::bindings::shade::LEARNED.index));
+            assert_eq!(bound, learned, "{}: the table's binding", v.name());
+            if learned {
+                assert!(
+                    src.contains("const LEARNED_GRID: u32 = 17u;"),
+                    "{}",
+                    v.name()
+                );
+                assert!(src.contains("let k = ptm_sigmoid(learned_eval(c, uv));"));
+                assert!(!src.contains("c[0] * (u"), "{}: a polynomial", v.name());
             }
         }
     }

@@ -94,6 +94,12 @@ struct PtmLevel {
 // Per PTM texel (levels laid out as in `coeffs`): the fraction with cloth under it, 0 in a hole.
 @group(0) @binding(10) var<storage, read> coverage: array<f32>;
 //#endif
+//#if PTM_LEARNED
+// A learned basis's NC tables B_k (`ptm_format::LearnedTable`, shared by every MIP level),
+// node-major: the NC values of grid node (column i, row j) start at (j·G + i)·NC, so each
+// bilinear tap reads one run, as a texel's coefficients are read (the file is term-major).
+@group(0) @binding(13) var<storage, read> learned: array<f32>;
+//#endif
 
 //#if MESH
 //#else
@@ -302,6 +308,39 @@ fn ptm_hemispherical(l: vec3<f32>) -> vec2<f32> {
 fn ptm_sigmoid(p: f32) -> f32 {
     let e = exp(-abs(p));
     return select(e / (1.0 + e), 1.0 / (1.0 + e), p >= 0.0);
+}
+//#endif
+
+//#if PTM_LEARNED
+// Grid side G of the tables: node i of an axis at u = −1 + 2i/(G − 1) (v likewise, rows j).
+const LEARNED_GRID: u32 = {{GRID}}u;
+
+// The four nodes (x0y0, x1y0, x0y1, x1y1) of the table cell holding hemispherical (u, v) and
+// their bilinear weights, as `ptm_format::learned::bilinear`: (u, v) clamped to [−1, 1]², grid
+// coordinates x = (u + 1)/2 · (G − 1) clamped to [0, G − 1], the cell's lower node at most
+// G − 2, so u = 1 reads node G − 1 with weight 1 (and beyond the square, the edge).
+fn learned_bilinear(uv: vec2<f32>) -> Bilinear {
+    let s = f32(LEARNED_GRID - 1u);
+    let x = clamp((clamp(uv, vec2<f32>(-1.0), vec2<f32>(1.0)) + 1.0) * 0.5 * s, vec2<f32>(0.0), vec2<f32>(s));
+    let i0 = min(vec2<u32>(floor(x)), vec2<u32>(LEARNED_GRID - 2u));
+    let a = x - vec2<f32>(i0);
+    let c = i0.y * LEARNED_GRID + i0.x;
+    var b: Bilinear;
+    b.index = vec4<u32>(c, c + 1u, c + LEARNED_GRID, c + LEARNED_GRID + 1u);
+    b.weight = vec4<f32>((1.0 - a.x) * (1.0 - a.y), a.x * (1.0 - a.y), (1.0 - a.x) * a.y, a.x * a.y);
+    return b;
+}
+
+// p = Σ_k c_k·B_k(u, v): each table read bilinearly at (u, v), dotted with the coefficients.
+fn learned_eval(c: array<f32, {{NC}}>, uv: vec2<f32>) -> f32 {
+    let b = learned_bilinear(uv);
+    let i = b.index * NC;
+    var p = 0.0;
+    for (var k = 0u; k < NC; k++) {
+        p += c[k] * (b.weight.x * learned[i.x + k] + b.weight.y * learned[i.y + k]
+            + b.weight.z * learned[i.z + k] + b.weight.w * learned[i.w + k]);
+    }
+    return p;
 }
 //#endif
 
