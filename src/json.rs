@@ -143,7 +143,7 @@ pub struct Learned {
     pub texels: usize,
     /// Alternations of table and coefficient Newton steps run.
     pub alternations: u32,
-    /// The alternation whose tables were kept: that of the lowest held-out deviance on the
+    /// The alternation whose tables were kept: that of the lowest held-out RMS error on the
     /// subsample when lights are held out (0: the polynomial start), else the last.
     pub kept: u32,
     /// Mean binomial deviance per sample on those texels at the start (the polynomial basis

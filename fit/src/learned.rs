@@ -42,7 +42,7 @@ pub const GRID: usize = 17;
 /// Roughness λ of the tables (the penalty is λ·S·‖D b‖², S texels).
 pub const ROUGHNESS: f64 = 1e-2;
 /// Most texels the basis is learned on.
-pub const MAX_SUBSAMPLE: usize = 8192;
+pub const MAX_SUBSAMPLE: usize = 4096;
 /// Most alternations of the learning.
 pub const MAX_ALTERNATIONS: u32 = 40;
 /// The learning stops when an alternation lowers J by less than this fraction of J.

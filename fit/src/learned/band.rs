@@ -30,25 +30,27 @@ impl Band {
         let (n, bw) = (self.n, self.bw);
         let s1 = bw + 1;
         let mut l = self.v.clone();
+        // Row r's entries A[r][q] for q = r − 1, r − 2, … lie at v[r·s1 + 1], v[r·s1 + 2], …, so
+        // Σ_q L[i][q]·L[j][q] over the columns both rows reach is a dot product of two
+        // contiguous runs (t = j − q = 1 …).
         for j in 0..n {
-            let lo = j.saturating_sub(bw);
-            let mut s = l[j * s1];
-            for q in lo..j {
-                let x = l[j * s1 + (j - q)];
-                s -= x * x;
-            }
+            let m = j - j.saturating_sub(bw);
+            let row = &l[j * s1 + 1..j * s1 + 1 + m];
+            let s = l[j * s1] - dot(row, row);
             if s.is_nan() || s <= 0.0 {
                 return None;
             }
             let d = s.sqrt();
             l[j * s1] = d;
             for i in j + 1..(j + bw + 1).min(n) {
-                let lo = i.saturating_sub(bw);
-                let mut s = l[i * s1 + (i - j)];
-                for q in lo..j {
-                    s -= l[i * s1 + (i - q)] * l[j * s1 + (j - q)];
-                }
-                l[i * s1 + (i - j)] = s / d;
+                let (off, m) = (i - j, j - i.saturating_sub(bw));
+                let (head, tail) = l.split_at_mut(i * s1);
+                let x = tail[off]
+                    - dot(
+                        &tail[off + 1..off + 1 + m],
+                        &head[j * s1 + 1..j * s1 + 1 + m],
+                    );
+                tail[off] = x / d;
             }
         }
         let mut y = g.to_vec();
@@ -66,6 +68,25 @@ impl Band {
         }
         Some(y)
     }
+}
+
+/// Σ a·b with four independent partial sums (so that the compiler can keep them in vector
+/// lanes; the order is fixed, so the result is the same on every machine).
+#[inline]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    for (x, y) in ra.iter().zip(rb) {
+        s += x * y;
+    }
+    s
 }
 
 #[cfg(test)]

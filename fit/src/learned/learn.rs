@@ -513,7 +513,7 @@ pub(crate) fn learn(
         table_step(&p, &dtd, &mut b, &c, f_table);
         let a = rows(&p, &b);
         p.rho = ridge(&p, &a);
-        coefficient_steps(&p, &a, &mut c, 2);
+        coefficient_steps(&p, &a, &mut c, 1);
         let dv = total_dev(&p, &a, &c);
         f_table = dv + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
         let j = f_table + coef_ridge(&p, &c);

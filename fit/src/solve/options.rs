@@ -207,7 +207,7 @@ pub struct LearnedStats {
     pub texels: usize,
     /// Alternations run.
     pub alternations: u32,
-    /// The alternation whose tables were kept: the one of the lowest held-out deviance on the
+    /// The alternation whose tables were kept: the one of the lowest held-out RMS error on the
     /// subsample when the fit holds lights out (0: the polynomial start), else the last.
     pub kept: u32,
     /// Mean deviance per fitted sample on the subsample, at the polynomial start and at the end.
