@@ -28,9 +28,10 @@
 //! the logistic kernel ([`crate::logistic`]), as a polynomial basis is.
 //!
 //! Files: this one (constants, what a fit needs of the options and the dome), `learn.rs` (the
-//! subsample, the alternation, the gauge, the kernel's tables), `band.rs` (the banded Cholesky
-//! solve of the table step).
+//! subsample, the alternation, early stopping on held-out lights, the kernel's tables),
+//! `gauge.rs` (the gauge), `band.rs` (the banded Cholesky solve of the table step).
 pub(crate) mod band;
+pub(crate) mod gauge;
 pub(crate) mod learn;
 
 use crate::solve::options::FitOptions;

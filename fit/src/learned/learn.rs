@@ -1,12 +1,12 @@
 //! Learning the tables of a learned basis (the maths: `learned.rs`): the deterministic
 //! subsample, damped Newton on the coefficients per texel and on the tables, the alternation,
-//! the gauge, and the logistic kernel's tables for the learned rows.
+//! and the logistic kernel's tables for the learned rows (the gauge: `gauge.rs`).
 use std::time::Instant;
 
-use nalgebra::{DMatrix, SymmetricEigen};
 use rayon::prelude::*;
 
 use super::band::Band;
+use super::gauge::gauge;
 use super::{start_basis, GRID, MAX_ALTERNATIONS, MAX_SUBSAMPLE, ROUGHNESS, STOP};
 use crate::logistic::pool::Source;
 use crate::logistic::tables::Tables;
@@ -37,17 +37,17 @@ fn subsample(texels: usize, live: &dyn Fn(usize) -> bool) -> Vec<usize> {
 }
 
 /// The learning problem on the subsample.
-struct Problem {
+pub(super) struct Problem {
     /// Terms k.
-    k: usize,
+    pub(super) k: usize,
     /// Texels S.
-    s: usize,
+    pub(super) s: usize,
     /// Fitting lights N.
-    n: usize,
+    pub(super) n: usize,
     /// K `[texel][light]`, < 0 where a sample is missing.
     kv: Vec<f32>,
     /// Per fitting light its weight ω.
-    omega: Vec<f64>,
+    pub(super) omega: Vec<f64>,
     /// Per fitting light its four grid cells and weights.
     cells: Vec<[(usize, f64); 4]>,
     /// Per-texel ridge ρ (absolute).
@@ -65,7 +65,7 @@ fn dev(k: f64, z: f64) -> f64 {
 }
 
 /// Design rows a_n = Σ w·b[cell] (N × k) of the table `b` (`[cell][term]`).
-fn rows(p: &Problem, b: &[f64]) -> Vec<f64> {
+pub(super) fn rows(p: &Problem, b: &[f64]) -> Vec<f64> {
     let k = p.k;
     let mut a = vec![0f64; p.n * k];
     for (n, cs) in p.cells.iter().enumerate() {
@@ -625,90 +625,6 @@ impl HeldOut {
 fn node(i: usize, j: usize) -> (f64, f64) {
     let s = (GRID - 1) as f64;
     (-1.0 + 2.0 * i as f64 / s, -1.0 + 2.0 * j as f64 / s)
-}
-
-/// The tables in the documented gauge (module docs), as stored.
-fn gauge(p: &Problem, b: &[f64], c: &[f64]) -> LearnedTable {
-    let k = p.k;
-    let g2 = GRID * GRID;
-    let a = rows(p, b);
-    let wsum: f64 = p.omega.iter().sum();
-    // Gram of the terms over the fitting lights, normalised: G = Σ ω a aᵀ / Σ ω = L Lᵀ.
-    let gram = DMatrix::from_fn(k, k, |i, j| {
-        (0..p.n)
-            .map(|q| p.omega[q] * a[q * k + i] * a[q * k + j])
-            .sum::<f64>()
-            / wsum
-    });
-    let l = gram
-        .clone()
-        .cholesky()
-        .map(|ch| ch.l())
-        .unwrap_or_else(|| DMatrix::identity(k, k));
-    let linv = l
-        .clone()
-        .try_inverse()
-        .unwrap_or_else(|| DMatrix::identity(k, k));
-    // Orthonormal terms B' = B L⁻ᵀ carry coefficients c' = Lᵀ c; their second moments' eigenvectors V.
-    let mut sm = DMatrix::<f64>::zeros(k, k);
-    for x in 0..p.s {
-        let cx = nalgebra::DVector::from_column_slice(&c[x * k..(x + 1) * k]);
-        let cp = l.transpose() * cx;
-        sm += &cp * cp.transpose();
-    }
-    let eig = SymmetricEigen::new(sm);
-    let mut order: Vec<usize> = (0..k).collect();
-    order.sort_by(|&x, &y| {
-        eig.eigenvalues[y]
-            .partial_cmp(&eig.eigenvalues[x])
-            .unwrap_or(std::cmp::Ordering::Equal)
-            .then(x.cmp(&y))
-    });
-    // Final transform T (k × k): b''[cell] = T b[cell], T = Vᵀ L⁻¹ with V's columns reordered.
-    let mut t = DMatrix::<f64>::zeros(k, k);
-    let vt_linv = eig.eigenvectors.transpose() * &linv;
-    for (r, &o) in order.iter().enumerate() {
-        for j in 0..k {
-            t[(r, j)] = vt_linv[(o, j)];
-        }
-    }
-    // Signs: each term's mean over the fitting lights positive (its largest entry when the
-    // mean is zero).
-    let mut values = vec![0f32; k * g2];
-    let mut tb = vec![0f64; g2 * k];
-    for cell in 0..g2 {
-        for r in 0..k {
-            tb[cell * k + r] = (0..k).map(|j| t[(r, j)] * b[cell * k + j]).sum();
-        }
-    }
-    let a2 = rows(p, &tb);
-    for r in 0..k {
-        let mean: f64 = (0..p.n).map(|q| p.omega[q] * a2[q * k + r]).sum();
-        let sign = if mean.abs() > 1e-9 * wsum {
-            mean.signum()
-        } else {
-            let big = (0..g2).map(|cell| tb[cell * k + r]).fold(0f64, |m, x| {
-                if x.abs() > m.abs() {
-                    x
-                } else {
-                    m
-                }
-            });
-            if big < 0.0 {
-                -1.0
-            } else {
-                1.0
-            }
-        };
-        for cell in 0..g2 {
-            values[r * g2 + cell] = (sign * tb[cell * k + r]) as f32;
-        }
-    }
-    LearnedTable {
-        grid: GRID,
-        terms: k,
-        values,
-    }
 }
 
 #[cfg(test)]
