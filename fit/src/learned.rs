@@ -29,10 +29,11 @@
 //!
 //! Files: this one (constants, what a fit needs of the options and the dome), `learn.rs` (the
 //! subsample, the alternation, early stopping on held-out lights, the kernel's tables),
-//! `gauge.rs` (the gauge), `band.rs` (the banded Cholesky solve of the table step).
+//! `gauge.rs` (the gauge), `problem.rs` (the problem and its design rows), `band.rs` (the banded Cholesky solve of the table step).
 pub(crate) mod band;
 pub(crate) mod gauge;
 pub(crate) mod learn;
+pub(crate) mod problem;
 
 use crate::solve::options::FitOptions;
 use crate::{Error, Result};

@@ -2,7 +2,7 @@
 //! lights, ordered by the variance of the coefficients and signed, as stored.
 use nalgebra::{DMatrix, SymmetricEigen};
 
-use super::learn::{rows, Problem};
+use super::problem::{rows, Problem};
 use super::GRID;
 use ptm_format::LearnedTable;
 

@@ -7,6 +7,7 @@ use rayon::prelude::*;
 
 use super::band::Band;
 use super::gauge::gauge;
+use super::problem::{rows, Problem};
 use super::{start_basis, GRID, MAX_ALTERNATIONS, MAX_SUBSAMPLE, ROUGHNESS, STOP};
 use crate::logistic::pool::Source;
 use crate::logistic::tables::Tables;
@@ -36,46 +37,10 @@ fn subsample(texels: usize, live: &dyn Fn(usize) -> bool) -> Vec<usize> {
     out
 }
 
-/// The learning problem on the subsample.
-pub(super) struct Problem {
-    /// Terms k.
-    pub(super) k: usize,
-    /// Texels S.
-    pub(super) s: usize,
-    /// Fitting lights N.
-    pub(super) n: usize,
-    /// K `[texel][light]`, < 0 where a sample is missing.
-    kv: Vec<f32>,
-    /// Per fitting light its weight ω.
-    pub(super) omega: Vec<f64>,
-    /// Per fitting light its four grid cells and weights.
-    cells: Vec<[(usize, f64); 4]>,
-    /// Per-texel ridge ρ (absolute).
-    rho: f64,
-    /// Roughness weight μ = λ·S.
-    mu: f64,
-    /// Σ ω over the samples present (the deviance's normaliser).
-    weight_sum: f64,
-}
-
 /// Binomial deviance of fraction k at logit z: softplus(z) − k·z, stable in both tails.
 #[inline]
 fn dev(k: f64, z: f64) -> f64 {
     z.max(0.0) + (-z.abs()).exp().ln_1p() - k * z
-}
-
-/// Design rows a_n = Σ w·b[cell] (N × k) of the table `b` (`[cell][term]`).
-pub(super) fn rows(p: &Problem, b: &[f64]) -> Vec<f64> {
-    let k = p.k;
-    let mut a = vec![0f64; p.n * k];
-    for (n, cs) in p.cells.iter().enumerate() {
-        for &(c, w) in cs {
-            for j in 0..k {
-                a[n * k + j] += w * b[c * k + j];
-            }
-        }
-    }
-    a
 }
 
 /// Solves the k × k SPD system `h` (dense, row-major) · x = g by Cholesky; `None` when not
