@@ -42,6 +42,17 @@ use crate::header::{self, Attributes, Header};
 use crate::ptm::{channel_name, clamp_ringing, mip_sizes, Level};
 use crate::{Basis, Error, LearnedTable, Ptm, PtmInfo, Result, SaveOptions};
 
+/// Header attributes every part of the renderer layout (coefficient and basis parts) must
+/// share with part c0.
+const PART_KEYS: [&str; 6] = [
+    "ptm:basis",
+    "ptm:link",
+    "ptm:uv",
+    "ptm:version",
+    crate::learned::GRID_ATTR,
+    crate::learned::TABLE_ATTR,
+];
+
 /// Value of `ptm:layout` in every part of the renderer layout.
 pub const RGBA_LAYOUT: &str = "rgba/1";
 
@@ -879,14 +890,7 @@ fn read_rgba(path: &Path) -> Result<PtmFile> {
                 ),
             ));
         }
-        for key in [
-            "ptm:basis",
-            "ptm:link",
-            "ptm:uv",
-            "ptm:version",
-            crate::learned::GRID_ATTR,
-            crate::learned::TABLE_ATTR,
-        ] {
+        for key in PART_KEYS {
             if s.attrs.get(key) != file.attrs.get(key) {
                 return Err(format_err(
                     &p,
@@ -1016,14 +1020,7 @@ fn check_basis_part(path: &Path, attrs: &Attributes, table: &LearnedTable, i: us
         ));
     }
     let s = read_single(&p)?;
-    for key in [
-        "ptm:basis",
-        "ptm:link",
-        "ptm:uv",
-        "ptm:version",
-        crate::learned::GRID_ATTR,
-        crate::learned::TABLE_ATTR,
-    ] {
+    for key in PART_KEYS {
         if s.attrs.get(key) != attrs.get(key) {
             return Err(format_err(
                 &p,
