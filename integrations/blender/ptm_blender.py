@@ -537,8 +537,10 @@ def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.
             node.inputs["basis"].default_value = 11 if basis == "ptm11" else 6
             node.inputs["link"].default_value = 1 if link == "logistic" else 0
             node.inputs["uvmap"].default_value = 1 if uv == "hemispherical" else 0
-        node.inputs["interp"].default_value = {"Closest": "closest", "Linear": "bilinear",
-                                                "Cubic": "bicubic"}.get(interpolation, "smartcubic")
+        # OSL's texture() names its modes "closest", "linear", "cubic", "smartcubic" (the OSL
+        # spec; the learned shader reads its basis with "linear"); OIIO's "bilinear" is not one.
+        node.inputs["interp"].default_value = {"Closest": "closest", "Linear": "linear",
+                                                "Cubic": "cubic"}.get(interpolation, "smartcubic")
         tree.links.new(mapping.outputs["Vector"], node.inputs["UV"])
         # Cycles' dPdu follows the triangle, not the UV map: pass the UV tangent.
         tangent = tree.nodes.new("ShaderNodeTangent")
