@@ -9,6 +9,7 @@
 //! contact sheet from the typed results and writes the prose around them.
 
 pub mod baselines;
+pub mod compare;
 pub mod runtime;
 pub mod sheet;
 pub mod stability;
