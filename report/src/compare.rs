@@ -147,3 +147,24 @@ fn index_of(texels: &[usize], res: usize) -> Vec<usize> {
     }
     at
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small bake of the plain weave: every model scores a finite error, the horizon map and
+    /// the logistic ptm11 beat the one-number AO, and the ptm11 beats the ptm6 of its link.
+    #[test]
+    fn comparison_row_orders_the_models_sensibly() {
+        let swatch = PreparedMesh::load("builtin:plain-weave", None).unwrap();
+        let test = crate::study::test_lights(16).unwrap();
+        let truth = Truth::bake(&swatch, 16, 8, test).unwrap();
+        let row = compare("plain-weave", &swatch, &truth, 48, 4, 16).unwrap();
+        let rms = |name: &str| row.models.iter().find(|m| m.name == name).unwrap().rms;
+        assert_eq!(row.models.len(), 7);
+        assert!(row.models.iter().all(|m| m.rms.is_finite() && m.rms > 0.0));
+        let ao = rms("AO micro-shadowing");
+        assert!(rms("horizon 8") < ao && rms("ptm11 logistic") < ao);
+        assert!(rms("ptm11 identity") < rms("ptm6 identity"));
+    }
+}
