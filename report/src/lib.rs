@@ -8,6 +8,8 @@
 //! and Markdown the `ptm report` command writes); the command also draws the plots and the
 //! contact sheet from the typed results and writes the prose around them.
 
+pub mod baselines;
+pub mod compare;
 pub mod runtime;
 pub mod sheet;
 pub mod stability;
