@@ -456,13 +456,29 @@ fn learned_table(ptm: &Ptm) -> Result<&LearnedTable> {
 }
 
 /// A learned table node-major, as the shader reads it: the k values B₀ … B_{k−1} of grid node
-/// (column i, row j) at `(j·G + i)·k` (the file's `LearnedTable::values` are term-major), so
-/// each of the four bilinear taps reads one run of k floats, as a texel's coefficients are read.
+/// (column i, row j) at `(j·G + i)·s`, s = 4·⌈k/4⌉ (the stride [`learned_stride`]) and zeros
+/// after the k values (the file's `LearnedTable::values` are term-major). The shader reads each
+/// of the four bilinear taps as ⌈k/4⌉ `vec4`s, so 11 terms cost 12 loads a light, not 44 scalar
+/// ones (storage loads at per-pixel addresses are gathers on a CPU rasteriser such as lavapipe).
 fn node_major(table: &LearnedTable) -> Vec<f32> {
     let (k, g2) = (table.terms, table.cells());
-    (0..g2 * k)
-        .map(|i| table.values[(i % k) * g2 + i / k])
+    let s = learned_stride(k);
+    (0..g2 * s)
+        .map(|i| {
+            let (node, t) = (i / s, i % s);
+            if t < k {
+                table.values[t * g2 + node]
+            } else {
+                0.0
+            }
+        })
         .collect()
+}
+
+/// Floats per grid node in [`SceneBuffers::learned`] for a basis of `terms` terms: `terms`
+/// rounded up to a multiple of 4 (whole `vec4`s; the padding is zero).
+pub fn learned_stride(terms: usize) -> usize {
+    terms.div_ceil(4) * 4
 }
 
 /// Appends a PTM's stored MIP levels (sizes halved and rounded down, to 1×1) to its texel-major
@@ -761,7 +777,8 @@ pub struct SceneBuffers {
     /// never minifies the PTM.
     pub ptm_levels: Vec<PtmLevel>,
     /// A learned basis's k tables node-major: Bₜ at grid node (column i, row j) at
-    /// `learned[(j·G + i)·k + t]` (G = `variant.learned_grid`), read bilinearly at the
+    /// `learned[(j·G + i)·s + t]` (G = `variant.learned_grid`, s = [`learned_stride`]`(k)`,
+    /// zeros at t ≥ k, so a node is whole `vec4`s for the shader), read bilinearly at the
     /// hemispherical (u, v) as `ptm_format::LearnedTable::terms` reads them; shared by every MIP
     /// level; empty for a polynomial basis.
     pub learned: Vec<f32>,

@@ -218,7 +218,13 @@ fn gpu_matches_twin_for_learned_ptms_on_the_plane() {
             .prepare()
             .unwrap();
         assert!(!p.variant.ptm_mip);
-        assert_eq!(p.learned.len(), terms * grid * grid);
+        // Whole vec4s a node (11 → 12, 6 → 8, 3 → 4 floats), the padding zero.
+        let stride = terms.div_ceil(4) * 4;
+        assert_eq!(p.learned.len(), stride * grid * grid);
+        assert!(p
+            .learned
+            .chunks(stride)
+            .all(|n| n[terms..].iter().all(|&x| x == 0.0)));
         check(&p, &format!("learned{terms} grid {grid}, 1:1"));
     }
     // Minified by the view (8 tiles of 16 texels over 64 px): the file's stored levels, the
@@ -346,12 +352,13 @@ fn a_learned_ptm_the_shader_cannot_trust_is_refused() {
     ptm.link = Link::Identity;
     let e = refused(ptm);
     assert!(e.contains("logistic link over the hemispherical"), "{e}");
-    // The good one prepares, its table node-major: node (i, j)'s 6 values together.
+    // The good one prepares, its table node-major: node (i, j)'s 6 values together, padded to
+    // 8 (two vec4s).
     let p = Scene::over_ptm(good.clone(), 1, [8, 8]).prepare().unwrap();
     let table: &LearnedTable = good.learned.as_ref().unwrap();
     for (node, term) in [(0, 0), (5, 3), (17 * 17 - 1, 5), (40, 1)] {
         assert_eq!(
-            p.learned[node * 6 + term],
+            p.learned[node * 8 + term],
             table.values[term * 17 * 17 + node]
         );
     }

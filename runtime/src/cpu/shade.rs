@@ -235,18 +235,22 @@ impl Twin<'_> {
     }
 
     /// p = Σₖ cₖ·Bₖ(u, v) of a learned basis: each table read bilinearly at `uv` (the
-    /// node-major `learned` buffer), dotted with the coefficients.
+    /// node-major `learned` buffer, [`crate::scene::learned_stride`] floats a node), dotted with
+    /// the coefficients.
     pub fn learned_eval(&self, c: &[f32], uv: [f32; 2]) -> f32 {
         let n = self.p.variant.basis.map_or(0, |b| b.len());
         let (i, w) = learned_bilinear(self.p.variant.learned_grid, uv);
         let t = &self.p.learned;
+        let s = crate::scene::learned_stride(n);
         let mut p = 0f32;
+        // The shader's order of operations: the padding terms it adds are c·0 = ±0, which
+        // leave p as it is, so this loop stops at n.
         for k in 0..n {
             p += c[k]
-                * (w[0] * t[i[0] * n + k]
-                    + w[1] * t[i[1] * n + k]
-                    + w[2] * t[i[2] * n + k]
-                    + w[3] * t[i[3] * n + k]);
+                * (w[0] * t[i[0] * s + k]
+                    + w[1] * t[i[1] * s + k]
+                    + w[2] * t[i[2] * s + k]
+                    + w[3] * t[i[3] * s + k]);
         }
         p
     }

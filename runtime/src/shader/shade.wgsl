@@ -96,9 +96,10 @@ struct PtmLevel {
 //#endif
 //#if PTM_LEARNED
 // A learned basis's NC tables B_k (`ptm_format::LearnedTable`, shared by every MIP level),
-// node-major: the NC values of grid node (column i, row j) start at (j·G + i)·NC, so each
-// bilinear tap reads one run, as a texel's coefficients are read (the file is term-major).
-@group(0) @binding(13) var<storage, read> learned: array<f32>;
+// node-major in vec4s: the NC values of grid node (column i, row j) fill the LEARNED_QUADS vec4s
+// from (j·G + i)·LEARNED_QUADS, zero after the NC values (`scene::node_major`), so each
+// bilinear tap is ⌈NC/4⌉ vec4 loads rather than NC scalar ones (gathers on a CPU rasteriser).
+@group(0) @binding(13) var<storage, read> learned: array<vec4<f32>>;
 //#endif
 
 //#if MESH
@@ -331,14 +332,27 @@ fn learned_bilinear(uv: vec2<f32>) -> Bilinear {
     return b;
 }
 
-// p = Σ_k c_k·B_k(u, v): each table read bilinearly at (u, v), dotted with the coefficients.
+// vec4s per grid node: NC rounded up to whole vec4s.
+const LEARNED_QUADS: u32 = (NC + 3u) / 4u;
+
+// p = Σ_k c_k·B_k(u, v): each table read bilinearly at (u, v), dotted with the coefficients;
+// per term the same operations in the same order as the twin (`Twin::learned_eval`).
 fn learned_eval(c: array<f32, {{NC}}>, uv: vec2<f32>) -> f32 {
     let b = learned_bilinear(uv);
-    let i = b.index * NC;
+    let i = b.index * LEARNED_QUADS;
     var p = 0.0;
-    for (var k = 0u; k < NC; k++) {
-        p += c[k] * (b.weight.x * learned[i.x + k] + b.weight.y * learned[i.y + k]
-            + b.weight.z * learned[i.z + k] + b.weight.w * learned[i.w + k]);
+    for (var q = 0u; q < LEARNED_QUADS; q++) {
+        let t = b.weight.x * learned[i.x + q] + b.weight.y * learned[i.y + q]
+            + b.weight.z * learned[i.z + q] + b.weight.w * learned[i.w + q];
+        // Past the last term (k ≥ NC) the coefficient is 0 and the padding's table value is
+        // 0: a padded term adds 0·0, and p keeps the CPU twin's value bit for bit.
+        let k = vec4<u32>(4u * q) + vec4<u32>(0u, 1u, 2u, 3u);
+        let m = min(k, vec4<u32>(NC - 1u));
+        let ck = select(vec4<f32>(0.0), vec4<f32>(c[m.x], c[m.y], c[m.z], c[m.w]), k < vec4<u32>(NC));
+        p += ck.x * t.x;
+        p += ck.y * t.y;
+        p += ck.z * t.z;
+        p += ck.w * t.w;
     }
     return p;
 }
