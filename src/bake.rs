@@ -11,9 +11,10 @@ use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh};
 use ptm_fit::shard::{BakeIdentity, PartMeta};
 use ptm_fit::{Accumulator, FitOptions, SampleStack};
 use ptm_format::atomic::{same_file, Transaction};
-use ptm_format::{Basis, Layout, LightSet, SaveOptions};
+use ptm_format::{Basis, Layout, LightSet, Link, SaveOptions};
 
 use crate::args::{choice, parse_threads, ModelArgs};
+use crate::auto::BasisChoice;
 use crate::json;
 
 #[derive(clap::Args)]
@@ -58,10 +59,21 @@ pub struct Args {
     /// Seed of the sample positions (the output is identical for any thread count).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Fit a PTM while baking (streaming; -o is then the .ptm.exr): ptm6, ptm11, or a basis
-    /// learned from the bake, learned6 or learned11 (docs/model.md).
-    #[arg(long, value_name = "BASIS", value_parser = crate::args::parse_basis)]
-    pub fit: Option<Basis>,
+    /// Fit a PTM while baking (streaming; -o is then the .ptm.exr): ptm6, ptm11, a basis
+    /// learned from the bake, learned6 or learned11 (docs/model.md), or `auto`: each of ptm6,
+    /// learned6, ptm11, learned11 fitted from the same counts, scored on the same held-out
+    /// lights, the first (cheapest) within --auto-margin of the best kept (as `ptm fit
+    /// --basis auto`).
+    #[arg(long, value_name = "BASIS", value_parser = crate::auto::parse_choice)]
+    pub fit: Option<BasisChoice>,
+    /// With --fit: lights held out of the fit and scored (its error on lights it did not see).
+    /// Default: none for a given basis; with --fit auto an eighth, as `ptm fit`.
+    #[arg(long, value_name = "N", requires = "fit")]
+    pub holdout: Option<usize>,
+    /// With --fit auto: keep the cheapest candidate whose held-out error is at most
+    /// (1 + MARGIN) × the best candidate's.
+    #[arg(long, value_name = "MARGIN", default_value_t = crate::auto::AUTO_MARGIN, requires = "fit")]
+    pub auto_margin: f64,
     #[command(flatten)]
     pub model: ModelArgs,
     /// With --fit: ridge λ relative to the mean eigenvalue (see `ptm fit --regularize`).
@@ -190,14 +202,33 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
              diagnostics span all texels): bake the sample stack in shards, merge, then `ptm fit`"
         );
     }
-    if args.shard.is_some() && args.fit.is_some_and(Basis::is_learned) {
-        bail!(
-            "--shard with --fit {}: a learned basis is learned from the whole bake, which a shard \
-             does not see (not supported yet): bake the sample stack in shards, merge, then \
-             `ptm fit --basis {}`",
-            args.fit.unwrap().name(),
-            args.fit.unwrap().name()
-        );
+    if let Some(BasisChoice::Auto) = args.fit {
+        if args.shard.is_some() {
+            bail!(
+                "--shard with --fit auto: the candidates include learned bases, learned from the \
+                 whole bake, which a shard does not see: bake the sample stack in shards, merge, \
+                 then `ptm fit --basis auto`, or give the basis"
+            );
+        }
+        if args.model.link != Link::Logistic {
+            bail!(
+                "--fit auto with --link {}: the candidates are fitted from the logistic link's \
+                 sample counts (the identity link's sums belong to one basis); use the default \
+                 --link logistic, or give the basis",
+                args.model.link.name()
+            );
+        }
+    }
+    if let Some(f) = args.fit.and_then(BasisChoice::fixed) {
+        if args.shard.is_some() && f.is_learned() {
+            bail!(
+                "--shard with --fit {}: a learned basis is learned from the whole bake, which a \
+                 shard does not see (not supported yet): bake the sample stack in shards, merge, \
+                 then `ptm fit --basis {}`",
+                f.name(),
+                f.name()
+            );
+        }
     }
     if args.maps_png && args.shard.is_some() {
         bail!(
@@ -240,7 +271,7 @@ fn build_dome(args: &Args, mem_res: [usize; 2], materials: usize) -> anyhow::Res
 /// What identifies this bake in a farm part: every setting that changes the output, in the
 /// words of the library's [`BakeIdentity`] (parts of different settings never merge).
 fn settings(args: &Args, res: [usize; 2], tile: [f64; 2], lights: &LightSet) -> String {
-    let fit = args.fit.map(|f| fit_options(args, f));
+    let fit = args.fit.map(|f| fit_options(args, f.for_paths()));
     BakeIdentity {
         res,
         tile,
@@ -354,7 +385,7 @@ fn destinations(args: &Args) -> anyhow::Result<Destinations> {
     // The renderer layout's parts replace the one file (not for a farm part: refused above).
     let rgba = match (args.fit, args.layout) {
         (Some(f), Layout::Rgba) if args.shard.is_none() => {
-            ptm_format::layout::rgba_paths(&output, f)
+            ptm_format::layout::rgba_paths(&output, f.for_paths())
         }
         _ => vec![output.clone()],
     };
@@ -408,7 +439,7 @@ enum ProductKind {
     /// K of every light kept and written as the sample stack.
     Stack,
     /// K streamed into the per-texel fit and written as the PTM.
-    Fit(Basis),
+    Fit(BasisChoice),
     /// The companion maps: height and normal from the primary hits, AO and bent normal from
     /// every light's K.
     Maps,
@@ -443,7 +474,7 @@ impl ProductKind {
                 let bytes = Accumulator::memory_bytes(
                     res[0].saturating_mul(res[1]),
                     lights,
-                    &fit_options(args, f),
+                    &fit_options(args, f.for_paths()),
                     args.spp,
                     args.light_distance.is_some(),
                 );
@@ -508,8 +539,9 @@ struct MapsProduct {
 enum Product {
     /// K of every light, kept for the sample stack.
     Stack(ptm_bake::Planes),
-    /// K streamed into the per-texel fit (boxed: its fields are large beside a `Planes`).
-    Fit(Box<Accumulator>),
+    /// K streamed into the per-texel fit (boxed: its fields are large beside a `Planes`), and
+    /// with `--fit auto` the candidates it is finished as.
+    Fit(Box<Accumulator>, Option<AutoFit>),
     /// The companion maps.
     Maps(Box<MapsProduct>),
 }
@@ -527,12 +559,23 @@ impl Product {
         Ok(match kind {
             ProductKind::Stack => Product::Stack(ptm_bake::Planes::default()),
             ProductKind::Fit(f) => {
-                let mut acc = Accumulator::new(lights, width, height, &fit_options(args, f))?;
+                let auto = match f {
+                    BasisChoice::Fixed(_) => None,
+                    BasisChoice::Auto => Some(AutoFit::new(args, lights)?),
+                };
+                // With auto the counts are kept under the cheapest candidate's options; each
+                // candidate is finished from them under its own (`Accumulator::finish_as`).
+                let basis = f.fixed().unwrap_or(crate::auto::AUTO_CANDIDATES[0]);
+                let mut opts = fit_options(args, basis);
+                if let Some(a) = &auto {
+                    opts.holdout = a.holdout;
+                }
+                let mut acc = Accumulator::new(lights, width, height, &opts)?;
                 acc.set_spp(args.spp)?;
                 for w in acc.warnings() {
                     eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
                 }
-                Product::Fit(Box::new(acc))
+                Product::Fit(Box::new(acc), auto)
             }
             ProductKind::Maps => {
                 let q = quadrature(args);
@@ -557,7 +600,7 @@ impl Product {
     fn set_coverage(&mut self, coverage: &[f32]) -> anyhow::Result<()> {
         match self {
             Product::Stack(_) | Product::Maps(_) => {}
-            Product::Fit(acc) => acc.set_coverage(coverage)?,
+            Product::Fit(acc, _) => acc.set_coverage(coverage)?,
         }
         Ok(())
     }
@@ -566,7 +609,7 @@ impl Product {
     fn add_light(&mut self, i: usize, k: &[f32], uv: Option<&[[f32; 2]]>) -> ptm_bake::Result<()> {
         match self {
             Product::Stack(planes) => planes.push(i, k, uv),
-            Product::Fit(acc) => match uv {
+            Product::Fit(acc, _) => match uv {
                 Some(uv) => acc.add_light_uv(i, k, uv),
                 None => acc.add_light(i, k),
             }
@@ -685,6 +728,60 @@ struct Written {
     t_write: f64,
 }
 
+/// `--fit auto`: the candidates' options and the margin, set before the trace; after it each
+/// candidate is finished from the accumulator's counts and the choice made
+/// (`crate::auto::choose`).
+struct AutoFit {
+    /// The lights every candidate holds out (`crate::auto::shared_holdout`).
+    holdout: usize,
+    margin: f64,
+    /// Each candidate's options (the shared hold-out in them).
+    candidates: Vec<FitOptions>,
+}
+
+impl AutoFit {
+    fn new(args: &Args, lights: &LightSet) -> anyhow::Result<AutoFit> {
+        let holdout = crate::auto::shared_holdout(&args.swatch, lights.len(), args.holdout)?;
+        let candidates = crate::auto::AUTO_CANDIDATES
+            .iter()
+            .map(|&b| FitOptions {
+                holdout,
+                ..fit_options(args, b)
+            })
+            .collect();
+        Ok(AutoFit {
+            holdout,
+            margin: args.auto_margin,
+            candidates,
+        })
+    }
+
+    /// Finishes every candidate from `acc` and keeps the choice; `output` names the bake.
+    fn choose(
+        &self,
+        acc: &Accumulator,
+        tile: [f64; 2],
+        output: &Path,
+    ) -> anyhow::Result<crate::auto::Chosen> {
+        let source = output.display().to_string();
+        crate::auto::choose(
+            "ptm bake",
+            &source,
+            self.holdout,
+            self.margin,
+            |basis, _| {
+                let opts = self
+                    .candidates
+                    .iter()
+                    .find(|o| o.basis == basis)
+                    .expect("one options per candidate")
+                    .clone();
+                acc.finish_as(tile, &opts).map(|(ptm, r)| (opts, ptm, r))
+            },
+        )
+    }
+}
+
 /// Where and how the products of a bake are written: the swatch and lights they describe,
 /// the traced texels' coverage and size, the farm part (if any), and the output's layout.
 struct WriteTo<'a> {
@@ -718,15 +815,21 @@ impl Product {
         let output = to.output;
         let writing = || crate::outputs::Named::new("writing", output);
         match self {
-            Product::Fit(acc) => {
+            Product::Fit(acc, auto) => {
                 let t0 = Instant::now();
-                let (ptm, fit, levels) = match to.part {
-                    Some((meta, _)) => {
+                let mut chosen = None;
+                let (ptm, fit, levels) = match (to.part, auto) {
+                    (Some((meta, _)), _) => {
                         acc.finish_part(to.swatch.tile, meta.rows.clone(), meta.height)?
                     }
-                    None => {
+                    (None, None) => {
                         let (ptm, fit) = acc.finish(to.swatch.tile)?;
                         (ptm, fit, Default::default())
+                    }
+                    (None, Some(auto)) => {
+                        let c = auto.choose(&acc, to.swatch.tile, output)?;
+                        chosen = Some(c.json);
+                        (c.ptm, c.report, Default::default())
                     }
                 };
                 // The per-light accumulation ran inside the shadow stage; this is the solve.
@@ -735,6 +838,15 @@ impl Product {
                     eprintln!("ptm bake: fit warning: {}", crate::errors::fit_warning(w));
                 }
                 crate::fit::print_logistic("ptm bake", &fit);
+                if let Some(h) = &fit.holdout {
+                    eprintln!(
+                        "ptm bake: RMS error of K on the {} held-out lights (the fit did not see \
+                         them): mean {:.4}, 99th percentile {:.4}",
+                        fit.holdout_lights.len(),
+                        h.mean,
+                        h.p99
+                    );
+                }
                 let summary = json::BakeFit {
                     basis: fit.basis.map(|b| b.name()),
                     link: ptm.link.name(),
@@ -748,6 +860,9 @@ impl Product {
                     rms_error_mean: fit.rms.mean,
                     rms_error_p99: fit.rms.p99,
                     warnings: crate::errors::fit_warnings(&fit.warnings),
+                    holdout_lights: fit.holdout_lights.clone(),
+                    holdout_rms_error: fit.holdout.as_ref().map(Into::into),
+                    auto: chosen,
                     stages: json::Stages(fit.seconds.clone()),
                 };
                 let files = match to.part {
@@ -1067,6 +1182,7 @@ fn bake_json(
 fn fit_options(args: &Args, f: Basis) -> FitOptions {
     let mut opts = FitOptions {
         regularize: args.regularize,
+        holdout: args.holdout.unwrap_or(0),
         ..FitOptions::new(f)
     };
     args.model.apply(&mut opts);

@@ -12,6 +12,7 @@ use ptm_format::hp::{encode_hp_lrgb, HpExport};
 use ptm_format::{Basis, Layout, Link, Ptm, SaveOptions, UvMap};
 
 use crate::args::{choice, ModelArgs};
+use crate::auto::{self, default_holdout, parse_choice, BasisChoice, Chosen, AUTO_MARGIN};
 use crate::json;
 
 #[derive(clap::Args)]
@@ -100,48 +101,6 @@ pub struct Args {
     pub export_hp: Option<PathBuf>,
 }
 
-/// `--basis`: one basis, or `auto`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum BasisChoice {
-    /// This basis.
-    Fixed(Basis),
-    /// The cheapest of [`AUTO_CANDIDATES`] within `--auto-margin` of the best on held-out
-    /// lights.
-    Auto,
-}
-
-/// The candidates of `--basis auto`, cheapest first: fewer coefficients per texel first, and
-/// at equal count the polynomial (no table to read) before the learned basis.
-pub const AUTO_CANDIDATES: [Basis; 4] = [
-    Basis::Ptm6,
-    Basis::Learned(6),
-    Basis::Ptm11,
-    Basis::Learned(11),
-];
-
-/// Default `--auto-margin`: 2 % of the best held-out error.
-pub const AUTO_MARGIN: f64 = 0.02;
-
-fn parse_choice(s: &str) -> Result<BasisChoice, String> {
-    if s == "auto" {
-        return Ok(BasisChoice::Auto);
-    }
-    crate::args::parse_basis(s)
-        .map(BasisChoice::Fixed)
-        .map_err(|e| format!("{e}, or auto"))
-}
-
-impl BasisChoice {
-    /// The basis whose outputs are checked before the fit: for `auto`, the candidate with the
-    /// most files (the renderer layout's parts follow the coefficient count).
-    fn for_paths(self) -> Basis {
-        match self {
-            BasisChoice::Fixed(b) => b,
-            BasisChoice::Auto => Basis::Learned(11),
-        }
-    }
-}
-
 /// `ptm fit`: checks the flags and every output, reads the stack (or the RTI images), fits,
 /// writes the PTM (and the HP export) in one transaction; returns what `--json` prints.
 pub fn run(args: &Args) -> anyhow::Result<json::Fit> {
@@ -161,9 +120,9 @@ pub fn run(args: &Args) -> anyhow::Result<json::Fit> {
             (opts, holdout, ptm, report, None)
         }
         BasisChoice::Auto => {
-            let c = choose(args, input.stack, &input.source, input.samples)?;
+            let (c, holdout) = choose(args, input.stack, &input.source, input.samples)?;
             tx = destinations(args, c.basis)?;
-            (c.opts, c.holdout, c.ptm, c.report, Some(c.json))
+            (c.opts, holdout, c.ptm, c.report, Some(c.json))
         }
     };
     let t1 = Instant::now();
@@ -216,17 +175,6 @@ enum Holdout {
     Given,
     /// The default: an eighth of the lights where the dome allows it ([`default_holdout`]).
     Default,
-}
-
-/// The lights held out by default: an eighth of `lights` when the rest still number at least
-/// four per coefficient (the fit stays well determined), else none.
-pub fn default_holdout(lights: usize, coefficients: usize) -> usize {
-    let n = lights / 8;
-    if lights - n >= 4 * coefficients {
-        n
-    } else {
-        0
-    }
 }
 
 /// The light `--png-k` shows (checked against the stack's `lights`): `--png-light`, the
@@ -405,141 +353,32 @@ fn fit_options(args: &Args, stack: &SampleStack, basis: Basis) -> (FitOptions, H
     (opts, source)
 }
 
-/// What `--basis auto` kept.
-struct Chosen {
-    basis: Basis,
-    opts: FitOptions,
-    holdout: Holdout,
-    ptm: Ptm,
-    report: FitReport,
-    json: json::Auto,
-}
-
-/// `--basis auto`: fits every candidate of [`AUTO_CANDIDATES`] the link and (u, v) map allow
-/// on the same lights, holding out the same ones (the default count is that of the largest
-/// candidate, so every candidate sees the same split), prints their held-out errors and fit
-/// times, and keeps the first within `--auto-margin` of the best.
+/// `--basis auto` over a stored stack: every candidate of [`auto::AUTO_CANDIDATES`] fitted on the
+/// same lights, the same ones held out (`auto::shared_holdout`), the first within
+/// `--auto-margin` of the best kept (`auto::choose`).
 fn choose(
     args: &Args,
     stack: SampleStack,
     source: &str,
     samples: Option<String>,
-) -> anyhow::Result<Chosen> {
-    if !(args.auto_margin >= 0.0 && args.auto_margin.is_finite()) {
-        bail!(
-            "--auto-margin {}: give a fraction ≥ 0 of the best held-out error (default {AUTO_MARGIN})",
-            args.auto_margin
-        );
-    }
-    // The default: the most any candidate would hold out by default (an eighth where the rest
-    // still number 4× its coefficients), the same lights for all.
-    let n = stack.lights.len();
-    let by_default = |n| {
-        AUTO_CANDIDATES
-            .iter()
-            .map(|b| default_holdout(n, b.len()))
-            .max()
-    };
-    let (holdout, source_of_holdout) = match args.holdout {
-        Some(h) => (h, Holdout::Given),
-        None => (by_default(n).unwrap_or(0), Holdout::Default),
-    };
-    if holdout == 0 {
-        let from = (1..10_000)
-            .find(|&m| by_default(m).unwrap_or(0) > 0)
-            .unwrap_or(0);
-        bail!(
-            "{source}: --basis auto chooses by the error on held-out lights, and {} none of its \
-             {n} lights: hold some out (--holdout N, N ≥ 1; by default an eighth is held out \
-             from {from} lights) or give the basis",
-            if args.holdout.is_some() {
-                "--holdout 0 holds out"
-            } else {
-                "the default holds out"
-            },
-        );
-    }
-    let mut tried: Vec<(Basis, FitOptions, Ptm, FitReport)> = Vec::new();
-    let mut rows = Vec::new();
-    for basis in AUTO_CANDIDATES {
+) -> anyhow::Result<(Chosen, Holdout)> {
+    let holdout = auto::shared_holdout(source, stack.lights.len(), args.holdout)?;
+    let mut chosen = auto::choose("ptm fit", source, holdout, args.auto_margin, |basis, h| {
         let (mut opts, _) = fit_options(args, &stack, basis);
-        opts.holdout = holdout;
-        let t = Instant::now();
-        match fit_stack(&stack, &opts) {
-            Ok((ptm, report)) => {
-                let err = report.holdout.as_ref().map(|h| h.mean);
-                rows.push(json::AutoCandidate {
-                    basis: basis.name().to_string(),
-                    holdout_rms_error: err,
-                    seconds: t.elapsed().as_secs_f64(),
-                    skipped: None,
-                });
-                tried.push((basis, opts, ptm, report));
-            }
-            // A learned candidate the link, map or dome does not allow is left out, said why.
-            Err(ptm_fit::Error::Invalid(why)) if basis.is_learned() => {
-                rows.push(json::AutoCandidate {
-                    basis: basis.name().to_string(),
-                    holdout_rms_error: None,
-                    seconds: t.elapsed().as_secs_f64(),
-                    skipped: Some(why),
-                });
-            }
-            Err(e) => {
-                return Err(e).with_context(|| format!("{source}: --basis auto, {}", basis.name()))
-            }
-        }
-    }
+        opts.holdout = h;
+        fit_stack(&stack, &opts).map(|(ptm, report)| (opts, ptm, report))
+    })?;
     drop(stack);
-    let errs: Vec<f64> = tried
-        .iter()
-        .map(|(_, _, _, r)| r.holdout.as_ref().map_or(f64::INFINITY, |h| h.mean))
-        .collect();
-    let best = errs.iter().copied().fold(f64::INFINITY, f64::min);
-    if !best.is_finite() {
-        bail!("{source}: --basis auto: no candidate measured a finite held-out error");
-    }
-    let pick = errs
-        .iter()
-        .position(|&e| e <= best * (1.0 + args.auto_margin))
-        .expect("the best is within any margin ≥ 0");
-    eprintln!("ptm fit: --basis auto: mean RMS error of K on {holdout} held-out lights, fit time:");
-    for r in &rows {
-        match (&r.skipped, r.holdout_rms_error) {
-            (Some(why), _) => eprintln!("  {:<10} skipped: {why}", r.basis),
-            (None, e) => eprintln!(
-                "  {:<10} {:.4}  {:>7.2} s{}",
-                r.basis,
-                e.unwrap_or(f64::NAN),
-                r.seconds,
-                if r.basis == tried[pick].0.name() {
-                    format!(
-                        "  <- kept: the first within {:.1} % of the best ({best:.4})",
-                        100.0 * args.auto_margin
-                    )
-                } else {
-                    String::new()
-                }
-            ),
-        }
-    }
-    let (basis, opts, ptm, mut report) = tried.swap_remove(pick);
-    report.samples = samples;
-    for w in &report.warnings {
+    chosen.report.samples = samples;
+    for w in &chosen.report.warnings {
         eprintln!("ptm fit: warning: {}", crate::errors::fit_warning(w));
     }
-    Ok(Chosen {
-        basis,
-        opts,
-        holdout: source_of_holdout,
-        ptm,
-        report,
-        json: json::Auto {
-            margin: args.auto_margin,
-            chosen: basis.name().to_string(),
-            candidates: rows,
-        },
-    })
+    let from = if args.holdout.is_some() {
+        Holdout::Given
+    } else {
+        Holdout::Default
+    };
+    Ok((chosen, from))
 }
 
 /// Refuses a stack with nothing to fit, says what is fitted, fits, and prints the fit's

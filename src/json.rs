@@ -345,13 +345,21 @@ pub struct BakeFit {
     pub rms_error_p99: f64,
     /// The fit's warnings, in words.
     pub warnings: Vec<String>,
+    /// Indices of the lights held out of the fit and scored (`--holdout`; with `--fit auto`
+    /// by default an eighth).
+    pub holdout_lights: Vec<usize>,
+    /// RMS error of K per texel on the held-out lights (null when none are held out).
+    pub holdout_rms_error: Option<Stats>,
+    /// `--fit auto`: every candidate's held-out error and fit time, and which was kept (null
+    /// for a given basis).
+    pub auto: Option<Auto>,
     /// Seconds of each stage of the streaming fit (`seconds_accumulate`, `seconds_newton`,
     /// `seconds_mip_levels`, …).
     #[serde(flatten)]
     pub stages: Stages,
 }
 
-/// `ptm fit --basis auto`: every candidate basis fitted on the same lights and scored on the
+/// `ptm fit --basis auto` and `ptm bake --fit auto`: every candidate basis fitted on the same lights and scored on the
 /// same held-out ones, and which was kept.
 #[derive(Serialize, Debug, Default)]
 pub struct Auto {

@@ -5,6 +5,7 @@
 //! human-readable progress and messages always go to stderr.
 
 mod args;
+mod auto;
 mod bake;
 mod batch;
 mod convert;

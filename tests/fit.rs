@@ -924,3 +924,83 @@ fn basis_auto_keeps_the_cheapest_candidate_within_the_margin() {
     );
     assert!(c[3]["holdout_rms_error"].is_null());
 }
+
+/// `ptm bake --fit auto` fits each candidate from the counts it streamed and keeps what `ptm
+/// fit --basis auto` keeps from the same bake's stored stack: the same held-out lights, the
+/// same errors, the same choice and coefficients. What cannot be chosen that way is refused.
+#[test]
+fn bake_fit_auto_chooses_as_fit_basis_auto_on_the_stored_stack() {
+    let dir = tmpdir();
+    let d = dir.path();
+    let bake = [
+        "bake",
+        "--swatch",
+        "builtin:jersey",
+        "--res",
+        "24",
+        "--dirs",
+        "64",
+        "--spp",
+        "4",
+    ];
+    common::ok([&bake[..], &["-o", "s.exr"]].concat(), d);
+    let fit = common::json(["fit", "s.exr", "--basis", "auto", "-o", "f.ptm.exr"], d);
+    let baked = common::json(
+        [&bake[..], &["--fit", "auto", "-o", "b.ptm.exr"]].concat(),
+        d,
+    );
+    let b = &baked["fit"];
+    assert_eq!(b["auto"]["chosen"], fit["auto"]["chosen"], "{b}\n{fit}");
+    assert_eq!(b["basis"], fit["basis"]);
+    assert_eq!(b["holdout_lights"], fit["holdout_lights"]);
+    assert_eq!(b["holdout_lights"].as_array().unwrap().len(), 8, "{b}");
+    let (cb, cf) = (&b["auto"]["candidates"], &fit["auto"]["candidates"]);
+    for i in 0..4 {
+        assert_eq!(cb[i]["basis"], cf[i]["basis"]);
+        let (eb, ef) = (
+            cb[i]["holdout_rms_error"].as_f64().unwrap(),
+            cf[i]["holdout_rms_error"].as_f64().unwrap(),
+        );
+        assert!((eb - ef).abs() < 1e-6, "{}: {eb} vs {ef}", cb[i]["basis"]);
+    }
+    let kept = b["auto"]["chosen"].as_str().unwrap();
+    let listed = cb
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["basis"] == kept)
+        .unwrap()["holdout_rms_error"]
+        .as_f64()
+        .unwrap();
+    assert_eq!(b["holdout_rms_error"]["mean"].as_f64(), Some(listed));
+    let (pb, pf) = (
+        Ptm::load(&d.join("b.ptm.exr")).unwrap(),
+        Ptm::load(&d.join("f.ptm.exr")).unwrap(),
+    );
+    assert_eq!(pb.basis.name(), kept);
+    for (x, y) in pb.planes.iter().flatten().zip(pf.planes.iter().flatten()) {
+        assert!((x - y).abs() < 1e-4, "{x} vs {y}");
+    }
+    // A given hold-out is every candidate's; none held out cannot choose.
+    let h3 = common::json(
+        [
+            &bake[..],
+            &["--fit", "auto", "--holdout", "3", "-o", "h.ptm.exr"],
+        ]
+        .concat(),
+        d,
+    );
+    assert_eq!(h3["fit"]["holdout_lights"].as_array().unwrap().len(), 3);
+    for (extra, says) in [
+        (&["--holdout", "0"][..], "--holdout N"),
+        (&["--link", "identity"][..], "logistic"),
+        (&["--shard", "1/2"][..], "--shard with --fit auto"),
+    ] {
+        let err = common::refused(
+            [&bake[..], &["--fit", "auto", "-o", "x.ptm.exr"], extra].concat(),
+            d,
+        );
+        assert!(err.contains(says), "{extra:?}: {err}");
+    }
+    assert!(!d.join("x.ptm.exr").exists());
+}

@@ -266,6 +266,9 @@ impl Sample for BakeFit {
             rms_error_mean: s(),
             rms_error_p99: s(),
             warnings: s(),
+            holdout_lights: s(),
+            holdout_rms_error: s(),
+            auto: s(),
             stages: s(),
         }
     }

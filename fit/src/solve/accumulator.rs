@@ -283,6 +283,41 @@ impl Accumulator {
         Ok((ptm, report))
     }
 
+    /// Solves every texel as [`Accumulator::finish`] would under other options `opts` (another
+    /// basis, another hold-out), from the same exact counts, leaving the accumulator as it is:
+    /// `ptm bake --fit auto` fits each candidate model from one trace. The logistic link only
+    /// (its counts do not depend on the basis; the identity link's sums do), in both the
+    /// accumulator and `opts`. The hold-out count is `opts`' (the held-out lights are those
+    /// [`crate::solve::options::holdout_indices`] picks).
+    pub fn finish_as(&self, tile: [f64; 2], opts: &FitOptions) -> Result<(Ptm, FitReport)> {
+        if self.opts.link != Link::Logistic || opts.link != Link::Logistic {
+            return Err(Error::Invalid(format!(
+                "refitting the same samples under another model needs the logistic link's \
+                 counts (this accumulator sums for the {} link, the model asks for the {} link)",
+                self.opts.link.name(),
+                opts.link.name()
+            )));
+        }
+        self.check_complete()?;
+        let t_acc = self.started.elapsed().as_secs_f64();
+        let prep = prepare(&self.lights, opts)?;
+        let src = self.counts.source();
+        let (mut ptm, mut report, _) = fit_image(
+            &src,
+            &prep,
+            &self.lights,
+            (self.width, self.height),
+            tile,
+            &self.masked,
+            opts,
+            None,
+        )?;
+        report.coverage = partial_coverage(&self.full_coverage);
+        ptm.coverage = ptm_coverage(&self.full_coverage);
+        report.seconds.insert(0, ("accumulate", t_acc));
+        Ok((ptm, report))
+    }
+
     /// Solves the rows of a farm shard: this accumulator holds rows `rows` of an image
     /// `height` rows tall ([`crate::shard`]). Level 0 is fitted as [`Accumulator::finish`] fits
     /// it. MIP levels: the identity link leaves them all to the merge (averages of the merged
