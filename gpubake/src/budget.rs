@@ -1,0 +1,109 @@
+//! What a GPU bake holds, and the bands of rows it traces in: every per-sample buffer covers one
+//! band, so the device's memory is bounded by the band, not the image. Bands are whole row
+//! blocks of a farm shard ([`ROW_BLOCK`] rows), sized from a byte budget and the device's buffer
+//! limits, and checked before anything is uploaded.
+use std::ops::Range;
+
+use crate::adapter::Gpu;
+use crate::{Error, Result};
+
+/// Bands start at multiples of this many rows past the traced rows' start: `ptm_fit::shard`'s
+/// `ROW_BLOCK`, the farm's row block (this crate does not depend on the fit crate; the `ptm`
+/// command's tests check that the two agree).
+pub const ROW_BLOCK: usize = 16;
+
+/// Bytes per footprint sample on the device: the shadow sample (origin, normal, flag: 32), its
+/// position (8) and its primary hit (8).
+pub const SAMPLE_BYTES: u64 = 32 + 8 + 8;
+
+/// Largest K planes held on the host for one pass of lights (the sink gets whole planes).
+pub const PASS_PLANE_BYTES: f64 = 256.0 * (1u64 << 20) as f64;
+
+/// Most lights traced per pass over the bands.
+pub const MAX_LIGHTS_PER_PASS: usize = 32;
+
+/// Lights per pass over the bands for `width × rows` traced texels: as many as fit in
+/// [`PASS_PLANE_BYTES`] of K planes, 1 to [`MAX_LIGHTS_PER_PASS`]. With several bands, each pass
+/// uploads every band's samples again, so fewer passes upload less.
+pub fn lights_per_pass(width: usize, rows: usize) -> usize {
+    let plane = width as f64 * rows as f64 * 4.0;
+    (PASS_PLANE_BYTES / plane)
+        .floor()
+        .clamp(1.0, MAX_LIGHTS_PER_PASS as f64) as usize
+}
+
+/// Device bytes per band row: the samples' buffers and each light slot's counts and readback.
+pub fn bytes_per_row(width: usize, spp: u32, per_pass: usize) -> u64 {
+    width as u64 * (spp as u64 * SAMPLE_BYTES + per_pass as u64 * 8)
+}
+
+/// Host bytes of a GPU bake of `width × rows` texels: K planes of a pass, coverage and covered
+/// counts, and (with more than one band) every band's samples kept for the next pass.
+pub fn host_bytes(width: usize, rows: usize, spp: u32, bands: usize) -> f64 {
+    let texels = width as f64 * rows as f64;
+    let per_pass = lights_per_pass(width, rows) as f64;
+    let samples = if bands > 1 { 32.0 * spp as f64 } else { 0.0 };
+    texels * (per_pass * 4.0 + 8.0 + samples)
+}
+
+/// The bands of `rows` (`width` texels, `spp` samples, `per_pass` lights at a time) within
+/// `budget` bytes and the device's buffer limits: as few as fit, each a whole number of
+/// [`ROW_BLOCK`]s but the last. An error, with the figures, when even one block does not fit.
+pub fn bands(
+    gpu: &Gpu,
+    budget: u64,
+    width: usize,
+    rows: Range<usize>,
+    spp: u32,
+    per_pass: usize,
+) -> Result<Vec<Range<usize>>> {
+    let l = &gpu.limits;
+    let buffer_limit = (l.max_storage_buffer_binding_size as u64).min(l.max_buffer_size);
+    let n = rows.len();
+    // The rows one band may hold under each bound, and what is measured against it.
+    let row = bytes_per_row(width, spp, per_pass);
+    let samples_row = width as u64 * spp as u64 * 32;
+    let counts_row = width as u64 * per_pass as u64 * 4;
+    let checks: [(u64, u64, &'static str, &'static str); 3] = [
+        (row, budget, "device memory for a band", "band budget"),
+        (
+            samples_row,
+            buffer_limit,
+            "the shadow samples' buffer",
+            "max_storage_buffer_binding_size",
+        ),
+        (
+            counts_row,
+            buffer_limit,
+            "the occluded counts' buffer",
+            "max_storage_buffer_binding_size",
+        ),
+    ];
+    let mut band = n.next_multiple_of(ROW_BLOCK);
+    for &(per_row, limit, what, limit_name) in &checks {
+        let fit_rows = (limit / per_row.max(1)) as usize;
+        if fit_rows >= n {
+            continue;
+        }
+        let fit = fit_rows / ROW_BLOCK * ROW_BLOCK;
+        if fit == 0 {
+            let smallest = ROW_BLOCK.min(n);
+            return Err(Error::BandTooBig {
+                rows: smallest,
+                width,
+                spp,
+                what,
+                need: per_row * smallest as u64,
+                limit,
+                limit_name,
+                adapter: gpu.name.clone(),
+            });
+        }
+        band = band.min(fit);
+    }
+    Ok(rows
+        .clone()
+        .step_by(band)
+        .map(|r| r..(r + band).min(rows.end))
+        .collect())
+}

@@ -1,0 +1,129 @@
+// The GPU bake's two passes over a band of texel rows (gpubake/src/baker.rs owns the pipelines):
+// `primary`, one downward ray per footprint sample from the camera plane (the closest hit's
+// distance and triangle, read back: the CPU turns them into shadow origins exactly as the
+// Embree bake does), and `shadow`, per texel of the band and one light, one shadow ray per
+// covered footprint sample, the occluded ones counted. The CPU twin of both is ptm-bake's
+// Embree baker (bake/src/visibility.rs); gpubake/tests/agreement.rs compares them.
+enable wgpu_ray_query;
+
+// A triangle index meaning "the primary ray hit nothing".
+const NO_HIT: u32 = 0xffffffffu;
+// Invocations per workgroup; dispatches are 2-D (at most 65,535 workgroups per dimension), so
+// the flat index is x + y · (workgroups in x) · WORKGROUP.
+const WORKGROUP: u32 = 64u;
+
+// Group 0, binding 0 for both passes: the TLAS of the tile copies the pass needs.
+@group(0) @binding(0) var acc: acceleration_structure;
+
+// ---- primary ----------------------------------------------------------------------------------
+
+// `PrimaryParams` in baker.rs, field for field.
+struct PrimaryParams {
+    // Height of the camera plane: the clamp plane z_cap, in f32 (baker units).
+    z_top: f32,
+    // Far end of a primary ray (beyond the lowest geometry).
+    t_max: f32,
+    // Footprint samples in the band.
+    count: u32,
+    _pad: u32,
+}
+
+// `Hit` in baker.rs: the closest hit's distance and triangle (NO_HIT: none).
+struct Hit {
+    t: f32,
+    prim: u32,
+}
+
+@group(0) @binding(1) var<uniform> primary_params: PrimaryParams;
+// Sample positions (x, y) on the camera plane, texel-major then sample, as ptm_bake::sample_xy.
+@group(0) @binding(2) var<storage, read> sample_xy: array<vec2<f32>>;
+@group(0) @binding(3) var<storage, read_write> hits: array<Hit>;
+
+@compute @workgroup_size(64)
+fn primary(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = id.x + id.y * groups.x * WORKGROUP;
+    if i >= primary_params.count {
+        return;
+    }
+    let org = vec3<f32>(sample_xy[i], primary_params.z_top);
+    var rq: ray_query;
+    rayQueryInitialize(&rq, acc, RayDesc(RAY_FLAG_NONE, 0xFFu, 0.0, primary_params.t_max, org, vec3<f32>(0.0, 0.0, -1.0)));
+    while rayQueryProceed(&rq) {}
+    let h = rayQueryGetCommittedIntersection(&rq);
+    if h.kind == RAY_QUERY_INTERSECTION_NONE {
+        hits[i] = Hit(0.0, NO_HIT);
+    } else {
+        hits[i] = Hit(h.t, h.primitive_index);
+    }
+}
+
+// ---- shadow -----------------------------------------------------------------------------------
+
+// `ShadowParams` in baker.rs: one light of a pass (a uniform at a dynamic offset).
+struct ShadowParams {
+    // Unit direction towards the distant light (l_z > 0), in f32 as the CPU bake traces it.
+    dir: vec3<f32>,
+    // The clamp plane: shadow rays end where they reach it.
+    z_cap: f32,
+    // Texels in the band.
+    texels: u32,
+    // Footprint samples per texel.
+    spp: u32,
+    // Where this light's counts start in `occluded` (its slot in the pass × texels).
+    out_offset: u32,
+    // This light's slot in the pass (its entry of `traced`).
+    slot: u32,
+}
+
+// `Sample` in baker.rs: one footprint sample's shadow-ray origin and face-forwarded unit normal.
+struct Sample {
+    org: vec3<f32>,
+    // 1 where the primary ray hit the swatch, 0 where it saw nothing.
+    covered: u32,
+    n: vec3<f32>,
+    _pad: u32,
+}
+
+@group(0) @binding(4) var<uniform> light: ShadowParams;
+@group(0) @binding(5) var<storage, read> samples: array<Sample>;
+// Per light slot and texel: occluded samples.
+@group(0) @binding(6) var<storage, read_write> occluded: array<u32>;
+// Per light slot: shadow rays traced (covered samples facing the light).
+@group(0) @binding(7) var<storage, read_write> traced: array<atomic<u32>>;
+
+@compute @workgroup_size(64)
+fn shadow(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let texel = id.x + id.y * groups.x * WORKGROUP;
+    if texel >= light.texels {
+        return;
+    }
+    let l = light.dir;
+    var count = 0u;
+    var rays = 0u;
+    // Declared once, outside the loop: Mesa 25's lavapipe loses the device compiling a ray
+    // query declared in a loop body (wgpu 30, naga's SPIR-V), and one query reinitialised per
+    // ray is what a ray-tracing API expects anyway.
+    var rq: ray_query;
+    for (var s = 0u; s < light.spp; s++) {
+        let smp = samples[texel * light.spp + s];
+        if smp.covered == 0u {
+            continue;
+        }
+        // As the CPU bake: a sample facing away from the light is occluded without a ray.
+        let facing = l.x * smp.n.x + l.y * smp.n.y + l.z * smp.n.z > 0.0;
+        if !facing {
+            count += 1u;
+            continue;
+        }
+        rays += 1u;
+        // From the origin to the clamp plane, where nothing lies above.
+        let t_far = max((light.z_cap - smp.org.z) / l.z, 0.0);
+        rayQueryInitialize(&rq, acc, RayDesc(RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xFFu, 0.0, t_far, smp.org, l));
+        while rayQueryProceed(&rq) {}
+        if rayQueryGetCommittedIntersection(&rq).kind != RAY_QUERY_INTERSECTION_NONE {
+            count += 1u;
+        }
+    }
+    occluded[light.out_offset + texel] = count;
+    atomicAdd(&traced[light.slot], rays);
+}
