@@ -120,6 +120,9 @@ pub struct GpuBaker {
     report: BakeReport,
 }
 
+/// A light above the horizon: its direction in f32 (as traced) and the copies its TLAS holds.
+type Plan = ([f32; 3], Vec<[i32; 2]>);
+
 /// Workgroups (x, y) covering `n` invocations of 64, x at most 65,535.
 fn groups(n: u32) -> (u32, u32) {
     let g = n.div_ceil(64).max(1);
@@ -395,7 +398,7 @@ impl GpuBaker {
             ..Default::default()
         };
         // Plan every light and build its TLAS first, as the CPU bake builds its scenes.
-        let mut plans: Vec<Option<([f32; 3], Vec<[i32; 2]>)>> = Vec::with_capacity(lights.len());
+        let mut plans: Vec<Option<Plan>> = Vec::with_capacity(lights.len());
         for (li, &l) in lights.dirs.iter().enumerate() {
             if l[2] <= 0.0 {
                 rep.rings.push(0);

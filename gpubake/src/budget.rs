@@ -58,7 +58,7 @@ pub fn bands(
     per_pass: usize,
 ) -> Result<Vec<Range<usize>>> {
     let l = &gpu.limits;
-    let buffer_limit = (l.max_storage_buffer_binding_size as u64).min(l.max_buffer_size);
+    let buffer_limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
     let n = rows.len();
     // The rows one band may hold under each bound, and what is measured against it.
     let row = bytes_per_row(width, spp, per_pass);

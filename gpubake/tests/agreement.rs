@@ -190,8 +190,7 @@ fn a_lost_device_is_an_error_not_a_bake() {
             }
             Ok(())
         })
-        .err()
-        .expect("tracing on a destroyed device must fail");
+        .expect_err("tracing on a destroyed device must fail");
     assert!(seen < lights.len(), "every light was handed over");
     let msg = e.to_string();
     assert!(msg.contains("the GPU failed while"), "{msg}");
