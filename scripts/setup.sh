@@ -36,8 +36,8 @@ fi
 # gpubake/ in ARCHITECTURE.md for why not beside it). Backports have priority 100, so nothing
 # else is upgraded from them. Other distributions: install a Mesa >= 25 yourself.
 mesa_major() { v=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true); v=${v#*:}; echo "${v%%.*}"; }
-. /etc/os-release 2>/dev/null || true
-if [ "${VERSION_CODENAME:-}" = bookworm ] && [ "$(mesa_major)" != "" ] && [ "$(mesa_major)" -lt 25 ]; then
+codename=$(. /etc/os-release 2>/dev/null && echo "${VERSION_CODENAME:-}" || true)
+if [ "$codename" = bookworm ] && [ "$(mesa_major)" != "" ] && [ "$(mesa_major)" -lt 25 ]; then
     if [ "$(id -u)" -eq 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else
         say "Mesa $(mesa_major) has no Vulkan ray queries; run as root or install Mesa 25 from bookworm-backports: apt-get install -t bookworm-backports mesa-vulkan-drivers"
         exit 1
@@ -47,7 +47,7 @@ if [ "${VERSION_CODENAME:-}" = bookworm ] && [ "$(mesa_major)" != "" ] && [ "$(m
         # The machine's own bookworm mirror and keyring (deb822 or one-line sources).
         uri=$(awk '/^URIs:/ {u=$2} /^Suites:/ && / bookworm( |$)/ && u {print u; exit}' /etc/apt/sources.list.d/*.sources 2>/dev/null || true)
         key=$(awk '/^URIs:/ {u=$2} /^Signed-By:/ {k=$2} /^Suites:/ && / bookworm( |$)/ {s=1} s && k && u {print k; exit}' /etc/apt/sources.list.d/*.sources 2>/dev/null || true)
-        [ -n "$uri" ] || uri=$(awk '$1 == "deb" && $3 == "bookworm" {print $2; exit}' /etc/apt/sources.list 2>/dev/null || true)
+        [ -n "$uri" ] || uri=$(awk '$1 == "deb" { for (i = 2; i < NF; i++) if ($i ~ /^[a-z+]+:\/\//) { if ($(i + 1) == "bookworm") { print $i; exit } break } }' /etc/apt/sources.list 2>/dev/null || true)
         uri=${uri:-http://deb.debian.org/debian}
         key=${key:-/usr/share/keyrings/debian-archive-keyring.gpg}
         say "adding bookworm-backports ($uri) for Mesa 25"

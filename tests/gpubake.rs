@@ -164,3 +164,9 @@ fn no_ray_query_adapter_names_what_was_found() {
     );
     assert!(!dir.path().join("x.exr").exists());
 }
+
+#[test]
+fn gpu_bands_are_farm_row_blocks() {
+    // The GPU crate keeps its own copy (it does not depend on the fit crate).
+    assert_eq!(ptm_gpubake::budget::ROW_BLOCK, ptm_fit::shard::ROW_BLOCK);
+}

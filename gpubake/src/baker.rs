@@ -151,11 +151,17 @@ impl GpuBaker {
         let frame = Frame::new(swatch);
         let mesh = &*frame.swatch;
         // Everything is checked before anything is uploaded.
-        Scene::check(&gpu, mesh.positions.len(), mesh.triangles.len())?;
+        Scene::check(
+            &gpu.limits,
+            &gpu.name,
+            mesh.positions.len(),
+            mesh.triangles.len(),
+        )?;
         let width = cfg.res[0];
         let per_pass = budget::lights_per_pass(width, rows.len());
         let bands = budget::bands(
-            &gpu,
+            &gpu.limits,
+            &gpu.name,
             gpu_cfg.band_bytes,
             width,
             rows.clone(),

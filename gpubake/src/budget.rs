@@ -4,7 +4,6 @@
 //! limits, and checked before anything is uploaded.
 use std::ops::Range;
 
-use crate::adapter::Gpu;
 use crate::{Error, Result};
 
 /// Bands start at multiples of this many rows past the traced rows' start: `ptm_fit::shard`'s
@@ -50,14 +49,14 @@ pub fn host_bytes(width: usize, rows: usize, spp: u32, bands: usize) -> f64 {
 /// `budget` bytes and the device's buffer limits: as few as fit, each a whole number of
 /// [`ROW_BLOCK`]s but the last. An error, with the figures, when even one block does not fit.
 pub fn bands(
-    gpu: &Gpu,
+    l: &wgpu::Limits,
+    adapter: &str,
     budget: u64,
     width: usize,
     rows: Range<usize>,
     spp: u32,
     per_pass: usize,
 ) -> Result<Vec<Range<usize>>> {
-    let l = &gpu.limits;
     let buffer_limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
     let n = rows.len();
     // The rows one band may hold under each bound, and what is measured against it.
@@ -96,7 +95,7 @@ pub fn bands(
                 need: per_row * smallest as u64,
                 limit,
                 limit_name,
-                adapter: gpu.name.clone(),
+                adapter: adapter.to_string(),
             });
         }
         band = band.min(fit);
@@ -106,4 +105,44 @@ pub fn bands(
         .step_by(band)
         .map(|r| r..(r + band).min(rows.end))
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bands_are_whole_row_blocks_within_the_budget_and_limits() {
+        let l = wgpu::Limits::default();
+        let row = bytes_per_row(64, 4, 8);
+        let bands = |budget, rows| super::bands(&l, "dev", budget, 64, rows, 4, 8).unwrap();
+        // Everything fits: one band, however many rows.
+        assert_eq!(bands(u64::MAX, 0..64), [0..64]);
+        assert_eq!(bands(row * 8, 0..8), [0..8]);
+        // Two blocks' worth: bands of 32 rows; a shard's rows keep their start.
+        assert_eq!(bands(row * 40, 0..64), [0..32, 32..64]);
+        assert_eq!(bands(row * 16, 16..56), [16..32, 32..48, 48..56]);
+        // Not even one block: refused, with the figures of one block.
+        let e = super::bands(&l, "dev", row * 15, 64, 0..64, 4, 8).unwrap_err();
+        assert!(
+            matches!(e, Error::BandTooBig { rows: 16, need, limit_name: "band budget", .. } if need == row * 16),
+            "{e}"
+        );
+        // The device's buffer limit binds too: 16 rows of samples exceed it.
+        let small = wgpu::Limits {
+            max_storage_buffer_binding_size: 64 * 4 * 32 * 16 - 1,
+            ..l.clone()
+        };
+        let e = super::bands(&small, "dev", u64::MAX, 64, 0..64, 4, 8).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::BandTooBig {
+                    limit_name: "max_storage_buffer_binding_size",
+                    ..
+                }
+            ),
+            "{e}"
+        );
+    }
 }

@@ -18,15 +18,15 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// Checks the mesh against the device's limits (before anything is uploaded).
-    pub fn check(gpu: &Gpu, vertices: usize, triangles: usize) -> Result<()> {
-        let l = &gpu.limits;
+    /// Checks a mesh of `vertices` and `triangles` against the limits `l` of the device on
+    /// `adapter` (described), before anything is uploaded.
+    pub fn check(l: &wgpu::Limits, adapter: &str, vertices: usize, triangles: usize) -> Result<()> {
         let too_big = |what: String, need: u64, limit: u64, limit_name| Error::TooBig {
             what,
             need,
             limit,
             limit_name,
-            adapter: gpu.name.clone(),
+            adapter: adapter.to_string(),
         };
         if triangles as u64 > l.max_blas_primitive_count as u64 {
             return Err(too_big(
@@ -56,7 +56,7 @@ impl Scene {
         triangles: &[[u32; 3]],
         tile: [f64; 2],
     ) -> Result<Scene> {
-        Scene::check(gpu, positions.len(), triangles.len())?;
+        Scene::check(&gpu.limits, &gpu.name, positions.len(), triangles.len())?;
         let d = &gpu.device;
         let upload = |label, bytes: &[u8]| {
             let b = d.create_buffer(&wgpu::BufferDescriptor {
@@ -159,5 +159,47 @@ impl Scene {
     /// TLASes built.
     pub fn tlas_count(&self) -> usize {
         self.tlas.len()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_mesh_over_the_limits_is_refused_with_the_figures() {
+        let l = wgpu::Limits {
+            max_blas_primitive_count: 16_777_215,
+            max_buffer_size: 1 << 20,
+            ..wgpu::Limits::default()
+        };
+        assert!(Scene::check(&l, "dev", 1000, 16_777_215 / 1000).is_ok());
+        let e = Scene::check(&l, "dev", 3, 16_777_216).unwrap_err();
+        assert!(matches!(
+            e,
+            Error::TooBig {
+                need: 16_777_216,
+                limit: 16_777_215,
+                limit_name: "max_blas_primitive_count",
+                ..
+            }
+        ));
+        assert_eq!(
+            e.to_string(),
+            "the mesh's triangles: 16777216 exceeds the device's max_blas_primitive_count of \
+             16777215 (dev)"
+        );
+        let e = Scene::check(&l, "dev", 100_000, 10).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                Error::TooBig {
+                    need: 1_200_000,
+                    limit_name: "max_buffer_size",
+                    ..
+                }
+            ),
+            "{e}"
+        );
     }
 }
