@@ -81,6 +81,39 @@ fn gpu_bake_writes_the_cpu_bakes_products() {
     assert_eq!(j["fit"]["basis"], "ptm6");
     assert!(d.join("weave.ptm.exr").exists() && d.join("weave.maps.exr").exists());
     assert!(j["maps"]["dome_fraction"].as_f64().unwrap() > 0.0);
+    // The maps agree with the CPU's: the same hits, heights and normals to an f32 rounding
+    // (the two intersectors' t and the normal's cross product), the same ids and AO here.
+    ok(
+        bake(&[
+            "--device",
+            "cpu",
+            "--fit",
+            "ptm6",
+            "--maps",
+            "-o",
+            "c.ptm.exr",
+        ]),
+        d,
+    );
+    let mut g = ptm_format::exrio::read(&d.join("weave.maps.exr")).unwrap();
+    let mut c = ptm_format::exrio::read(&d.join("c.maps.exr")).unwrap();
+    for (name, tol) in [
+        ("height", 1e-6),
+        ("normal.X", 1e-6),
+        ("normal.Z", 1e-6),
+        ("id", 0.0),
+        ("coverage", 0.0),
+        ("ao", 1e-6),
+    ] {
+        let a = g.take_f32(name, "maps").unwrap();
+        let b = c.take_f32(name, "maps").unwrap();
+        let worst = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).abs())
+            .fold(0.0, f32::max);
+        assert!(worst <= tol, "{name}: {worst}");
+    }
 }
 
 #[test]
