@@ -143,7 +143,7 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
 
 /// Which device traces (`--device`), said on stderr with the adapter and the reason.
 fn choose_device(args: &Args) -> anyhow::Result<ptm_gpubake::Choice> {
-    let choice = ptm_gpubake::choose(args.device, args.light_distance.is_some())
+    let choice = ptm_gpubake::choose(args.device)
         .with_context(|| format!("--device {}", args.device.name()))?;
     eprintln!(
         "ptm bake: device {}{}: {}",
@@ -1134,7 +1134,13 @@ fn check_memory(
     // (with several bands) its samples between passes.
     let baker = match device {
         ptm_gpubake::Used::Cpu => ptm_bake::baker_bytes(res, args.spp),
-        ptm_gpubake::Used::Gpu => ptm_gpubake::budget::host_bytes(res[0], res[1], args.spp, 2),
+        ptm_gpubake::Used::Gpu => ptm_gpubake::budget::host_bytes(
+            res[0],
+            res[1],
+            args.spp,
+            2,
+            args.light_distance.is_some(),
+        ),
     };
     let dome = lights as f64 * 64.0;
     let products: Vec<(f64, &str)> = ProductKind::of(args)

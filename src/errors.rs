@@ -186,7 +186,6 @@ fn gpubake_error(e: &ptm_gpubake::Error) -> Option<String> {
              GPU's, or Mesa >= 25 for lavapipe)"
         ),
         E::Device { .. } => format!("{e}: bake with --device cpu (or auto)"),
-        E::PointLights => format!("--light-distance with --device gpu: {e}; use --device cpu"),
         E::TooBig { .. } => format!("{e}: bake it with --device cpu"),
         E::BandTooBig { .. } => {
             format!("{e}: lower --res or --spp, or bake with --device cpu")

@@ -7,7 +7,7 @@ use ptm_swatches::Mesh;
 
 mod common;
 
-use common::{cfg, light, plane, sphere_scene, unit_mesh};
+use common::{cfg, light, sphere_scene};
 
 /// The Embree bake, as the shared cases take it.
 fn cpu(
@@ -143,42 +143,11 @@ fn scale_does_not_change_k() {
     }
 }
 
-/// Point lights: on a flat plane nothing is occluded, and each texel records the direction
-/// from its own footprint to the light.
+/// Point lights: nothing occluded on a plane, each texel's direction to the light
+/// (`common::point_lights`).
 #[test]
 fn point_lights_record_per_texel_directions() {
-    let mut m = unit_mesh();
-    plane(&mut m, 2, 0.0);
-    let s = PreparedMesh::from_mesh(m, None, "plane").unwrap();
-    let lights = LightSet::from_dirs([light(45.0, 0.0)]);
-    let r = 2.0;
-    let res = 16;
-    let c = BakeConfig {
-        light_distance: Some(r),
-        ..cfg(res, 4)
-    };
-    let (planes, _, _) = bake_planes(&s, &lights, &c).unwrap();
-    assert!(planes.k[0].iter().all(|&k| k == 0.0));
-    let uv = &planes.uv.as_ref().unwrap()[0];
-    let lpos = [0.5 + r * 0.5f64.sqrt(), 0.5, r * 0.5f64.sqrt()];
-    for (j, i) in [(0, 0), (8, 3), (15, 15)] {
-        let p = [
-            (i as f64 + 0.5) / res as f64,
-            1.0 - (j as f64 + 0.5) / res as f64,
-            0.0,
-        ];
-        let d = [lpos[0] - p[0], lpos[1] - p[1], lpos[2] - p[2]];
-        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        let got = uv[j * res + i];
-        assert!(
-            (got[0] as f64 - d[0] / len).abs() < 5e-3,
-            "({i},{j}) u {got:?}"
-        );
-        assert!(
-            (got[1] as f64 - d[1] / len).abs() < 5e-3,
-            "({i},{j}) v {got:?}"
-        );
-    }
+    common::point_lights(&cpu);
 }
 
 /// An OBJ far from the origin (x = 1e6 or 1e9, where f32 steps are 0.0625 and 64) bakes the

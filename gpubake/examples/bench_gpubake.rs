@@ -178,7 +178,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         packets: true,
         threads: 0,
     };
-    let choice = ptm_gpubake::choose(Asked::Gpu, false)?;
+    let choice = ptm_gpubake::choose(Asked::Gpu)?;
     let adapter = choice.adapter.expect("a GPU choice has an adapter");
     let name = choice.adapter_name.unwrap_or_default();
     println!(

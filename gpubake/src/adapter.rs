@@ -109,27 +109,17 @@ pub fn adapters() -> Vec<wgpu::Adapter> {
     pollster::block_on(instance.enumerate_adapters(backends))
 }
 
-/// Decides which device bakes. `point_lights`: the bake has a light distance, which only the
-/// CPU traces. An error only for [`Asked::Gpu`] with no adapter that has ray queries (naming
-/// every adapter found), or with point lights.
-pub fn choose(asked: Asked, point_lights: bool) -> Result<Choice> {
-    let cpu = |reason: String, seen: Option<String>| Choice {
-        asked,
-        used: Used::Cpu,
-        adapter: None,
-        adapter_name: seen,
-        reason,
-    };
-    match asked {
-        Asked::Cpu => return Ok(cpu("asked for the CPU".into(), None)),
-        Asked::Gpu if point_lights => return Err(Error::PointLights),
-        Asked::Auto if point_lights => {
-            return Ok(cpu(
-                "point lights (a light distance) are baked on the CPU only".into(),
-                None,
-            ))
-        }
-        _ => {}
+/// Decides which device bakes. An error only for [`Asked::Gpu`] with no adapter that has ray
+/// queries (naming every adapter found).
+pub fn choose(asked: Asked) -> Result<Choice> {
+    if asked == Asked::Cpu {
+        return Ok(Choice {
+            asked,
+            used: Used::Cpu,
+            adapter: None,
+            adapter_name: None,
+            reason: "asked for the CPU".into(),
+        });
     }
     choose_from(asked, adapters())
 }

@@ -15,7 +15,7 @@ use wgpu::util::DeviceExt;
 use crate::adapter::Gpu;
 use crate::budget;
 use crate::scene::Scene;
-use crate::{Error, Result};
+use crate::Result;
 
 /// The shaders of both passes (primary hits and shadow counts).
 pub const SHADER: &str = include_str!("trace.wgsl");
@@ -67,10 +67,14 @@ pub const NO_HIT: u32 = u32::MAX;
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct ShadowParams {
-    /// Unit direction towards the light.
+    /// A distant light: the unit direction towards it.
     pub dir: [f32; 3],
     /// The clamp plane (baker units).
     pub z_cap: f32,
+    /// A point light: its position (baker units).
+    pub pos: [f32; 3],
+    /// 1 for a point light at `pos`, 0 for a distant light along `dir`.
+    pub point: u32,
     /// Texels in the band.
     pub texels: u32,
     /// Footprint samples per texel.
@@ -102,6 +106,8 @@ pub struct GpuBaker {
     cfg: BakeConfig,
     tile: [f64; 2],
     bounds: ptm_bake::swatch::Bounds,
+    /// Point-light distance in the baker's units.
+    light_distance: Option<f64>,
     z_cap: f64,
     margin: f64,
     scene: Scene,
@@ -120,8 +126,17 @@ pub struct GpuBaker {
     report: BakeReport,
 }
 
-/// A light above the horizon: its direction in f32 (as traced) and the copies its TLAS holds.
-type Plan = ([f32; 3], Vec<[i32; 2]>);
+/// A light above the horizon: as traced, and the copies its TLAS holds.
+type Plan = (Light, Vec<[i32; 2]>);
+
+/// A light as the shader traces it.
+#[derive(Clone, Copy)]
+enum Light {
+    /// Unit direction towards a distant light, in f32.
+    Distant([f32; 3]),
+    /// Position of a point light (baker units).
+    Point([f64; 3]),
+}
 
 /// Workgroups (x, y) covering `n` invocations of 64, x at most 65,535.
 fn groups(n: u32) -> (u32, u32) {
@@ -144,9 +159,6 @@ impl GpuBaker {
         surface: bool,
     ) -> Result<GpuBaker> {
         ptm_bake::check_config(swatch, cfg, &rows)?;
-        if cfg.light_distance.is_some() {
-            return Err(Error::PointLights);
-        }
         let gpu = Gpu::open(adapter)?;
         let frame = Frame::new(swatch);
         let mesh = &*frame.swatch;
@@ -158,7 +170,8 @@ impl GpuBaker {
             mesh.triangles.len(),
         )?;
         let width = cfg.res[0];
-        let per_pass = budget::lights_per_pass(width, rows.len());
+        let point = cfg.light_distance.is_some();
+        let per_pass = budget::lights_per_pass(width, rows.len(), point);
         let bands = budget::bands(
             &gpu.limits,
             &gpu.name,
@@ -167,6 +180,7 @@ impl GpuBaker {
             rows.clone(),
             cfg.spp,
             per_pass,
+            point,
         )?;
         let t0 = Instant::now();
         let mut scene = Scene::new(&gpu, &mesh.positions, &mesh.triangles, mesh.tile)?;
@@ -206,6 +220,7 @@ impl GpuBaker {
             cfg: cfg.clone(),
             tile: mesh.tile,
             bounds: mesh.bounds,
+            light_distance: cfg.light_distance.map(|r| r * frame.unit),
             z_cap: frame.z_cap,
             margin: frame.margin,
             scene,
@@ -413,14 +428,25 @@ impl GpuBaker {
                 plans.push(None);
                 continue;
             }
-            let copies = tiling::copies_for_direction(self.tile, &self.bounds, l, self.margin);
+            let (light, copies) = match self.light_distance {
+                None => (
+                    Light::Distant(l.map(|c| c as f32)),
+                    tiling::copies_for_direction(self.tile, &self.bounds, l, self.margin),
+                ),
+                Some(r) => {
+                    let centre = [self.tile[0] / 2.0, self.tile[1] / 2.0, 0.0];
+                    let p = [0, 1, 2].map(|a| centre[a] + r * l[a]);
+                    let copies = tiling::copies_for_point(self.tile, &self.bounds, p, self.margin);
+                    (Light::Point(p), copies)
+                }
+            };
             if tiling::run_is_capped(self.tile, &self.bounds, l) {
                 rep.capped.push(li);
             }
             rep.rings.push(tiling::rings(&copies));
             rep.copies.push(copies.len());
             self.scene.prepare(&self.gpu, &copies)?;
-            plans.push(Some((l.map(|c| c as f32), copies)));
+            plans.push(Some((light, copies)));
         }
         self.gpu.wait("building the lights' TLASes")?;
         rep.seconds_scene += t0.elapsed().as_secs_f64();
@@ -428,7 +454,10 @@ impl GpuBaker {
         let d = self.gpu.device.clone();
         let per_pass = self.per_pass.min(lights.len()).max(1);
         let largest = self.bands.iter().map(|b| b.len()).max().unwrap_or(0) * nx;
-        let align = self.gpu.limits.min_uniform_buffer_offset_alignment.max(32) as u64;
+        // Each light's params at its own offset: the struct's size rounded up to the device's
+        // uniform offset alignment.
+        let align = (std::mem::size_of::<ShadowParams>() as u64)
+            .next_multiple_of(self.gpu.limits.min_uniform_buffer_offset_alignment as u64);
         let params_buf = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("shadow params"),
             size: align * per_pass as u64,
@@ -442,6 +471,19 @@ impl GpuBaker {
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
             mapped_at_creation: false,
         });
+        // (u, v) per slot and texel for point lights; a token buffer otherwise (never written).
+        let point = self.light_distance.is_some();
+        let uv_bytes = if point {
+            (per_pass * largest) as u64 * 8
+        } else {
+            0
+        };
+        let uv = d.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("mean directions"),
+            size: uv_bytes.max(16),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
         let traced = d.create_buffer(&wgpu::BufferDescriptor {
             label: Some("traced rays"),
             size: per_pass as u64 * 4,
@@ -452,6 +494,7 @@ impl GpuBaker {
         });
         let layout = self.shadow.get_bind_group_layout(0);
         let mut k_planes = vec![vec![0.0f32; nx * n_rows]; per_pass];
+        let mut uv_planes = vec![vec![[0.0f32; 2]; if point { nx * n_rows } else { 0 }]; per_pass];
         for (p, pass) in plans.chunks(per_pass).enumerate() {
             // One bind group per light of the pass: its TLAS and its slot of the params.
             let binds: Vec<Option<wgpu::BindGroup>> = pass
@@ -489,6 +532,10 @@ impl GpuBaker {
                                 binding: 7,
                                 resource: traced.as_entire_binding(),
                             },
+                            wgpu::BindGroupEntry {
+                                binding: 8,
+                                resource: uv.as_entire_binding(),
+                            },
                         ],
                     }))
                 })
@@ -502,10 +549,16 @@ impl GpuBaker {
                         .write_buffer(&self.samples, 0, bytemuck::cast_slice(s));
                 }
                 for (slot, plan) in pass.iter().enumerate() {
-                    let dir = plan.as_ref().map_or([0.0; 3], |(l, _)| *l);
+                    let (dir, pos, point) = match plan.as_ref().map(|p| p.0) {
+                        Some(Light::Distant(l)) => (l, [0.0; 3], 0),
+                        Some(Light::Point(p)) => ([0.0; 3], p.map(|c| c as f32), 1),
+                        None => ([0.0; 3], [0.0; 3], 0),
+                    };
                     let params = ShadowParams {
                         dir,
                         z_cap: self.z_cap as f32,
+                        pos,
+                        point,
                         texels: texels as u32,
                         spp,
                         out_offset: (slot * largest) as u32,
@@ -534,6 +587,11 @@ impl GpuBaker {
                 let occ: Vec<u32> = self
                     .gpu
                     .read(&counts, counts_bytes, "tracing shadow rays")?;
+                let uvs: Vec<[f32; 2]> = if point {
+                    self.gpu.read(&uv, uv_bytes, "tracing shadow rays")?
+                } else {
+                    Vec::new()
+                };
                 let rays: Vec<u32> =
                     self.gpu
                         .read(&traced, per_pass as u64 * 4, "tracing shadow rays")?;
@@ -554,14 +612,20 @@ impl GpuBaker {
                             for ((k, &c), &o) in k.iter_mut().zip(cov).zip(o) {
                                 *k = if c > 0 { o as f32 / c as f32 } else { 0.0 };
                             }
+                            if point {
+                                uv_planes[slot][local..local + texels]
+                                    .copy_from_slice(&uvs[slot * largest..slot * largest + texels]);
+                            }
                             rep.shadow_rays += rays[slot] as u64;
                             rep.shadow_rays_skipped += covered - rays[slot] as u64;
                         }
                     }
                 }
             }
-            for (slot, k) in k_planes.iter().take(pass.len()).enumerate() {
-                sink(p * per_pass + slot, k, None)?;
+            for (slot, (k, plan)) in k_planes.iter().zip(pass).enumerate() {
+                // As the CPU bake: (u, v) planes for point lights above the horizon.
+                let uv = matches!(plan, Some((Light::Point(_), _))).then_some(&uv_planes[slot][..]);
+                sink(p * per_pass + slot, k, uv)?;
             }
         }
         rep.seconds_shadow = t1.elapsed().as_secs_f64();

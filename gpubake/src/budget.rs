@@ -21,28 +21,38 @@ pub const PASS_PLANE_BYTES: f64 = 256.0 * (1u64 << 20) as f64;
 /// Most lights traced per pass over the bands.
 pub const MAX_LIGHTS_PER_PASS: usize = 32;
 
+/// Host bytes per texel and light of a pass: K, and for point lights (`point`) its (u, v).
+pub fn plane_bytes(point: bool) -> u64 {
+    if point {
+        12
+    } else {
+        4
+    }
+}
+
 /// Lights per pass over the bands for `width × rows` traced texels: as many as fit in
-/// [`PASS_PLANE_BYTES`] of K planes, 1 to [`MAX_LIGHTS_PER_PASS`]. With several bands, each pass
-/// uploads every band's samples again, so fewer passes upload less.
-pub fn lights_per_pass(width: usize, rows: usize) -> usize {
-    let plane = width as f64 * rows as f64 * 4.0;
+/// [`PASS_PLANE_BYTES`] of planes ([`plane_bytes`]), 1 to [`MAX_LIGHTS_PER_PASS`]. With several
+/// bands, each pass uploads every band's samples again, so fewer passes upload less.
+pub fn lights_per_pass(width: usize, rows: usize, point: bool) -> usize {
+    let plane = width as f64 * rows as f64 * plane_bytes(point) as f64;
     (PASS_PLANE_BYTES / plane)
         .floor()
         .clamp(1.0, MAX_LIGHTS_PER_PASS as f64) as usize
 }
 
-/// Device bytes per band row: the samples' buffers and each light slot's counts and readback.
-pub fn bytes_per_row(width: usize, spp: u32, per_pass: usize) -> u64 {
-    width as u64 * (spp as u64 * SAMPLE_BYTES + per_pass as u64 * 8)
+/// Device bytes per band row: the samples' buffers and each light slot's counts (and, for
+/// point lights, (u, v)) with their readback.
+pub fn bytes_per_row(width: usize, spp: u32, per_pass: usize, point: bool) -> u64 {
+    width as u64 * (spp as u64 * SAMPLE_BYTES + per_pass as u64 * 2 * plane_bytes(point))
 }
 
 /// Host bytes of a GPU bake of `width × rows` texels: K planes of a pass, coverage and covered
 /// counts, and (with more than one band) every band's samples kept for the next pass.
-pub fn host_bytes(width: usize, rows: usize, spp: u32, bands: usize) -> f64 {
+pub fn host_bytes(width: usize, rows: usize, spp: u32, bands: usize, point: bool) -> f64 {
     let texels = width as f64 * rows as f64;
-    let per_pass = lights_per_pass(width, rows) as f64;
+    let per_pass = lights_per_pass(width, rows, point) as f64;
     let samples = if bands > 1 { 32.0 * spp as f64 } else { 0.0 };
-    texels * (per_pass * 4.0 + 8.0 + samples)
+    texels * (per_pass * plane_bytes(point) as f64 + 8.0 + samples)
 }
 
 /// The bands of `rows` (`width` texels, `spp` samples, `per_pass` lights at a time) within
@@ -56,13 +66,14 @@ pub fn bands(
     rows: Range<usize>,
     spp: u32,
     per_pass: usize,
+    point: bool,
 ) -> Result<Vec<Range<usize>>> {
     let buffer_limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
     let n = rows.len();
     // The rows one band may hold under each bound, and what is measured against it.
-    let row = bytes_per_row(width, spp, per_pass);
+    let row = bytes_per_row(width, spp, per_pass, point);
     let samples_row = width as u64 * spp as u64 * 32;
-    let counts_row = width as u64 * per_pass as u64 * 4;
+    let counts_row = width as u64 * per_pass as u64 * plane_bytes(point);
     let checks: [(u64, u64, &'static str, &'static str); 3] = [
         (row, budget, "device memory for a band", "band budget"),
         (
@@ -74,7 +85,7 @@ pub fn bands(
         (
             counts_row,
             buffer_limit,
-            "the occluded counts' buffer",
+            "the occluded counts' (or (u, v)'s) buffer",
             "max_storage_buffer_binding_size",
         ),
     ];
@@ -114,8 +125,8 @@ mod tests {
     #[test]
     fn bands_are_whole_row_blocks_within_the_budget_and_limits() {
         let l = wgpu::Limits::default();
-        let row = bytes_per_row(64, 4, 8);
-        let bands = |budget, rows| super::bands(&l, "dev", budget, 64, rows, 4, 8).unwrap();
+        let row = bytes_per_row(64, 4, 8, false);
+        let bands = |budget, rows| super::bands(&l, "dev", budget, 64, rows, 4, 8, false).unwrap();
         // Everything fits: one band, however many rows.
         assert_eq!(bands(u64::MAX, 0..64), [0..64]);
         assert_eq!(bands(row * 8, 0..8), [0..8]);
@@ -123,7 +134,7 @@ mod tests {
         assert_eq!(bands(row * 40, 0..64), [0..32, 32..64]);
         assert_eq!(bands(row * 16, 16..56), [16..32, 32..48, 48..56]);
         // Not even one block: refused, with the figures of one block.
-        let e = super::bands(&l, "dev", row * 15, 64, 0..64, 4, 8).unwrap_err();
+        let e = super::bands(&l, "dev", row * 15, 64, 0..64, 4, 8, false).unwrap_err();
         assert!(
             matches!(e, Error::BandTooBig { rows: 16, need, limit_name: "band budget", .. } if need == row * 16),
             "{e}"
@@ -133,7 +144,7 @@ mod tests {
             max_storage_buffer_binding_size: 64 * 4 * 32 * 16 - 1,
             ..l.clone()
         };
-        let e = super::bands(&small, "dev", u64::MAX, 64, 0..64, 4, 8).unwrap_err();
+        let e = super::bands(&small, "dev", u64::MAX, 64, 0..64, 4, 8, false).unwrap_err();
         assert!(
             matches!(
                 e,

@@ -39,9 +39,6 @@ pub enum Error {
         /// wgpu's reason.
         reason: String,
     },
-    /// Point lights (a light distance) are traced on the CPU only.
-    #[error("point lights (a light distance) are baked on the CPU only: the GPU bake traces distant lights")]
-    PointLights,
     /// The mesh or the tile copies exceed one of the device's limits (checked before upload).
     #[error("{what}: {need} exceeds the device's {limit_name} of {limit} ({adapter})")]
     TooBig {

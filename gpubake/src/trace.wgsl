@@ -59,17 +59,22 @@ fn primary(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups
 
 // ---- shadow -----------------------------------------------------------------------------------
 
-// `ShadowParams` in baker.rs: one light of a pass (a uniform at a dynamic offset).
+// `ShadowParams` in baker.rs: one light of a pass (a uniform at a per-light offset).
 struct ShadowParams {
-    // Unit direction towards the distant light (l_z > 0), in f32 as the CPU bake traces it.
+    // A distant light: the unit direction towards it (l_z > 0), in f32 as the CPU bake traces it.
     dir: vec3<f32>,
     // The clamp plane: shadow rays end where they reach it.
     z_cap: f32,
+    // A point light: its position (baker units).
+    pos: vec3<f32>,
+    // 1: a point light at `pos` (rays end at the light, each texel's mean direction to it is
+    // written to `uv`); 0: a distant light along `dir`.
+    point: u32,
     // Texels in the band.
     texels: u32,
     // Footprint samples per texel.
     spp: u32,
-    // Where this light's counts start in `occluded` (its slot in the pass × texels).
+    // Where this light's counts (and (u, v)) start: its slot in the pass × texels.
     out_offset: u32,
     // This light's slot in the pass (its entry of `traced`).
     slot: u32,
@@ -90,6 +95,12 @@ struct Sample {
 @group(0) @binding(6) var<storage, read_write> occluded: array<u32>;
 // Per light slot: shadow rays traced (covered samples facing the light).
 @group(0) @binding(7) var<storage, read_write> traced: array<atomic<u32>>;
+// Per light slot and texel, point lights only: (u, v) of the mean unit direction to the light
+// over the texel's covered samples (0 where none is covered).
+@group(0) @binding(8) var<storage, read_write> uv: array<vec2<f32>>;
+
+// The far end of a ray that never reaches the clamp plane (f32's largest value).
+const FAR: f32 = 3.40282347e38;
 
 @compute @workgroup_size(64)
 fn shadow(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
@@ -97,9 +108,11 @@ fn shadow(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups)
     if texel >= light.texels {
         return;
     }
-    let l = light.dir;
+    let point = light.point != 0u;
     var count = 0u;
     var rays = 0u;
+    var covered = 0u;
+    var dir_sum = vec3<f32>(0.0);
     // Declared once, outside the loop: Mesa 25's lavapipe loses the device compiling a ray
     // query declared in a loop body (wgpu 30, naga's SPIR-V), and one query reinitialised per
     // ray is what a ray-tracing API expects anyway.
@@ -109,20 +122,43 @@ fn shadow(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups)
         if smp.covered == 0u {
             continue;
         }
-        // As the CPU bake: a sample facing away from the light is occluded without a ray.
-        let facing = l.x * smp.n.x + l.y * smp.n.y + l.z * smp.n.z > 0.0;
+        covered += 1u;
+        // As the CPU bake: towards a distant light, or to a point light (not normalised: the
+        // ray ends at t = 1, the light), whose unit direction every covered sample sums.
+        var d = light.dir;
+        if point {
+            d = light.pos - smp.org;
+            dir_sum += d / length(d);
+        }
+        // A sample facing away from the light is occluded without a ray.
+        let facing = d.x * smp.n.x + d.y * smp.n.y + d.z * smp.n.z > 0.0;
         if !facing {
             count += 1u;
             continue;
         }
         rays += 1u;
-        // From the origin to the clamp plane, where nothing lies above.
-        let t_far = max((light.z_cap - smp.org.z) / l.z, 0.0);
-        rayQueryInitialize(&rq, acc, RayDesc(RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xFFu, 0.0, t_far, smp.org, l));
+        // From the origin to the clamp plane, where nothing lies above, and no further than a
+        // point light.
+        var t_far = FAR;
+        if d.z > 0.0 {
+            t_far = max((light.z_cap - smp.org.z) / d.z, 0.0);
+        }
+        if point {
+            t_far = min(t_far, 1.0);
+        }
+        rayQueryInitialize(&rq, acc, RayDesc(RAY_FLAG_TERMINATE_ON_FIRST_HIT, 0xFFu, 0.0, t_far, smp.org, d));
         while rayQueryProceed(&rq) {}
         if rayQueryGetCommittedIntersection(&rq).kind != RAY_QUERY_INTERSECTION_NONE {
             count += 1u;
         }
+    }
+    if point {
+        var mean = vec2<f32>(0.0);
+        let len = length(dir_sum);
+        if covered > 0u && len > 0.0 {
+            mean = dir_sum.xy / len;
+        }
+        uv[light.out_offset + texel] = mean;
     }
     occluded[light.out_offset + texel] = count;
     atomicAdd(&traced[light.slot], rays);

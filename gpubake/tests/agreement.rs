@@ -3,7 +3,8 @@
 //!   intersectors may disagree only about rays grazing triangle edges);
 //! - determinism: the same K to the bit on every run, for any band size, and for a farm shard's
 //!   rows against the same rows of the whole bake;
-//! - faults: bands that cannot fit, point lights and a lost device are errors, never output.
+//! - point lights: K and each texel's (u, v) of the mean direction to the light;
+//! - faults: bands that cannot fit and a lost device are errors, never output.
 #[path = "../../bake/tests/common/mod.rs"]
 mod common;
 mod gpu;
@@ -109,7 +110,8 @@ fn gpu_bake_is_deterministic_across_runs_bands_and_shards() {
         band_bytes: ptm_gpubake::budget::bytes_per_row(
             32,
             4,
-            ptm_gpubake::budget::lights_per_pass(32, 32),
+            ptm_gpubake::budget::lights_per_pass(32, 32, false),
+            false,
         ) * 16,
     };
     let mut banded = GpuBaker::new_rows(&adapter, &s, &c, 0..32, &one_block, false).unwrap();
@@ -132,7 +134,7 @@ fn gpu_bake_is_deterministic_across_runs_bands_and_shards() {
 }
 
 #[test]
-fn band_too_big_and_point_lights_are_refused_before_upload() {
+fn a_band_too_big_is_refused_before_upload() {
     let s = PreparedMesh::load("builtin:plain-weave", None).unwrap();
     let adapter = gpu::adapter();
     let c = cfg(64, 16);
@@ -148,7 +150,10 @@ fn band_too_big_and_point_lights_are_refused_before_upload() {
             limit: 1000,
             need,
             ..
-        } => assert_eq!(*need, ptm_gpubake::budget::bytes_per_row(64, 16, 32) * 16),
+        } => assert_eq!(
+            *need,
+            ptm_gpubake::budget::bytes_per_row(64, 16, 32, false) * 16
+        ),
         other => panic!("{other}"),
     }
     let msg = e.to_string();
@@ -156,12 +161,43 @@ fn band_too_big_and_point_lights_are_refused_before_upload() {
         msg.contains("band of 16 rows") && msg.contains("1000"),
         "{msg}"
     );
-    let point = BakeConfig {
-        light_distance: Some(5.0),
-        ..c
+}
+
+/// Point lights on a hemisphere over the tile: K as the CPU's, and each texel's (u, v) of the
+/// mean unit direction to the light to f32 rounding; a light below the horizon has no (u, v),
+/// as on the CPU.
+#[test]
+fn point_lights_agree_with_embree() {
+    let s = PreparedMesh::from_mesh(common::sphere_scene(), None, "sphere").unwrap();
+    let mut dirs = ptm_bake::dome::fibonacci(8, 10.0).unwrap().dirs;
+    dirs.push([0.6, 0.0, -0.8]);
+    let lights = LightSet::from_dirs(dirs);
+    let c = BakeConfig {
+        light_distance: Some(1.5),
+        ..cfg(32, 4)
     };
-    let e = GpuBaker::new_rows(&adapter, &s, &point, 0..64, &GpuConfig::default(), false);
-    assert!(matches!(e, Err(Error::PointLights)));
+    let (pc, cc, rc) = gpu::cpu(&s, &lights, &c);
+    let (pg, cg, rg) = gpu::gpu(&s, &lights, &c);
+    assert_eq!(cc, cg);
+    assert_eq!((&rc.rings, &rc.copies), (&rg.rings, &rg.copies));
+    for (li, (mean, max)) in deltas(&pc, &pg).iter().enumerate() {
+        assert!(
+            *mean <= 0.002 && *max <= 0.5 + 1e-6,
+            "light {li}: {mean} {max}"
+        );
+    }
+    let (uc, ug) = (pc.uv.unwrap(), pg.uv.unwrap());
+    assert_eq!(uc.len(), 8);
+    assert_eq!(ug.len(), 8);
+    let mut worst = 0.0f32;
+    for (a, b) in uc.iter().flatten().zip(ug.iter().flatten()) {
+        worst = worst.max((a[0] - b[0]).abs()).max((a[1] - b[1]).abs());
+    }
+    eprintln!("point lights: worst |Δ(u, v)| {worst:e}");
+    assert!(worst <= 1e-5, "{worst}");
+    // Not trivially lit, and the directions vary across the tile.
+    assert!(pg.k.iter().flatten().any(|&k| k > 0.0 && k < 1.0));
+    assert!(ug[0][0] != ug[0][32 * 32 - 1]);
 }
 
 #[test]
@@ -207,18 +243,10 @@ fn device_choice_says_why() {
     let c = ptm_gpubake::adapter::choose_from(Asked::Auto, Vec::new()).unwrap();
     assert_eq!(c.used, Used::Cpu);
     assert_eq!(c.reason, "wgpu found no GPU adapter");
-    // Point lights: `auto` takes the CPU, `gpu` refuses.
-    let c = ptm_gpubake::choose(Asked::Auto, true).unwrap();
-    assert_eq!(c.used, Used::Cpu);
-    assert!(c.reason.contains("point lights"), "{}", c.reason);
-    assert!(matches!(
-        ptm_gpubake::choose(Asked::Gpu, true),
-        Err(Error::PointLights)
-    ));
     // On this machine: `auto` takes a hardware GPU if the adapter `gpu` takes is one, else the
     // CPU, naming the software adapter.
-    let gpu = ptm_gpubake::choose(Asked::Gpu, false).unwrap();
-    let auto = ptm_gpubake::choose(Asked::Auto, false).unwrap();
+    let gpu = ptm_gpubake::choose(Asked::Gpu).unwrap();
+    let auto = ptm_gpubake::choose(Asked::Auto).unwrap();
     let name = gpu.adapter_name.clone().unwrap();
     let software = gpu.adapter.as_ref().unwrap().get_info().device_type == wgpu::DeviceType::Cpu;
     if software {

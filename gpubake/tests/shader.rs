@@ -64,6 +64,8 @@ fn shader_validates_and_structs_match_their_rust_twins() {
         &[
             ("dir", offset_of!(ShadowParams, dir)),
             ("z_cap", offset_of!(ShadowParams, z_cap)),
+            ("pos", offset_of!(ShadowParams, pos)),
+            ("point", offset_of!(ShadowParams, point)),
             ("texels", offset_of!(ShadowParams, texels)),
             ("spp", offset_of!(ShadowParams, spp)),
             ("out_offset", offset_of!(ShadowParams, out_offset)),

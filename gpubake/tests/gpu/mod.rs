@@ -8,7 +8,7 @@ use ptm_gpubake::{Asked, GpuConfig};
 /// The adapter `--device gpu` picks. Without one the test fails saying why: CI installs Mesa 25
 /// (lavapipe with VK_KHR_ray_query) in scripts/setup.sh.
 pub fn adapter() -> wgpu::Adapter {
-    match ptm_gpubake::choose(Asked::Gpu, false) {
+    match ptm_gpubake::choose(Asked::Gpu) {
         Ok(c) => c.adapter.expect("a GPU choice has an adapter"),
         Err(e) => panic!(
             "GPU bake tests need an adapter with ray queries (Mesa >= 25 lavapipe: run \
