@@ -5,7 +5,7 @@
 //! the flag that avoids it, writing nothing.
 mod common;
 
-use common::{json, ok, ptm, refused};
+use common::{json, ok, ptm};
 use ptm_fit::SampleStack;
 
 /// The bake every test varies: a small weave, few lights (CI time).

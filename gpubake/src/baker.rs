@@ -172,15 +172,18 @@ impl GpuBaker {
         let width = cfg.res[0];
         let point = cfg.light_distance.is_some();
         let per_pass = budget::lights_per_pass(width, rows.len(), point);
+        let shape = budget::Rows {
+            width,
+            spp: cfg.spp,
+            per_pass,
+            point,
+        };
         let bands = budget::bands(
             &gpu.limits,
             &gpu.name,
             gpu_cfg.band_bytes,
-            width,
             rows.clone(),
-            cfg.spp,
-            per_pass,
-            point,
+            &shape,
         )?;
         let t0 = Instant::now();
         let mut scene = Scene::new(&gpu, &mesh.positions, &mesh.triangles, mesh.tile)?;

@@ -40,10 +40,26 @@ pub fn lights_per_pass(width: usize, rows: usize, point: bool) -> usize {
         .clamp(1.0, MAX_LIGHTS_PER_PASS as f64) as usize
 }
 
-/// Device bytes per band row: the samples' buffers and each light slot's counts (and, for
-/// point lights, (u, v)) with their readback.
-pub fn bytes_per_row(width: usize, spp: u32, per_pass: usize, point: bool) -> u64 {
-    width as u64 * (spp as u64 * SAMPLE_BYTES + per_pass as u64 * 2 * plane_bytes(point))
+/// What a band's buffers hold per row.
+#[derive(Clone, Copy, Debug)]
+pub struct Rows {
+    /// Texels per row.
+    pub width: usize,
+    /// Footprint samples per texel.
+    pub spp: u32,
+    /// Lights per pass ([`lights_per_pass`]).
+    pub per_pass: usize,
+    /// Point lights: (u, v) planes beside K.
+    pub point: bool,
+}
+
+impl Rows {
+    /// Device bytes per band row: the samples' buffers and each light slot's counts (and, for
+    /// point lights, (u, v)) with their readback.
+    pub fn bytes(&self) -> u64 {
+        self.width as u64
+            * (self.spp as u64 * SAMPLE_BYTES + self.per_pass as u64 * 2 * plane_bytes(self.point))
+    }
 }
 
 /// Host bytes of a GPU bake of `width × rows` texels: K planes of a pass, coverage and covered
@@ -55,23 +71,26 @@ pub fn host_bytes(width: usize, rows: usize, spp: u32, bands: usize, point: bool
     texels * (per_pass * plane_bytes(point) as f64 + 8.0 + samples)
 }
 
-/// The bands of `rows` (`width` texels, `spp` samples, `per_pass` lights at a time) within
-/// `budget` bytes and the device's buffer limits: as few as fit, each a whole number of
-/// [`ROW_BLOCK`]s but the last. An error, with the figures, when even one block does not fit.
+/// The bands of image rows `rows` of `shape` within `budget` bytes and the limits `l` of the
+/// device on `adapter` (described): as few as fit, each a whole number of [`ROW_BLOCK`]s but the
+/// last. An error, with the figures, when even one block does not fit.
 pub fn bands(
     l: &wgpu::Limits,
     adapter: &str,
     budget: u64,
-    width: usize,
     rows: Range<usize>,
-    spp: u32,
-    per_pass: usize,
-    point: bool,
+    shape: &Rows,
 ) -> Result<Vec<Range<usize>>> {
+    let &Rows {
+        width,
+        spp,
+        per_pass,
+        point,
+    } = shape;
     let buffer_limit = l.max_storage_buffer_binding_size.min(l.max_buffer_size);
     let n = rows.len();
     // The rows one band may hold under each bound, and what is measured against it.
-    let row = bytes_per_row(width, spp, per_pass, point);
+    let row = shape.bytes();
     let samples_row = width as u64 * spp as u64 * 32;
     let counts_row = width as u64 * per_pass as u64 * plane_bytes(point);
     let checks: [(u64, u64, &'static str, &'static str); 3] = [
@@ -125,16 +144,22 @@ mod tests {
     #[test]
     fn bands_are_whole_row_blocks_within_the_budget_and_limits() {
         let l = wgpu::Limits::default();
-        let row = bytes_per_row(64, 4, 8, false);
-        let bands = |budget, rows| super::bands(&l, "dev", budget, 64, rows, 4, 8, false).unwrap();
+        let shape = Rows {
+            width: 64,
+            spp: 4,
+            per_pass: 8,
+            point: false,
+        };
+        let row = shape.bytes();
+        let bands = |budget, rows| super::bands(&l, "dev", budget, rows, &shape).unwrap();
         // Everything fits: one band, however many rows.
-        assert_eq!(bands(u64::MAX, 0..64), [0..64]);
-        assert_eq!(bands(row * 8, 0..8), [0..8]);
+        assert_eq!(bands(u64::MAX, 0..64), vec![(0..64)]);
+        assert_eq!(bands(row * 8, 0..8), vec![(0..8)]);
         // Two blocks' worth: bands of 32 rows; a shard's rows keep their start.
         assert_eq!(bands(row * 40, 0..64), [0..32, 32..64]);
         assert_eq!(bands(row * 16, 16..56), [16..32, 32..48, 48..56]);
         // Not even one block: refused, with the figures of one block.
-        let e = super::bands(&l, "dev", row * 15, 64, 0..64, 4, 8, false).unwrap_err();
+        let e = super::bands(&l, "dev", row * 15, 0..64, &shape).unwrap_err();
         assert!(
             matches!(e, Error::BandTooBig { rows: 16, need, limit_name: "band budget", .. } if need == row * 16),
             "{e}"
@@ -144,7 +169,7 @@ mod tests {
             max_storage_buffer_binding_size: 64 * 4 * 32 * 16 - 1,
             ..l.clone()
         };
-        let e = super::bands(&small, "dev", u64::MAX, 64, 0..64, 4, 8, false).unwrap_err();
+        let e = super::bands(&small, "dev", u64::MAX, 0..64, &shape).unwrap_err();
         assert!(
             matches!(
                 e,

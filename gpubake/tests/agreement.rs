@@ -11,6 +11,7 @@ mod gpu;
 
 use ptm_bake::{BakeConfig, Planes, PreparedMesh, Tracer};
 use ptm_format::LightSet;
+use ptm_gpubake::budget::Rows;
 use ptm_gpubake::{Asked, Error, GpuBaker, GpuConfig, Used};
 
 fn cfg(res: usize, spp: u32) -> BakeConfig {
@@ -107,12 +108,14 @@ fn gpu_bake_is_deterministic_across_runs_bands_and_shards() {
     assert_eq!(ca, cb);
     // A budget of one 16-row block: two bands, each re-uploaded per pass.
     let one_block = GpuConfig {
-        band_bytes: ptm_gpubake::budget::bytes_per_row(
-            32,
-            4,
-            ptm_gpubake::budget::lights_per_pass(32, 32, false),
-            false,
-        ) * 16,
+        band_bytes: Rows {
+            width: 32,
+            spp: 4,
+            per_pass: ptm_gpubake::budget::lights_per_pass(32, 32, false),
+            point: false,
+        }
+        .bytes()
+            * 16,
     };
     let mut banded = GpuBaker::new_rows(&adapter, &s, &c, 0..32, &one_block, false).unwrap();
     assert_eq!(banded.bands(), &[0..16, 16..32]);
@@ -152,7 +155,14 @@ fn a_band_too_big_is_refused_before_upload() {
             ..
         } => assert_eq!(
             *need,
-            ptm_gpubake::budget::bytes_per_row(64, 16, 32, false) * 16
+            Rows {
+                width: 64,
+                spp: 16,
+                per_pass: 32,
+                point: false
+            }
+            .bytes()
+                * 16
         ),
         other => panic!("{other}"),
     }
