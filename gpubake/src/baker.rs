@@ -114,7 +114,8 @@ pub struct GpuBaker {
     rows: Range<usize>,
     bands: Vec<Range<usize>>,
     per_pass: usize,
-    /// Per band, its samples (texel-major, then sample), when there are several bands.
+    /// Per band, its samples (sample-major: sample s of texel t at s × texels + t), when there
+    /// are several bands.
     host_samples: Vec<Vec<Sample>>,
     /// The band's samples on the device (sized for the largest band).
     samples: wgpu::Buffer,
@@ -360,9 +361,11 @@ impl GpuBaker {
             .surface
             .as_ref()
             .map(|_| Surface::new(nx, band.len(), spp));
-        for t in 0..band.len() * nx {
+        let texels = band.len() * nx;
+        for t in 0..texels {
             let mut covered = 0u32;
             for s in 0..spp {
+                // Hits are texel-major; shadow samples sample-major (trace.wgsl's layout).
                 let k = t * spp + s;
                 let h = hits[k];
                 let Some(tri) = mesh
@@ -376,7 +379,7 @@ impl GpuBaker {
                 let Some(ps) = frame.primary_sample(xy64[k], h.t, ng) else {
                     continue;
                 };
-                samples[k] = Sample {
+                samples[s * texels + t] = Sample {
                     org: ps.org,
                     covered: 1,
                     n: ps.n32,

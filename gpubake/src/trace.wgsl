@@ -102,12 +102,32 @@ struct Sample {
 // The far end of a ray that never reaches the clamp plane (f32's largest value).
 const FAR: f32 = 3.40282347e38;
 
+// Shadow rays a workgroup traced, summed here first: one atomic per workgroup on the light's
+// counter instead of one per texel (64 invocations contending for one address).
+var<workgroup> group_rays: atomic<u32>;
+
 @compute @workgroup_size(64)
-fn shadow(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+fn shadow(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
     let texel = id.x + id.y * groups.x * WORKGROUP;
-    if texel >= light.texels {
-        return;
+    var rays = 0u;
+    if texel < light.texels {
+        rays = shadow_texel(texel);
     }
+    atomicAdd(&group_rays, rays);
+    workgroupBarrier();
+    if lane == 0u {
+        atomicAdd(&traced[light.slot], atomicLoad(&group_rays));
+    }
+}
+
+// One texel of the band under one light: its samples' shadow rays in order, the occluded ones
+// counted into `occluded` (and a point light's mean direction into `uv`). Returns the rays
+// traced.
+fn shadow_texel(texel: u32) -> u32 {
     let point = light.point != 0u;
     var count = 0u;
     var rays = 0u;
@@ -118,7 +138,9 @@ fn shadow(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups)
     // ray is what a ray-tracing API expects anyway.
     var rq: ray_query;
     for (var s = 0u; s < light.spp; s++) {
-        let smp = samples[texel * light.spp + s];
+        // Sample-major within the band: neighbouring invocations (texels) read neighbouring
+        // samples.
+        let smp = samples[s * light.texels + texel];
         if smp.covered == 0u {
             continue;
         }
@@ -161,5 +183,5 @@ fn shadow(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups)
         uv[light.out_offset + texel] = mean;
     }
     occluded[light.out_offset + texel] = count;
-    atomicAdd(&traced[light.slot], rays);
+    return rays;
 }
