@@ -639,14 +639,24 @@ fn trace(
     };
     let surface = products.iter().any(Product::needs_surface);
     let mut baker: Box<dyn Tracer> = match &device.adapter {
-        Some(adapter) => Box::new(ptm_gpubake::GpuBaker::new_rows(
-            adapter,
-            swatch,
-            &cfg,
-            rows.clone(),
-            &ptm_gpubake::GpuConfig::default(),
-            surface,
-        )?),
+        Some(adapter) => {
+            let gpu = ptm_gpubake::GpuBaker::new_rows(
+                adapter,
+                swatch,
+                &cfg,
+                rows.clone(),
+                &ptm_gpubake::GpuConfig::default(),
+                surface,
+            )?;
+            let bands = gpu.bands();
+            eprintln!(
+                "ptm bake: on the GPU in {} band(s) of up to {} rows, {} lights per pass",
+                bands.len(),
+                bands.iter().map(|b| b.len()).max().unwrap_or(0),
+                gpu.lights_per_pass().min(lights.len())
+            );
+            Box::new(gpu)
+        }
         None if surface => Box::new(Baker::with_surface(swatch, &cfg, rows.clone())?),
         None => Box::new(Baker::new_rows(swatch, &cfg, rows.clone())?),
     };
