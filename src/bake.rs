@@ -145,15 +145,8 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
 fn choose_device(args: &Args) -> anyhow::Result<ptm_gpubake::Choice> {
     let choice = ptm_gpubake::choose(args.device)
         .with_context(|| format!("--device {}", args.device.name()))?;
-    eprintln!(
-        "ptm bake: device {}{}: {}",
-        choice.used.name(),
-        match (&choice.used, &choice.adapter_name) {
-            (ptm_gpubake::Used::Gpu, Some(a)) => format!(" ({a})"),
-            _ => String::new(),
-        },
-        choice.reason
-    );
+    // The reason names the adapter wherever one was chosen or passed over.
+    eprintln!("ptm bake: device {}: {}", choice.used.name(), choice.reason);
     Ok(choice)
 }
 

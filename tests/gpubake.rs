@@ -50,7 +50,11 @@ fn gpu_bake_writes_the_cpu_bakes_products() {
     assert!(j["rays"]["shadow"].as_u64().unwrap() > 0);
     let run = ptm(bake(&["--device", "gpu", "-o", "gpu2.exr"]), d);
     assert!(
-        run.ok && run.stderr.contains(&format!("device gpu ({adapter})")),
+        run.ok
+            && run
+                .stderr
+                .contains("ptm bake: device gpu: asked for the GPU: ")
+            && run.stderr.contains(&adapter),
         "{}",
         run.stderr
     );
