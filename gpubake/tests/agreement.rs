@@ -196,7 +196,7 @@ fn point_lights_agree_with_embree() {
             "light {li}: {mean} {max}"
         );
     }
-    let (uc, ug) = (pc.uv.unwrap(), pg.uv.unwrap());
+    let (uc, ug) = (pc.uv.clone().unwrap(), pg.uv.clone().unwrap());
     assert_eq!(uc.len(), 8);
     assert_eq!(ug.len(), 8);
     let mut worst = 0.0f32;
@@ -208,6 +208,21 @@ fn point_lights_agree_with_embree() {
     // Not trivially lit, and the directions vary across the tile.
     assert!(pg.k.iter().flatten().any(|&k| k > 0.0 && k < 1.0));
     assert!(ug[0][0] != ug[0][32 * 32 - 1]);
+    // In bands of one row block: the same planes, (u, v) included.
+    let one_block = GpuConfig {
+        band_bytes: Rows {
+            width: 32,
+            spp: 4,
+            per_pass: ptm_gpubake::budget::lights_per_pass(32, 32, true),
+            point: true,
+        }
+        .bytes()
+            * 16,
+    };
+    let (pb, _, _) =
+        ptm_gpubake::bake_planes(&gpu::adapter(), &s, &lights, &c, &one_block).unwrap();
+    assert_eq!(gpu::bits(&pb), gpu::bits(&pg));
+    assert_eq!(pb.uv.unwrap(), ug);
 }
 
 #[test]
