@@ -10,6 +10,7 @@ use std::time::Instant;
 use ptm_bake::maps::{Surface, SurfaceHit};
 use ptm_bake::{tiling, BakeConfig, BakeReport, Frame, PreparedMesh, Sink, Tracer};
 use ptm_format::LightSet;
+use rayon::prelude::*;
 use wgpu::util::DeviceExt;
 
 use crate::adapter::Gpu;
@@ -124,6 +125,8 @@ pub struct GpuBaker {
     coverage: Vec<f32>,
     surface: Option<Surface>,
     shadow: wgpu::ComputePipeline,
+    /// The host's threads (`BakeConfig::threads`; 0: one per core).
+    pool: rayon::ThreadPool,
     report: BakeReport,
 }
 
@@ -160,6 +163,10 @@ impl GpuBaker {
         surface: bool,
     ) -> Result<GpuBaker> {
         ptm_bake::check_config(swatch, cfg, &rows)?;
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(cfg.threads)
+            .build()
+            .map_err(|e| ptm_bake::Error::Config(format!("thread pool: {e}")))?;
         let gpu = Gpu::open(adapter)?;
         let frame = Frame::new(swatch);
         let mesh = &*frame.swatch;
@@ -236,6 +243,7 @@ impl GpuBaker {
             coverage: Vec::with_capacity(width * rows.len()),
             surface: surface.then(|| Surface::new(width, 0, cfg.spp as usize)),
             shadow,
+            pool,
             report: BakeReport {
                 seconds_scene,
                 ..Default::default()
@@ -286,14 +294,17 @@ impl GpuBaker {
     ) -> Result<()> {
         let (nx, spp) = (self.cfg.res[0], self.cfg.spp as usize);
         let (res, tile, seed) = (self.cfg.res, self.tile, self.cfg.seed);
-        let mut xy64 = Vec::with_capacity(band.len() * nx * spp);
-        for j in band.clone() {
-            for i in 0..nx {
-                for s in 0..spp {
-                    xy64.push(ptm_bake::sample_xy(res, tile, spp, seed, [i, j], s));
-                }
-            }
-        }
+        // Texel-major (row, column, sample), hashed in parallel: each is its own hash.
+        let xy64: Vec<[f64; 2]> = self.pool.install(|| {
+            (0..band.len() * nx * spp)
+                .into_par_iter()
+                .map(|k| {
+                    let (t, s) = (k / spp, k % spp);
+                    let texel = [t % nx, band.start + t / nx];
+                    ptm_bake::sample_xy(res, tile, spp, seed, texel, s)
+                })
+                .collect()
+        });
         let xy: Vec<[f32; 2]> = xy64.iter().map(|p| p.map(|c| c as f32)).collect();
         let count = xy.len() as u32;
         let d = &self.gpu.device;
@@ -354,8 +365,19 @@ impl GpuBaker {
         let hits: Vec<Hit> = self
             .gpu
             .read(&hits_buf, count as u64 * 8, "tracing primary rays")?;
-        // Shadow samples, coverage and surface sums, texel by texel, samples in order.
+        // Each hit's shadow sample, in parallel (the CPU bake's own maths, per sample); then
+        // coverage and surface sums texel by texel, samples in order.
         let mesh = &*frame.swatch;
+        let found: Vec<Option<ptm_bake::PrimarySample>> = self.pool.install(|| {
+            hits.par_iter()
+                .zip(xy64.par_iter())
+                .map(|(h, &xy)| {
+                    let tri = mesh.triangles.get(h.prim as usize);
+                    let tri = tri.filter(|_| h.prim != NO_HIT)?;
+                    frame.primary_sample(xy, h.t, geometric_normal(mesh, *tri))
+                })
+                .collect()
+        });
         let mut samples = vec![Sample::default(); hits.len()];
         let mut surface = self
             .surface
@@ -367,16 +389,7 @@ impl GpuBaker {
             for s in 0..spp {
                 // Hits are texel-major; shadow samples sample-major (trace.wgsl's layout).
                 let k = t * spp + s;
-                let h = hits[k];
-                let Some(tri) = mesh
-                    .triangles
-                    .get(h.prim as usize)
-                    .filter(|_| h.prim != NO_HIT)
-                else {
-                    continue;
-                };
-                let ng = geometric_normal(mesh, *tri);
-                let Some(ps) = frame.primary_sample(xy64[k], h.t, ng) else {
+                let Some(ps) = found[k] else {
                     continue;
                 };
                 samples[s * texels + t] = Sample {
@@ -387,12 +400,13 @@ impl GpuBaker {
                 };
                 covered += 1;
                 if let Some(sf) = surface.as_mut() {
+                    let prim = hits[k].prim;
                     let hit = SurfaceHit {
                         z: ps.p[2] * (1.0 / frame.unit),
                         n: ps.n,
-                        prim: h.prim,
+                        prim,
                     };
-                    let m = mesh.materials.get(h.prim as usize).copied();
+                    let m = mesh.materials.get(prim as usize).copied();
                     sf.add(t, s, &hit, m.unwrap_or(0));
                 }
             }
