@@ -29,6 +29,38 @@ if ((${#need_pkgs[@]})); then
     $SUDO apt-get install -y -qq --no-install-recommends "${need_pkgs[@]}" >/dev/null
 fi
 
+# --- Mesa 25 (lavapipe with ray queries) from bookworm-backports ------------------------------
+# The GPU bake (`ptm bake --device gpu`, crate gpubake/) needs Vulkan ray queries
+# (VK_KHR_ray_query); Debian 12's Mesa 22.3 lavapipe has none, the Mesa 25 of bookworm-backports
+# has them. It replaces 22.3 for everything (the runtime's goldens and twins pass on it; see
+# gpubake/ in ARCHITECTURE.md for why not beside it). Backports have priority 100, so nothing
+# else is upgraded from them. Other distributions: install a Mesa >= 25 yourself.
+mesa_major() { v=$(dpkg-query -W -f='${Version}' mesa-vulkan-drivers 2>/dev/null || true); v=${v#*:}; echo "${v%%.*}"; }
+codename=$(. /etc/os-release 2>/dev/null && echo "${VERSION_CODENAME:-}" || true)
+if [ "$codename" = bookworm ] && [ "$(mesa_major)" != "" ] && [ "$(mesa_major)" -lt 25 ]; then
+    if [ "$(id -u)" -eq 0 ]; then SUDO=""; elif command -v sudo >/dev/null; then SUDO="sudo"; else
+        say "Mesa $(mesa_major) has no Vulkan ray queries; run as root or install Mesa 25 from bookworm-backports: apt-get install -t bookworm-backports mesa-vulkan-drivers"
+        exit 1
+    fi
+    bpo=/etc/apt/sources.list.d/ptm-bookworm-backports.sources
+    if ! grep -rqs "bookworm-backports" /etc/apt/sources.list /etc/apt/sources.list.d/; then
+        # The machine's own bookworm mirror and keyring (deb822 or one-line sources).
+        uri=$(awk '/^URIs:/ {u=$2} /^Suites:/ && / bookworm( |$)/ && u {print u; exit}' /etc/apt/sources.list.d/*.sources 2>/dev/null || true)
+        key=$(awk '/^URIs:/ {u=$2} /^Signed-By:/ {k=$2} /^Suites:/ && / bookworm( |$)/ {s=1} s && k && u {print k; exit}' /etc/apt/sources.list.d/*.sources 2>/dev/null || true)
+        [ -n "$uri" ] || uri=$(awk '$1 == "deb" { for (i = 2; i < NF; i++) if ($i ~ /^[a-z+]+:\/\//) { if ($(i + 1) == "bookworm") { print $i; exit } break } }' /etc/apt/sources.list 2>/dev/null || true)
+        uri=${uri:-http://deb.debian.org/debian}
+        key=${key:-/usr/share/keyrings/debian-archive-keyring.gpg}
+        say "adding bookworm-backports ($uri) for Mesa 25"
+        printf 'Types: deb\nURIs: %s\nSuites: bookworm-backports\nComponents: main\nSigned-By: %s\n' "$uri" "$key" |
+            $SUDO tee "$bpo" >/dev/null
+    fi
+    say "installing Mesa 25 (mesa-vulkan-drivers) from bookworm-backports: lavapipe with ray queries"
+    export DEBIAN_FRONTEND=noninteractive
+    $SUDO apt-get update -qq >/dev/null
+    $SUDO apt-get install -y -qq --no-install-recommends -t bookworm-backports mesa-vulkan-drivers >/dev/null
+    [ "$(mesa_major)" -ge 25 ] || { say "Mesa from bookworm-backports did not install (have $(mesa_major))"; exit 1; }
+fi
+
 # --- Embree 4 ----------------------------------------------------------------------------------
 # EMBREE_DIR=/path/to/embree4 (with lib/libembree4.so) skips the wheel entirely.
 if [ -n "${EMBREE_DIR:-}" ]; then

@@ -52,8 +52,14 @@ if cargo tree -p ptm-python -e normal --prefix none | grep -E '^(ptm-fit|nalgebr
     exit 1
 fi
 
-step "ptm-bake and ptm-runtime take the file layer (ptm-format), not the fitter"
-for c in ptm-bake ptm-runtime; do
+step "ptm-bake (the CPU bake) links no wgpu: the GPU bake is ptm-gpubake's"
+if cargo tree -p ptm-bake -e normal --prefix none | grep -E '^(wgpu|wgpu-core|wgpu-hal|naga|ptm-gpubake) ' ; then
+    echo "ptm-bake must not depend on wgpu or ptm-gpubake: the GPU bake lives in gpubake/ (see ARCHITECTURE.md)" >&2
+    exit 1
+fi
+
+step "ptm-bake, ptm-gpubake and ptm-runtime take the file layer (ptm-format), not the fitter"
+for c in ptm-bake ptm-gpubake ptm-runtime; do
     if cargo tree -p "$c" -e normal --prefix none | grep -E '^ptm-fit ' ; then
         echo "$c must not depend on ptm-fit: it never fits; take ptm-format (see ARCHITECTURE.md)" >&2
         exit 1

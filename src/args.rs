@@ -58,6 +58,25 @@ pub fn parse_basis(s: &str) -> Result<Basis, String> {
     })
 }
 
+impl Choice for ptm_gpubake::Asked {
+    fn all() -> &'static [Self] {
+        &ptm_gpubake::Asked::ALL
+    }
+    fn name(self) -> &'static str {
+        ptm_gpubake::Asked::name(self)
+    }
+    fn help(self) -> Option<&'static str> {
+        use ptm_gpubake::Asked;
+        Some(match self {
+            Asked::Cpu => "Embree on the CPU's cores",
+            Asked::Gpu => {
+                "wgpu ray queries on a GPU adapter that has them (lavapipe's software ones too)"
+            }
+            Asked::Auto => "a GPU with hardware ray queries if there is one, else the CPU",
+        })
+    }
+}
+
 impl Choice for Link {
     fn all() -> &'static [Self] {
         &Link::ALL

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh};
+use ptm_bake::{dome, BakeConfig, BakeReport, Baker, PreparedMesh, Tracer};
 use ptm_fit::shard::{BakeIdentity, PartMeta};
 use ptm_fit::{Accumulator, FitOptions, SampleStack};
 use ptm_format::atomic::{same_file, Transaction};
@@ -85,6 +85,10 @@ pub struct Args {
     /// Worker threads (0: one per core; at most 1024).
     #[arg(long, default_value_t = 0, value_parser = parse_threads)]
     pub threads: usize,
+    /// Device that traces: cpu (Embree), gpu (wgpu ray queries) or auto (a GPU with hardware
+    /// ray queries if there is one, else the CPU). The choice and why go to stderr and --json.
+    #[arg(long, value_name = "cpu|gpu|auto", hide_possible_values = true, value_parser = choice::<ptm_gpubake::Asked>(), default_value = "auto")]
+    pub device: ptm_gpubake::Asked,
     /// Trace shadow rays one by one instead of in 16-ray packets (same result, slower).
     #[arg(long, hide = true)]
     pub single_rays: bool,
@@ -115,7 +119,13 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
     let destinations = destinations(args)?;
     let (swatch, t_load) = resolve_swatch(args)?;
     let (res, rows) = resolve_rows(args, swatch.tile)?;
-    let lights = build_dome(args, [res[0], rows.len()], swatch.material_names.len())?;
+    let device = choose_device(args)?;
+    let lights = build_dome(
+        args,
+        [res[0], rows.len()],
+        swatch.material_names.len(),
+        device.used,
+    )?;
     let part = match check_outputs(args, res, &swatch, &lights)? {
         Output::Complete(path) => {
             return Ok(json::Bake::Skipped(json::SkippedPart {
@@ -133,12 +143,23 @@ pub fn run(args: &Args) -> anyhow::Result<json::Bake> {
     // A part's MIP levels are finished by the merge (`Accumulator::finish_part`).
     let shard_mips = args.shard.is_some() && args.fit.is_some() && !args.model.no_mips;
     announce(args, &swatch, res, &lights);
-    let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, products)?;
+    let (kept, report) = trace(args, &swatch, res, rows.clone(), &lights, &device, products)?;
     let written = write_outputs(&swatch, &lights, kept, &part, destinations, shard_mips)?;
     print_summary(&report, &written);
-    Ok(json::Bake::Baked(Box::new(bake_json(
+    let mut baked = bake_json(
         args, &swatch, res, rows, &lights, &report, written, t_load, t_all,
-    ))))
+    );
+    baked.device = json::BakeDevice::of(&device);
+    Ok(json::Bake::Baked(Box::new(baked)))
+}
+
+/// Which device traces (`--device`), said on stderr with the adapter and the reason.
+fn choose_device(args: &Args) -> anyhow::Result<ptm_gpubake::Choice> {
+    let choice = ptm_gpubake::choose(args.device)
+        .with_context(|| format!("--device {}", args.device.name()))?;
+    // The reason names the adapter wherever one was chosen or passed over.
+    eprintln!("ptm bake: device {}: {}", choice.used.name(), choice.reason);
+    Ok(choice)
 }
 
 /// Parses `--tile`, loads and checks the swatch, and prints its warnings. Returns the swatch
@@ -251,19 +272,24 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
 /// The light directions (`--lights`, `--dome` or `--dirs` Fibonacci), each refused before it
 /// is built when the bake of `mem_res` texels (of a swatch of `materials` materials, for the
 /// maps' masks) would not fit in memory.
-fn build_dome(args: &Args, mem_res: [usize; 2], materials: usize) -> anyhow::Result<LightSet> {
+fn build_dome(
+    args: &Args,
+    mem_res: [usize; 2],
+    materials: usize,
+    device: ptm_gpubake::Used,
+) -> anyhow::Result<LightSet> {
     let lights: LightSet = match (&args.lights, &args.dome) {
         (Some(p), _) => LightSet::read_lp(p)?,
         (None, Some(spec)) => dome::parse(spec, args.min_elevation)?,
         (None, None) => {
             // Checked before the dome exists: --dirs 100000000 must not exhaust memory first.
             let n = args.dirs.unwrap_or(32);
-            check_memory(args, mem_res, n, materials)?;
+            check_memory(args, mem_res, n, materials, device)?;
             dome::fibonacci(n, args.min_elevation)?
         }
     };
     if args.lights.is_some() || args.dome.is_some() {
-        check_memory(args, mem_res, lights.len(), materials)?;
+        check_memory(args, mem_res, lights.len(), materials, device)?;
     }
     Ok(lights)
 }
@@ -627,14 +653,16 @@ struct Kept {
     size: [usize; 2],
 }
 
-/// Traces `rows` of the bake light by light into the fit (or keeps the planes), with a
-/// progress bar on a terminal; reports uncovered texels and lights whose shadows were capped.
+/// Traces `rows` of the bake light by light into the fit (or keeps the planes) on the chosen
+/// device, with a progress bar on a terminal; reports uncovered texels and lights whose shadows
+/// were capped.
 fn trace(
     args: &Args,
     swatch: &PreparedMesh,
     res: [usize; 2],
     rows: Range<usize>,
     lights: &LightSet,
+    device: &ptm_gpubake::Choice,
     mut products: Vec<Product>,
 ) -> anyhow::Result<(Kept, BakeReport)> {
     let cfg = BakeConfig {
@@ -645,10 +673,28 @@ fn trace(
         packets: !args.single_rays,
         threads: args.threads,
     };
-    let mut baker = if products.iter().any(Product::needs_surface) {
-        Baker::with_surface(swatch, &cfg, rows.clone())?
-    } else {
-        Baker::new_rows(swatch, &cfg, rows.clone())?
+    let surface = products.iter().any(Product::needs_surface);
+    let mut baker: Box<dyn Tracer> = match &device.adapter {
+        Some(adapter) => {
+            let gpu = ptm_gpubake::GpuBaker::new_rows(
+                adapter,
+                swatch,
+                &cfg,
+                rows.clone(),
+                &ptm_gpubake::GpuConfig::default(),
+                surface,
+            )?;
+            let bands = gpu.bands();
+            eprintln!(
+                "ptm bake: on the GPU in {} band(s) of up to {} rows, {} lights per pass",
+                bands.len(),
+                bands.iter().map(|b| b.len()).max().unwrap_or(0),
+                gpu.lights_per_pass().min(lights.len())
+            );
+            Box::new(gpu)
+        }
+        None if surface => Box::new(Baker::with_surface(swatch, &cfg, rows.clone())?),
+        None => Box::new(Baker::new_rows(swatch, &cfg, rows.clone())?),
     };
     let coverage = baker.coverage().to_vec();
     let mut surface = baker.take_surface();
@@ -1155,6 +1201,7 @@ fn bake_json(
         seed: args.seed,
         lights: lights.len(),
         light_distance: args.light_distance,
+        device: json::BakeDevice::default(),
         rays: json::Rays {
             primary: report.primary_rays,
             shadow: report.shadow_rays,
@@ -1196,12 +1243,24 @@ fn check_memory(
     res: [usize; 2],
     lights: usize,
     materials: usize,
+    device: ptm_gpubake::Used,
 ) -> anyhow::Result<()> {
     let Some(available) = available_memory() else {
         return Ok(());
     };
     // In f64: absurd requests must be measured, not overflow.
-    let baker = ptm_bake::baker_bytes(res, args.spp);
+    // The tracer's host memory: Embree's primary samples, or the GPU bake's pass planes and
+    // (with several bands) its samples between passes.
+    let baker = match device {
+        ptm_gpubake::Used::Cpu => ptm_bake::baker_bytes(res, args.spp),
+        ptm_gpubake::Used::Gpu => ptm_gpubake::budget::host_bytes(
+            res[0],
+            res[1],
+            args.spp,
+            2,
+            args.light_distance.is_some(),
+        ),
+    };
     let dome = lights as f64 * 64.0;
     let products: Vec<(f64, &str)> = ProductKind::of(args)
         .into_iter()

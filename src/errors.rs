@@ -87,6 +87,9 @@ fn hinted(e: &(dyn StdError + 'static)) -> Option<String> {
     if let Some(e) = e.downcast_ref::<ptm_runtime::Error>() {
         return runtime_error(e);
     }
+    if let Some(e) = e.downcast_ref::<ptm_gpubake::Error>() {
+        return gpubake_error(e);
+    }
     if let Some(e) = e.downcast_ref::<ptm_report::Error>() {
         return match e {
             ptm_report::Error::Bake(e) => bake_error(e),
@@ -139,6 +142,11 @@ fn bake_error(e: &ptm_bake::Error) -> Option<String> {
     Some(match e {
         E::Format(e) => return format_error(e),
         E::Sink(e) => return e.downcast_ref::<ptm_fit::Error>().and_then(fit_error),
+        E::Tracer(e) => {
+            return e
+                .downcast_ref::<ptm_gpubake::Error>()
+                .and_then(gpubake_error)
+        }
         E::Tile {
             path,
             reason,
@@ -166,6 +174,27 @@ fn bake_error(e: &ptm_bake::Error) -> Option<String> {
         E::Io { .. } | E::InvalidMesh { .. } | E::Dome(_) | E::Config(_) | E::Embree(_) => {
             return None
         }
+    })
+}
+
+/// The GPU bake's errors with the flags that avoid them (`--device cpu` always does).
+fn gpubake_error(e: &ptm_gpubake::Error) -> Option<String> {
+    use ptm_gpubake::Error as E;
+    Some(match e {
+        E::NoRayQueries { .. } => format!(
+            "{e}: bake with --device cpu (or auto), or install a driver with ray queries (a \
+             GPU's, or Mesa >= 25 for lavapipe)"
+        ),
+        E::Device { .. } => format!("{e}: bake with --device cpu (or auto)"),
+        E::TooBig { .. } => format!("{e}: bake it with --device cpu"),
+        E::BandTooBig { .. } => {
+            format!("{e}: lower --res or --spp, or bake with --device cpu")
+        }
+        E::Lost { .. } => format!(
+            "{e}; nothing was written: bake again (a farm shard redoes only its own rows), or \
+             with --device cpu"
+        ),
+        E::Bake(e) => return bake_error(e),
     })
 }
 

@@ -272,6 +272,8 @@ pub struct Baked {
     pub lights: usize,
     /// Radius of the point-light hemisphere (null: distant lights).
     pub light_distance: Option<f64>,
+    /// The device that traced, and why.
+    pub device: BakeDevice,
     /// Rays traced.
     pub rays: Rays,
     /// Million rays (primary + shadow) per second of tracing.
@@ -305,6 +307,32 @@ pub struct Baked {
     pub seconds_fit: f64,
     /// Encoding and writing.
     pub seconds_write: f64,
+}
+
+/// Which device traced a bake (`--device`) and why.
+#[derive(Serialize, Debug, Default)]
+pub struct BakeDevice {
+    /// What was asked for: `cpu`, `gpu` or `auto`.
+    pub asked: String,
+    /// What traced: `cpu` (Embree) or `gpu` (wgpu ray queries).
+    pub used: String,
+    /// The adapter that traced, or for `auto` on the CPU the first adapter seen, described
+    /// (null when none was looked for or found).
+    pub adapter: Option<String>,
+    /// Why, in words.
+    pub reason: String,
+}
+
+impl BakeDevice {
+    /// The `--device` choice in words.
+    pub fn of(c: &ptm_gpubake::Choice) -> BakeDevice {
+        BakeDevice {
+            asked: c.asked.name().into(),
+            used: c.used.name().into(),
+            adapter: c.adapter_name.clone(),
+            reason: c.reason.clone(),
+        }
+    }
 }
 
 /// Rays a bake traced.

@@ -186,6 +186,21 @@ fn error_kind(e: &anyhow::Error) -> &'static str {
         if let Some(ptm_bake::Error::Embree(_)) = cause.downcast_ref::<ptm_bake::Error>() {
             return "embree";
         }
+        let gpubake = cause
+            .downcast_ref::<ptm_gpubake::Error>()
+            .or_else(|| match cause.downcast_ref::<ptm_bake::Error>() {
+                Some(ptm_bake::Error::Tracer(e)) => e.downcast_ref::<ptm_gpubake::Error>(),
+                _ => None,
+            });
+        if let Some(g) = gpubake {
+            use ptm_gpubake::Error as G;
+            if matches!(
+                g,
+                G::NoRayQueries { .. } | G::Device { .. } | G::Lost { .. } | G::TooBig { .. }
+            ) {
+                return "gpu";
+            }
+        }
     }
     "invalid"
 }

@@ -19,7 +19,8 @@ pub mod visibility;
 
 pub use swatch::{Diagnostic, PreparedMesh};
 pub use visibility::{
-    bake_planes, baker_bytes, sample_xy, BakeConfig, BakeReport, Baker, Planes, Sink,
+    bake_planes, baker_bytes, check_config, sample_xy, BakeConfig, BakeReport, Baker, Frame,
+    Planes, PrimarySample, Sink, Tracer,
 };
 
 /// Errors of the bake crate; messages name the input and the fact, and no command-line flag
@@ -110,6 +111,9 @@ pub enum Error {
     /// An error of the file layer (`ptm-format`: writing samples, reading light files).
     #[error(transparent)]
     Format(#[from] ptm_format::Error),
+    /// Another tracer of the bake (the GPU's, `ptm-gpubake`) failed; its error, as it said it.
+    #[error(transparent)]
+    Tracer(Box<dyn std::error::Error + Send + Sync + 'static>),
     /// The consumer of the K planes (a [`Sink`]: a streaming fit, a stack being collected)
     /// failed; its error, as it said it.
     #[error(transparent)]

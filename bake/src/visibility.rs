@@ -79,6 +79,125 @@ pub fn check_light_distance(r: f64, swatch: &PreparedMesh) -> Result<()> {
     Ok(())
 }
 
+/// The frame every tracer of a bake works in (this crate's Embree baker, and the GPU's in
+/// `ptm-gpubake`), so that both trace the same numbers: the swatch scaled by a power of two,
+/// the shadow-ray offset, the clamp plane and the copies' margin.
+pub struct Frame<'s> {
+    /// The swatch in the baker's units: scaled by [`Frame::unit`] to a size in [0.5, 1).
+    pub swatch: std::borrow::Cow<'s, PreparedMesh>,
+    /// Baker units per mesh unit: a power of two (exact in floating point).
+    pub unit: f64,
+    /// Offset of shadow-ray origins along the face-forwarded normal (baker units).
+    pub eps: f64,
+    /// The clamp plane of shadow rays and the height of the camera (baker units).
+    pub z_cap: f64,
+    /// Widening of every copy's bounding box in the tiling rule (baker units).
+    pub margin: f64,
+}
+
+impl<'s> Frame<'s> {
+    /// The frame of `swatch`.
+    pub fn new(swatch: &'s PreparedMesh) -> Frame<'s> {
+        // Embree works in f32 with denormals flushed: at 1e-12 of a unit its products underflow
+        // and primary rays miss; near 1e30 they overflow. K does not depend on scale, so bake a
+        // copy scaled by a power of two (exact in floating point) to a size in [0.5, 1).
+        let unit = (-(swatch.scale().log2().floor() + 1.0)).exp2();
+        let (swatch, unit) = if unit != 1.0 && unit.is_finite() && unit > 0.0 {
+            (std::borrow::Cow::Owned(swatch.scaled(unit)), unit)
+        } else {
+            (std::borrow::Cow::Borrowed(swatch), 1.0)
+        };
+        let scale = swatch.scale();
+        Frame {
+            unit,
+            // Relative to the scene size: 1e-5 of it is ~100 f32 ulps of the coordinates
+            // and 1/100 texel at 1024² (see notes: fixed epsilons fail at other scales).
+            eps: 1e-5 * scale,
+            z_cap: swatch.bounds.max[2] + 1e-3 * scale,
+            margin: 1e-6 * scale,
+            swatch,
+        }
+    }
+
+    /// The primary sample a downward ray from (x, y) on the camera plane ([`Frame::z_cap`] in
+    /// f32) makes when it hits at distance `t` a triangle of geometric normal `ng` (any length,
+    /// either side): the shadow-ray origin (hit moved [`Frame::eps`] off the surface) and the
+    /// unit normal face-forwarded towards the camera, in f32 as tracers take them, and the hit
+    /// point in f64. None for a degenerate normal (counted as a miss).
+    pub fn primary_sample(&self, xy: [f64; 2], t: f32, ng: [f32; 3]) -> Option<PrimarySample> {
+        primary_sample(self.z_cap, self.eps, xy, t, ng)
+    }
+}
+
+/// [`Frame::primary_sample`] for a frame's `z_cap` and `eps`.
+pub fn primary_sample(
+    z_cap: f64,
+    eps: f64,
+    xy: [f64; 2],
+    t: f32,
+    ng: [f32; 3],
+) -> Option<PrimarySample> {
+    let len = ng.iter().map(|&c| c as f64 * c as f64).sum::<f64>().sqrt();
+    if len <= 0.0 {
+        return None;
+    }
+    let sign = if ng[2] < 0.0 { -1.0 } else { 1.0 } / len;
+    let n = ng.map(|c| c as f64 * sign);
+    let p = [xy[0], xy[1], z_cap as f32 as f64 - t as f64];
+    let mut org = [0.0f32; 3];
+    for a in 0..3 {
+        org[a] = (p[a] + eps * n[a]) as f32;
+    }
+    Some(PrimarySample {
+        org,
+        n32: n.map(|c| c as f32),
+        n,
+        p,
+    })
+}
+
+/// One footprint sample's primary hit ([`Frame::primary_sample`]).
+#[derive(Clone, Copy, Debug)]
+pub struct PrimarySample {
+    /// Shadow-ray origin (baker units).
+    pub org: [f32; 3],
+    /// Unit normal towards the camera, in f32 (what the facing test uses).
+    pub n32: [f32; 3],
+    /// The same normal in f64 (what the companion maps sum).
+    pub n: [f64; 3],
+    /// The hit point (baker units).
+    pub p: [f64; 3],
+}
+
+/// Checks the settings every tracer refuses alike: resolution and samples, the rows of a shard
+/// (non-empty, starting at a multiple of 4), the thread count and a point-light distance.
+pub fn check_config(swatch: &PreparedMesh, cfg: &BakeConfig, rows: &Range<usize>) -> Result<()> {
+    let [nx, ny] = cfg.res;
+    if nx == 0 || ny == 0 || cfg.spp == 0 {
+        return Err(Error::Config(format!(
+            "resolution {nx}×{ny} and spp {} must be positive",
+            cfg.spp
+        )));
+    }
+    if !rows.start.is_multiple_of(4) || rows.is_empty() || rows.end > ny {
+        return Err(Error::Config(format!(
+            "rows {}..{} of {ny}: a shard must be a non-empty range of rows starting at a \
+             multiple of 4",
+            rows.start, rows.end
+        )));
+    }
+    if cfg.threads > MAX_THREADS {
+        return Err(Error::TooManyThreads {
+            threads: cfg.threads,
+            max: MAX_THREADS,
+        });
+    }
+    if let Some(r) = cfg.light_distance {
+        check_light_distance(r, swatch)?;
+    }
+    Ok(())
+}
+
 /// Figures of one bake, for `--json` and the benchmark.
 #[derive(Clone, Debug, Default)]
 pub struct BakeReport {
@@ -160,6 +279,36 @@ pub fn lights_per_pass(res: [usize; 2]) -> usize {
 /// for point lights, each texel's (u, v) of the mean direction to the light.
 pub type Sink<'s> = dyn FnMut(usize, &[f32], Option<&[[f32; 2]]>) -> Result<()> + 's;
 
+/// What traces a bake: this crate's [`Baker`] (Embree, on the CPU) or the GPU baker of
+/// `ptm-gpubake` (wgpu ray queries). Each is built over the rows it traces, with its primary
+/// hits done; [`Tracer::trace`] then hands every light's K plane to a sink, so the products
+/// (stack, streaming fit, maps, farm parts) take either alike.
+pub trait Tracer {
+    /// The image rows traced (a farm shard's block, or all of them).
+    fn rows(&self) -> Range<usize>;
+    /// Fraction of each traced texel's samples whose primary ray hit the swatch (row-major).
+    fn coverage(&self) -> &[f32];
+    /// The primary hits' per-texel sums for the companion maps, when built to keep them.
+    fn take_surface(&mut self) -> Option<Surface>;
+    /// Traces every light of `lights` in order and hands each K plane to `sink`.
+    fn trace(&mut self, lights: &LightSet, sink: &mut Sink) -> Result<BakeReport>;
+}
+
+impl Tracer for Baker {
+    fn rows(&self) -> Range<usize> {
+        Baker::rows(self)
+    }
+    fn coverage(&self) -> &[f32] {
+        Baker::coverage(self)
+    }
+    fn take_surface(&mut self) -> Option<Surface> {
+        Baker::take_surface(self)
+    }
+    fn trace(&mut self, lights: &LightSet, sink: &mut Sink) -> Result<BakeReport> {
+        Baker::trace(self, lights, sink)
+    }
+}
+
 /// A scene built once and its primary hits; [`Baker::trace`] then runs any light set.
 pub struct Baker {
     cfg: BakeConfig,
@@ -233,29 +382,8 @@ impl Baker {
         rows: Range<usize>,
         surface: bool,
     ) -> Result<Self> {
-        let [nx, ny] = cfg.res;
-        if nx == 0 || ny == 0 || cfg.spp == 0 {
-            return Err(Error::Config(format!(
-                "resolution {nx}×{ny} and spp {} must be positive",
-                cfg.spp
-            )));
-        }
-        if !rows.start.is_multiple_of(4) || rows.is_empty() || rows.end > ny {
-            return Err(Error::Config(format!(
-                "rows {}..{} of {ny}: a shard must be a non-empty range of rows starting at a \
-                 multiple of 4",
-                rows.start, rows.end
-            )));
-        }
-        if cfg.threads > MAX_THREADS {
-            return Err(Error::TooManyThreads {
-                threads: cfg.threads,
-                max: MAX_THREADS,
-            });
-        }
-        if let Some(r) = cfg.light_distance {
-            check_light_distance(r, swatch)?;
-        }
+        let [nx, _] = cfg.res;
+        check_config(swatch, cfg, &rows)?;
         let t0 = Instant::now();
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(cfg.threads)
@@ -267,34 +395,22 @@ impl Baker {
         } else {
             String::new()
         })?;
-        // Embree works in f32 with denormals flushed: at 1e-12 of a unit its products underflow
-        // and primary rays miss; near 1e30 they overflow. K does not depend on scale, so bake a
-        // copy scaled by a power of two (exact in floating point) to a size in [0.5, 1).
-        let unit = (-(swatch.scale().log2().floor() + 1.0)).exp2();
-        let scaled;
-        let swatch = if unit != 1.0 && unit.is_finite() && unit > 0.0 {
-            scaled = swatch.scaled(unit);
-            &scaled
-        } else {
-            swatch
-        };
+        let frame = Frame::new(swatch);
+        let (unit, swatch) = (frame.unit, &*frame.swatch);
         let tile_scene = device.triangle_scene(&swatch.positions, &swatch.triangles)?;
         let width = if cfg.packets {
             device.packet_width()
         } else {
             1
         };
-        let scale = swatch.scale();
         let mut baker = Self {
             light_distance: cfg.light_distance.map(|r| r * unit),
             cfg: cfg.clone(),
             tile: swatch.tile,
             bounds: swatch.bounds,
-            // Relative to the scene size: 1e-5 of it is ~100 f32 ulps of the coordinates
-            // and 1/100 texel at 1024² (see notes: fixed epsilons fail at other scales).
-            eps: 1e-5 * scale,
-            z_cap: swatch.bounds.max[2] + 1e-3 * scale,
-            margin: 1e-6 * scale,
+            eps: frame.eps,
+            z_cap: frame.z_cap,
+            margin: frame.margin,
             device,
             tile_scene,
             shadow_scenes: HashMap::new(),
@@ -378,7 +494,8 @@ impl Baker {
         let spp = self.cfg.spp as usize;
         let (res, tile, seed, eps) = (self.cfg.res, self.tile, self.cfg.seed, self.eps);
         // The camera sits on the clamp plane, above all geometry.
-        let (z_top, t_far) = (self.z_cap as f32, f32::INFINITY);
+        let (z_cap, t_far) = (self.z_cap, f32::INFINITY);
+        let z_top = z_cap as f32;
         let mut samples = vec![Lanes::default(); bx * by * spp];
         // With the companion maps, each block's per-texel sums of its hits too (its 16 lanes
         // as 16 texels, samples in order), gathered into the image's after the pass.
@@ -409,30 +526,23 @@ impl Baker {
                             let [x, y] = sample_xy(res, tile, spp, seed, [i, j], s);
                             let org = [x as f32, y as f32, z_top];
                             let hit = scene.intersect1(org, [0.0, 0.0, -1.0], 0.0, t_far);
-                            if let Some(h) = hit {
-                                let len =
-                                    h.ng.iter()
-                                        .map(|&c| c as f64 * c as f64)
-                                        .sum::<f64>()
-                                        .sqrt();
-                                if len > 0.0 {
-                                    let sign = if h.ng[2] < 0.0 { -1.0 } else { 1.0 } / len;
-                                    let n = h.ng.map(|c| c as f64 * sign);
-                                    let p = [x, y, z_top as f64 - h.t as f64];
-                                    for a in 0..3 {
-                                        ln.org[a][lane] = (p[a] + eps * n[a]) as f32;
-                                        ln.n[a][lane] = n[a] as f32;
-                                    }
-                                    ln.hit |= 1 << lane;
-                                    if let Some(k) = kept.as_deref_mut() {
-                                        let hit = SurfaceHit {
-                                            z: p[2] * to_mesh,
-                                            n,
-                                            prim: h.prim,
-                                        };
-                                        let m = materials.get(h.prim as usize).copied();
-                                        k.add(lane, s, &hit, m.unwrap_or(0));
-                                    }
+                            let sample = hit.and_then(|h| {
+                                Some((h, primary_sample(z_cap, eps, [x, y], h.t, h.ng)?))
+                            });
+                            if let Some((h, ps)) = sample {
+                                for a in 0..3 {
+                                    ln.org[a][lane] = ps.org[a];
+                                    ln.n[a][lane] = ps.n32[a];
+                                }
+                                ln.hit |= 1 << lane;
+                                if let Some(k) = kept.as_deref_mut() {
+                                    let hit = SurfaceHit {
+                                        z: ps.p[2] * to_mesh,
+                                        n: ps.n,
+                                        prim: h.prim,
+                                    };
+                                    let m = materials.get(h.prim as usize).copied();
+                                    k.add(lane, s, &hit, m.unwrap_or(0));
                                 }
                             }
                         }

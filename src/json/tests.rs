@@ -211,6 +211,7 @@ impl Sample for Baked {
             seed: s(),
             lights: s(),
             light_distance: s(),
+            device: s(),
             rays: s(),
             mrays_per_s: s(),
             rings: s(),
@@ -237,6 +238,17 @@ impl Sample for BakeMaps {
             file: s(),
             png: s(),
             dome_fraction: s(),
+        }
+    }
+}
+
+impl Sample for BakeDevice {
+    fn sample() -> Self {
+        BakeDevice {
+            asked: s(),
+            used: s(),
+            adapter: s(),
+            reason: s(),
         }
     }
 }
