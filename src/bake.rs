@@ -240,16 +240,11 @@ fn resolve_rows(args: &Args, tile: [f64; 2]) -> anyhow::Result<([usize; 2], Rang
             );
         }
     }
-    if let Some(f) = args.fit.and_then(BasisChoice::fixed) {
-        if args.shard.is_some() && f.is_learned() {
-            bail!(
-                "--shard with --fit {}: a learned basis is learned from the whole bake, which a \
-                 shard does not see (not supported yet): bake the sample stack in shards, merge, \
-                 then `ptm fit --basis {}`",
-                f.name(),
-                f.name()
-            );
-        }
+    if args.shard.is_some() && args.holdout.is_some_and(|h| h > 0) {
+        bail!(
+            "--shard with --holdout: a part keeps no per-texel error on held-out lights; bake \
+             the whole image, or the sample stack in shards and `ptm fit --holdout N` the merge"
+        );
     }
     if args.maps_png && args.shard.is_some() {
         bail!(
@@ -673,6 +668,25 @@ fn trace(
         packets: !args.single_rays,
         threads: args.threads,
     };
+    // A farm shard fitting a learned basis first learns it as the whole bake learns it (on the
+    // CPU: a few thousand texels), then fits its rows against it.
+    if let (Some(_), Some(BasisChoice::Fixed(b))) = (args.shard, args.fit) {
+        if b.is_learned() {
+            let (table, stats, secs) =
+                crate::shard::learned_basis(swatch, &cfg, lights, &fit_options(args, b))?;
+            eprintln!(
+                "ptm bake: learned the {} basis on {} texels of the whole image in {secs:.1} s \
+                 (every shard learns the same tables)",
+                b.name(),
+                stats.texels
+            );
+            for p in &mut products {
+                if let Product::Fit(acc, _) = p {
+                    acc.set_given_basis(table.clone(), stats.clone());
+                }
+            }
+        }
+    }
     let surface = products.iter().any(Product::needs_surface);
     let mut baker: Box<dyn Tracer> = match &device.adapter {
         Some(adapter) => {

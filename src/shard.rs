@@ -102,3 +102,59 @@ pub fn write_ptm(
     };
     Ok(shard::write_ptm_part(path, meta, &part)?)
 }
+
+/// The learned basis of a farm shard's fit, learned as a bake of the whole image learns it:
+/// the texels are tested for coverage in the learning's subsample order (a few thousand at a
+/// time, by [`ptm_bake::Baker::new_texels`]) until [`ptm_fit::learned::MAX_SUBSAMPLE`] covered
+/// ones are found (or the image runs out); those, in image order, are traced under every light
+/// and the basis is learned from them alone ([`ptm_fit::Accumulator::learn_basis`]). Each shard
+/// does this itself (deterministic, so every shard and the whole bake find the same tables),
+/// so shards need no first pass and no order on the farm: a few thousand texels' rays and the
+/// learning (seconds) per shard. `opts` are the fit's (a learned basis). Returns the tables,
+/// the statistics of their learning and the seconds it all took.
+pub fn learned_basis(
+    swatch: &PreparedMesh,
+    cfg: &ptm_bake::BakeConfig,
+    lights: &LightSet,
+    opts: &ptm_fit::FitOptions,
+) -> anyhow::Result<(ptm_format::LearnedTable, ptm_fit::solve::LearnedStats, f64)> {
+    use ptm_fit::learned::{subsample_order, MAX_SUBSAMPLE};
+    let t0 = std::time::Instant::now();
+    let [w, h] = cfg.res;
+    let total = w * h;
+    let at = |t: usize| [t % w, t / w];
+    let mut n = (2 * MAX_SUBSAMPLE).min(total);
+    let sub = loop {
+        let order = subsample_order(total, n);
+        let texels: Vec<[usize; 2]> = order.iter().map(|&t| at(t)).collect();
+        let baker = ptm_bake::Baker::new_texels(swatch, cfg, &texels)?;
+        let mut covered: Vec<usize> = order
+            .iter()
+            .zip(baker.coverage())
+            .filter(|(_, &c)| c > 0.0)
+            .map(|(&t, _)| t)
+            .take(MAX_SUBSAMPLE)
+            .collect();
+        if covered.len() == MAX_SUBSAMPLE || n == total {
+            covered.sort_unstable();
+            break covered;
+        }
+        n = (4 * n).min(total);
+    };
+    if sub.is_empty() {
+        anyhow::bail!(
+            "no texel of the {w}×{h} image sees the swatch: there is no basis to learn (was the \
+             swatch missed by the camera?)"
+        );
+    }
+    let texels: Vec<[usize; 2]> = sub.iter().map(|&t| at(t)).collect();
+    let mut baker = ptm_bake::Baker::new_texels(swatch, cfg, &texels)?;
+    let mut acc = ptm_fit::Accumulator::new(lights, 4, baker.rows().len(), opts)?;
+    acc.set_spp(cfg.spp)?;
+    acc.set_coverage(baker.coverage())?;
+    baker.trace(lights, &mut |i, k, _| {
+        acc.add_light(i, k).map_err(ptm_bake::Error::sink)
+    })?;
+    let (table, stats) = acc.learn_basis()?;
+    Ok((table, stats, t0.elapsed().as_secs_f64()))
+}

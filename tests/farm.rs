@@ -193,6 +193,41 @@ fn sharded_bakes_with_holes_and_point_lights_are_byte_identical() {
     );
 }
 
+/// A learned basis in shards: each shard learns the tables the whole bake learns (the same
+/// subsample of texels, traced apart, in the same order), fits its rows against them, and the
+/// merge joins the rows and fits the deeper MIP levels with those tables. Then a floor under a
+/// third of the tile at 96² (9,216 texels): a shard finds the subsample's covered texels only
+/// after testing more than the first 8,192 of the subsample order.
+#[test]
+fn sharded_learned_basis_is_byte_identical() {
+    let fit = ["--dirs", "32", "--fit", "learned6"];
+    sharded_equals_whole(
+        &[&BAKE[..2], &BAKE[4..], &fit].concat(),
+        "l.ptm.exr",
+        &[1, 3],
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("third.obj");
+    std::fs::write(&obj, THIRD_FLOOR_OBJ).unwrap();
+    let third = [
+        "--swatch",
+        obj.to_str().unwrap(),
+        "--tile",
+        "1,1",
+        "--res",
+        "96",
+        "--spp",
+        "2",
+    ];
+    sharded_equals_whole(&[&third[..], &fit].concat(), "t.ptm.exr", &[2]);
+}
+
+/// A floor over the lower third of a 1×1 tile with a ridge on it.
+const THIRD_FLOOR_OBJ: &str = "\
+v 0 0 0\nv 1 0 0\nv 1 0.33 0\nv 0 0.33 0\n\
+v 0 0.1 0\nv 1 0.1 0\nv 1 0.2 0.1\nv 0 0.2 0.1\n\
+f 1 2 3 4\nf 5 6 7 8\n";
+
 #[test]
 fn bad_shards_are_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
@@ -232,6 +267,23 @@ fn bad_shards_are_refused_clearly() {
         dir.path(),
     );
     assert!(e.contains("not supported"), "{e}");
+    let e = refused(
+        [
+            "bake",
+            "--res",
+            "32",
+            "--fit",
+            "ptm6",
+            "--holdout",
+            "2",
+            "-o",
+            "s.ptm.exr",
+            "--shard",
+            "0/2",
+        ],
+        dir.path(),
+    );
+    assert!(e.contains("--shard with --holdout"), "{e}");
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),
         0,

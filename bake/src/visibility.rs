@@ -326,8 +326,12 @@ pub struct Baker {
     tile_scene: Scene,
     device: Device,
     pool: rayon::ThreadPool,
-    /// Image rows traced (all of them, or a shard's block-aligned share: `crate::shard`).
+    /// Image rows traced (all of them, or a shard's block-aligned share: `crate::shard`); for
+    /// [`Baker::new_texels`] the rows of its compact image (4 texels wide).
     rows: Range<usize>,
+    /// [`Baker::new_texels`]: the image texels (column, row) traced, in the compact image's
+    /// row-major order; empty for a bake of whole rows.
+    texels: Vec<[usize; 2]>,
     /// Blocks of 4×4 texels over the traced rows.
     blocks: [usize; 2],
     /// Block-major: `samples[block·spp + s]`, 16 lanes each.
@@ -357,7 +361,33 @@ impl Baker {
     /// global texel index, so these rows are bit-identical to the same rows of a whole bake.
     /// `rows.start` must be a multiple of 4 (the tracer's texel blocks).
     pub fn new_rows(swatch: &PreparedMesh, cfg: &BakeConfig, rows: Range<usize>) -> Result<Self> {
-        Self::build(swatch, cfg, rows, false)
+        Self::build(swatch, cfg, rows, Vec::new(), false)
+    }
+
+    /// A baker of the image texels `texels` (column, row) only, in that order: the planes
+    /// handed to the sink and [`Baker::coverage`] then hold a compact image 4 texels wide whose
+    /// row-major texel `n` is `texels[n]` (rows padded to a multiple of 4 with texels that see
+    /// nothing: coverage 0). Sample positions hash the image texel, and the K of a texel does
+    /// not depend on which rays share its packets, so each texel's values are bit-identical to
+    /// its values in a bake of the whole image. For the few texels a learned basis is learned
+    /// on, traced before the rows of a farm shard.
+    pub fn new_texels(
+        swatch: &PreparedMesh,
+        cfg: &BakeConfig,
+        texels: &[[usize; 2]],
+    ) -> Result<Self> {
+        let [nx, ny] = cfg.res;
+        if let Some(t) = texels.iter().find(|t| t[0] >= nx || t[1] >= ny) {
+            return Err(Error::Config(format!(
+                "texel ({}, {}) outside the {nx}×{ny} image",
+                t[0], t[1]
+            )));
+        }
+        if texels.is_empty() {
+            return Err(Error::Config("no texel to trace".into()));
+        }
+        let rows = 0..texels.len().div_ceil(16) * 4;
+        Self::build(swatch, cfg, rows, texels.to_vec(), false)
     }
 
     /// As [`Baker::new_rows`], also summing the primary hits per texel for the companion maps
@@ -367,7 +397,7 @@ impl Baker {
         cfg: &BakeConfig,
         rows: Range<usize>,
     ) -> Result<Self> {
-        Self::build(swatch, cfg, rows, true)
+        Self::build(swatch, cfg, rows, Vec::new(), true)
     }
 
     /// The per-texel sums of the primary hits ([`Baker::with_surface`]; none otherwise),
@@ -380,10 +410,17 @@ impl Baker {
         swatch: &PreparedMesh,
         cfg: &BakeConfig,
         rows: Range<usize>,
+        texels: Vec<[usize; 2]>,
         surface: bool,
     ) -> Result<Self> {
-        let [nx, _] = cfg.res;
-        check_config(swatch, cfg, &rows)?;
+        let nx = if texels.is_empty() { cfg.res[0] } else { 4 };
+        // A compact image's rows are its own; the checks of the settings are the same.
+        let checked = if texels.is_empty() {
+            rows.clone()
+        } else {
+            0..cfg.res[1].min(4)
+        };
+        check_config(swatch, cfg, &checked)?;
         let t0 = Instant::now();
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(cfg.threads)
@@ -418,6 +455,7 @@ impl Baker {
             width,
             blocks: [nx.div_ceil(4), rows.len().div_ceil(4)],
             rows,
+            texels,
             samples: Vec::new(),
             coverage: Vec::new(),
             surface: surface.then(Surface::default),
@@ -462,9 +500,19 @@ impl Baker {
         Ok(())
     }
 
-    /// The image rows this baker traces (all rows unless built by [`Baker::new_rows`]).
+    /// The image rows this baker traces (all rows unless built by [`Baker::new_rows`]; the
+    /// compact image's for [`Baker::new_texels`]).
     pub fn rows(&self) -> Range<usize> {
         self.rows.clone()
+    }
+
+    /// Texels per row of the planes: the image's, or 4 for [`Baker::new_texels`].
+    fn width_traced(&self) -> usize {
+        if self.texels.is_empty() {
+            self.cfg.res[0]
+        } else {
+            4
+        }
     }
 
     fn scene_for(&mut self, copies: &[[i32; 2]]) -> Result<&Scene> {
@@ -488,8 +536,9 @@ impl Baker {
     /// Primary pass: one `rtcIntersect1` straight down per footprint sample.
     fn primary(&mut self, copies: &[[i32; 2]]) {
         let scene = &self.shadow_scenes[copies];
-        let nx = self.cfg.res[0];
+        let nx = self.width_traced();
         let (row0, ny) = (self.rows.start, self.rows.end);
+        let texels = &self.texels;
         let [bx, by] = self.blocks;
         let spp = self.cfg.spp as usize;
         let (res, tile, seed, eps) = (self.cfg.res, self.tile, self.cfg.seed, self.eps);
@@ -522,8 +571,17 @@ impl Baker {
                         if i >= nx || j >= ny {
                             continue;
                         }
+                        // The image texel: (i, j) itself, or the compact image's entry.
+                        let texel = if texels.is_empty() {
+                            [i, j]
+                        } else {
+                            match texels.get(j * 4 + i) {
+                                Some(&t) => t,
+                                None => continue,
+                            }
+                        };
                         for (s, ln) in out.iter_mut().enumerate() {
-                            let [x, y] = sample_xy(res, tile, spp, seed, [i, j], s);
+                            let [x, y] = sample_xy(res, tile, spp, seed, texel, s);
                             let org = [x as f32, y as f32, z_top];
                             let hit = scene.intersect1(org, [0.0, 0.0, -1.0], 0.0, t_far);
                             let sample = hit.and_then(|h| {
@@ -573,8 +631,14 @@ impl Baker {
             }
             self.surface = Some(surface);
         }
-        self.report.primary_rays = (nx * ny * spp) as u64;
-        self.report.uncovered_texels = uncovered;
+        // A compact image's padding is no texel of the image.
+        let traced = if self.texels.is_empty() {
+            nx * ny
+        } else {
+            self.texels.len()
+        };
+        self.report.primary_rays = (traced * spp) as u64;
+        self.report.uncovered_texels = uncovered - (nx * ny - traced);
         self.samples = samples;
         self.coverage = coverage;
     }
@@ -582,7 +646,7 @@ impl Baker {
     /// Traces every light of `lights` in order and hands each K plane to `sink`.
     pub fn trace(&mut self, lights: &LightSet, sink: &mut Sink) -> Result<BakeReport> {
         let t0 = Instant::now();
-        let (nx, ny) = (self.cfg.res[0], self.rows.len());
+        let (nx, ny) = (self.width_traced(), self.rows.len());
         let centre = [self.tile[0] / 2.0, self.tile[1] / 2.0, 0.0];
         let mut rep = BakeReport {
             primary_rays: self.report.primary_rays,

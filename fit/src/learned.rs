@@ -35,6 +35,8 @@ pub(crate) mod gauge;
 pub(crate) mod learn;
 pub(crate) mod problem;
 
+pub use learn::subsample_order;
+
 use crate::solve::options::FitOptions;
 use crate::{Error, Result};
 use ptm_format::{Basis, Link, UvMap};

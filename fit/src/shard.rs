@@ -345,6 +345,13 @@ pub fn read_part(path: &Path) -> Result<Part> {
             } else {
                 PartLevels::default()
             };
+            let learned = if basis.is_learned() {
+                let (table, stats) = read_learned(&c, basis.len())?;
+                fit.learned = Some(stats);
+                Some(table)
+            } else {
+                None
+            };
             let ptm = Ptm {
                 basis,
                 link,
@@ -355,7 +362,7 @@ pub fn read_part(path: &Path) -> Result<Part> {
                 planes,
                 mips: Vec::new(),
                 coverage: None, // the merge's `finish_fit` sets the whole image's
-                learned: None,
+                learned,
             };
             PartData::Ptm(Box::new(PtmPart {
                 ptm,
@@ -373,6 +380,48 @@ pub fn read_part(path: &Path) -> Result<Part> {
         meta,
         data,
     })
+}
+
+/// A learned part's tables (the PTM file's `ptm:learnedGrid` and `ptm:learnedTable`) and the
+/// statistics of their learning (`part:learned*`), checked for `terms` terms.
+fn read_learned(
+    c: &exrio::Contents,
+    terms: usize,
+) -> Result<(ptm_format::LearnedTable, crate::solve::LearnedStats)> {
+    const WHAT: &str = "part";
+    use ptm_format::learned::{GRID_ATTR, TABLE_ATTR};
+    let grid = c.f64(GRID_ATTR, WHAT)?;
+    let mut values = Vec::new();
+    for text in c.texts(TABLE_ATTR, WHAT)? {
+        for v in text.split_whitespace() {
+            values.push(v.parse::<f32>().map_err(|_| {
+                c.error::<Error>(format!("`{TABLE_ATTR}` holds {v:?}, not a number"))
+            })?);
+        }
+    }
+    let table = ptm_format::LearnedTable {
+        grid: grid.max(0.0) as usize,
+        terms,
+        values,
+    };
+    table
+        .check(terms, &format!("{}: `{TABLE_ATTR}`", c.path))
+        .map_err(Error::Invalid)?;
+    let num = |k: &str| c.f64(k, WHAT);
+    let stats = crate::solve::LearnedStats {
+        terms,
+        grid: table.grid,
+        roughness: num("part:learnedRoughness")?,
+        texels: num("part:learnedTexels")? as usize,
+        alternations: num("part:learnedAlternations")? as u32,
+        kept: num("part:learnedKept")? as u32,
+        deviance_start: num("part:learnedDevianceStart")?,
+        deviance: num("part:learnedDeviance")?,
+        rms_start: num("part:learnedRmsStart")?,
+        rms: num("part:learnedRms")?,
+        seconds: num("part:learnedSeconds")?,
+    };
+    Ok((table, stats))
 }
 
 /// Takes `len` flat values from the channels `name.0000`, `name.0001`, … (see [`packed`]).

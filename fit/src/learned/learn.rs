@@ -37,6 +37,23 @@ fn subsample(texels: usize, live: &dyn Fn(usize) -> bool) -> Vec<usize> {
     out
 }
 
+/// The `n` texels of `0..texels` of smallest subsample hash, by hash. [`learn`]'s subsample is
+/// the first [`MAX_SUBSAMPLE`] live ones of this order, by index: a farm shard finds the whole
+/// bake's by testing texels in this order, tracing no more. O(texels) time, O(n) memory.
+pub fn subsample_order(texels: usize, n: usize) -> Vec<usize> {
+    let mut heap = std::collections::BinaryHeap::with_capacity(n + 1);
+    for t in 0..texels {
+        let h = splitmix64(SEED ^ t as u64);
+        if heap.len() < n {
+            heap.push((h, t));
+        } else if heap.peek().is_some_and(|&(top, _)| h < top) {
+            heap.pop();
+            heap.push((h, t));
+        }
+    }
+    heap.into_sorted_vec().into_iter().map(|(_, t)| t).collect()
+}
+
 /// Binomial deviance of fraction k at logit z: softplus(z) − k·z, stable in both tails.
 #[inline]
 fn dev(k: f64, z: f64) -> f64 {
@@ -506,19 +523,7 @@ pub(crate) fn learn(
     let deviance = total_dev(&p, &a, &c);
     let rms_end = rms(&p, &a, &c);
     let table = gauge(&p, &b, &c);
-    // The kernel's tables from the stored (f32) table, so the file evaluates what was fitted.
-    let mut design = vec![vec![0f64; k]; lights.len()];
-    for (l, row) in design.iter_mut().enumerate() {
-        table.terms(uv[l].0, uv[l].1, row);
-    }
-    let tables = Tables::learned(
-        &design,
-        w,
-        held,
-        lambda,
-        opts.tolerance,
-        opts.max_iterations,
-    );
+    let tables = tables_of(&table, lights, w, held, opts, lambda);
     let stats = LearnedStats {
         terms: k,
         grid: GRID,
@@ -537,6 +542,54 @@ pub(crate) fn learn(
         tables,
         stats,
     })
+}
+
+/// The logistic kernel's tables for fitting texels against the stored (f32) `table` (so a file
+/// evaluates what was fitted), with the fit's weights `w`, held-out lights and ridge.
+fn tables_of(
+    table: &LearnedTable,
+    lights: &LightSet,
+    w: &[f64],
+    held: &[usize],
+    opts: &FitOptions,
+    lambda: f64,
+) -> Tables {
+    let mut design = vec![vec![0f64; table.terms]; lights.len()];
+    for (d, row) in lights.dirs.iter().zip(design.iter_mut()) {
+        let (u, v) = UvMap::Hemispherical.of_dir(*d);
+        table.terms(u, v, row);
+    }
+    Tables::learned(
+        &design,
+        w,
+        held,
+        lambda,
+        opts.tolerance,
+        opts.max_iterations,
+    )
+}
+
+/// What [`learn`] returns for a basis learned elsewhere (`opts.given_basis`: a farm shard's,
+/// from the whole bake's subsample). Refuses a table of another term count than the basis.
+pub(crate) fn given(
+    lights: &LightSet,
+    w: &[f64],
+    held: &[usize],
+    opts: &FitOptions,
+    lambda: f64,
+) -> Result<Option<Learned>> {
+    let Some(g) = &opts.given_basis else {
+        return Ok(None);
+    };
+    let (table, stats) = (&g.0, &g.1);
+    table
+        .check(opts.basis.len(), "the given learned basis")
+        .map_err(Error::Invalid)?;
+    Ok(Some(Learned {
+        tables: tables_of(table, lights, w, held, opts, lambda),
+        table: table.clone(),
+        stats: stats.clone(),
+    }))
 }
 
 /// Alternations without a lower held-out RMS error before the learning stops.
@@ -615,6 +668,22 @@ mod tests {
             }
         }
         assert!(roughness(&dtd, &b, g2, 1) > 1e-3);
+    }
+
+    #[test]
+    fn the_subsample_is_the_first_live_texels_of_the_subsample_order() {
+        for (texels, live_every) in [(100_000usize, 3usize), (5000, 2), (300, 1)] {
+            let live = |t: usize| t.is_multiple_of(live_every);
+            let want = subsample(texels, &live);
+            let order = subsample_order(texels, texels);
+            let mut got: Vec<usize> = order.iter().copied().filter(|&t| live(t)).collect();
+            got.truncate(MAX_SUBSAMPLE);
+            got.sort_unstable();
+            assert_eq!(got, want, "{texels} texels, every {live_every}th live");
+            // A prefix of the order is the order of a prefix.
+            let few = subsample_order(texels, 50.min(texels));
+            assert_eq!(few[..], order[..few.len()]);
+        }
     }
 
     #[test]

@@ -8,13 +8,16 @@ use std::time::Instant;
 use super::block::{fit_level, LevelFit};
 use super::pool::{pool, Pooled, Source};
 use super::tables::{self, Tables};
+use crate::learned::learn;
 use crate::mip::Footprint;
 use crate::shard::partition::local_levels;
 use crate::simd::Isa;
 use crate::solve::factor::{self, SharedDesign};
-use crate::solve::options::{check_strict, ErrorStats, FitOptions, FitReport, LogisticStats};
+use crate::solve::options::{
+    check_strict, ErrorStats, FitOptions, FitReport, LearnedStats, LogisticStats,
+};
 use crate::{Diagnostic, Result};
-use ptm_format::{Level, LightSet, Link, Ptm};
+use ptm_format::{LearnedTable, Level, LightSet, Link, Ptm};
 
 /// The warnings a logistic fit's level-0 statistics raise (beside the light set's).
 pub(crate) fn data_warnings(stats: &LogisticStats) -> Vec<Diagnostic> {
@@ -87,9 +90,54 @@ pub(crate) fn coarse_levels(
     levels: &[Footprint],
 ) -> Result<Vec<Level>> {
     let prep = factor::prepare(lights, opts)?;
-    let (tables, isa, _) = tables::for_fit(&prep, lights, opts)?;
+    let (tables, isa) = if opts.basis.is_learned() {
+        let (isa, lambda) = learned_ridge(&prep, lights, opts)?;
+        let l = learn::given(lights, &prep.w, &prep.held, opts, lambda)?.ok_or_else(|| {
+            crate::Error::Invalid("the coarse levels of a learned basis need its tables".into())
+        })?;
+        (l.tables, isa)
+    } else {
+        let (tables, isa, _) = tables::for_fit(&prep, lights, opts)?;
+        (tables, isa)
+    };
     let src = Source::Counts32 { occ, cov };
     Ok(fit_levels(&tables, isa, &src, src_w, levels, false).0)
+}
+
+/// The kernel and the ridge λ of a learned basis's fit: those of its polynomial start (the
+/// basis it is learned from, of as many terms).
+fn learned_ridge(prep: &SharedDesign, lights: &LightSet, opts: &FitOptions) -> Result<(Isa, f64)> {
+    let start = FitOptions {
+        basis: crate::learned::start_basis(opts.basis.len()).expect("checked when prepared"),
+        given_basis: None,
+        ..opts.clone()
+    };
+    let (_, isa, lambda) = tables::for_fit(prep, lights, &start)?;
+    Ok((isa, lambda))
+}
+
+/// Learns the basis of `opts` (a learned one) from `src` (`texels` texels, `masked` those not
+/// to fit) and returns its tables and statistics, fitting no texel against them: the first
+/// step of a farm shard's fit, on the whole bake's subsample ([`crate::Accumulator::learn_basis`]).
+pub(crate) fn learn_basis(
+    src: &Source,
+    prep: &SharedDesign,
+    lights: &LightSet,
+    masked: &[bool],
+    opts: &FitOptions,
+) -> Result<(LearnedTable, LearnedStats)> {
+    let (_, lambda) = learned_ridge(prep, lights, opts)?;
+    let l = learn::learn(
+        src,
+        masked.len(),
+        &|ti| !masked[ti],
+        lights,
+        &prep.w,
+        &prep.held,
+        opts,
+        lambda,
+    )?;
+    Ok((l.table, l.stats))
 }
 
 /// The logistic fit of one image from `src` (level 0 and, with `opts.mips`, every MIP level),
@@ -114,28 +162,27 @@ pub(crate) fn fit_image(
     let n = lights.len();
     let t0 = Instant::now();
     let (tables, isa, lambda, learned) = if opts.basis.is_learned() {
-        if part.is_some() {
-            return Err(crate::Error::Invalid(format!(
-                "a learned basis ({}) is learned from the whole bake; farm shards cannot fit one \
-                 yet (bake without shards, or fit the merged stack)",
-                opts.basis.name()
-            )));
-        }
-        let start = FitOptions {
-            basis: crate::learned::start_basis(m).expect("checked when prepared"),
-            ..opts.clone()
+        let (isa, lambda) = learned_ridge(prep, lights, opts)?;
+        let l = match learn::given(lights, &prep.w, &prep.held, opts, lambda)? {
+            Some(l) => l,
+            None if part.is_some() => {
+                return Err(crate::Error::Invalid(format!(
+                    "a learned basis ({}) is learned from the whole bake's subsample: a farm \
+                     shard fits against the basis it is given (FitOptions::given_basis)",
+                    opts.basis.name()
+                )))
+            }
+            None => learn::learn(
+                src,
+                t,
+                &|ti| !masked[ti],
+                lights,
+                &prep.w,
+                &prep.held,
+                opts,
+                lambda,
+            )?,
         };
-        let (_, isa, lambda) = tables::for_fit(prep, lights, &start)?;
-        let l = crate::learned::learn::learn(
-            src,
-            t,
-            &|ti| !masked[ti],
-            lights,
-            &prep.w,
-            &prep.held,
-            opts,
-            lambda,
-        )?;
         (l.tables, isa, lambda, Some((l.table, l.stats)))
     } else {
         let (tables, isa, lambda) = tables::for_fit(prep, lights, opts)?;

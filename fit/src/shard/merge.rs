@@ -392,6 +392,7 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
             }
             Some((ptm, fit, lights)) => {
                 let same = p.ptm.basis == ptm.basis
+                    && p.ptm.learned == ptm.learned
                     && (p.ptm.link, p.ptm.uv, p.mips) == (ptm.link, ptm.uv, mips)
                     && p.ptm.tile == ptm.tile
                     && p.lights == *lights
@@ -406,7 +407,8 @@ fn merge_ptm(set: &[(PathBuf, PartMeta)]) -> Result<(Ptm, FitReport, LightSet)> 
                 if !same {
                     return Err(err(
                         path,
-                        "its fit (basis, link, lights, solver, rank, warnings) differs from the first part's",
+                        "its fit (basis and its learned tables, link, lights, solver, rank, warnings) \
+                         differs from the first part's",
                     ));
                 }
                 for (a, b) in ptm.planes.iter_mut().zip(p.ptm.planes) {
@@ -481,6 +483,11 @@ fn finish_fit(
             mips,
             isa: Some(isa),
             rcond: fit.rcond,
+            // A learned basis: the parts' tables (all equal, checked above) fit the deeper levels.
+            given_basis: ptm
+                .learned
+                .clone()
+                .map(|t| Box::new((t, fit.learned.clone().unwrap_or_default()))),
             ..FitOptions::new(ptm.basis)
         };
         let stats = stats.clone();

@@ -7,7 +7,7 @@ use std::path::Path;
 use super::partition::local_levels;
 use super::{chunks, err, PartMeta, PtmPart, PART_VERSION};
 use crate::logistic::image::data_warnings;
-use crate::solve::LogisticStats;
+use crate::solve::{LearnedStats, LogisticStats};
 use crate::stack::k_channel;
 use crate::{Error, Result, SampleStack};
 use ptm_format::exrio::{self, Attr, Samples};
@@ -189,7 +189,38 @@ pub fn write_ptm_part(path: &Path, meta: &PartMeta, part: &PtmPart) -> Result<()
         let words = crate::diagnostic::words(warnings);
         attrs.push(("part:warnings", Attr::Texts(words)));
     }
+    if let Some(table) = &ptm.learned {
+        // The tables every part was fitted against (the merge checks they agree), in the PTM
+        // file's own attributes, and what their learning did.
+        let Some(st) = &fit.learned else {
+            return Err(Error::Invalid(format!(
+                "part {}: a learned basis without the statistics of its learning",
+                meta.shard
+            )));
+        };
+        attrs.extend(table.attrs());
+        attrs.extend(learned_attrs(st));
+    }
     write_sealed(path, ptm.width, ptm.height, channels, attrs)
+}
+
+/// What the learning of a part's basis did, as `part:learned*` numbers ([`super::read_part`]
+/// reads them back).
+fn learned_attrs(st: &LearnedStats) -> Vec<(&'static str, Attr)> {
+    vec![
+        ("part:learnedRoughness", Attr::F64(st.roughness)),
+        ("part:learnedTexels", Attr::F64(st.texels as f64)),
+        (
+            "part:learnedAlternations",
+            Attr::F64(st.alternations as f64),
+        ),
+        ("part:learnedKept", Attr::F64(st.kept as f64)),
+        ("part:learnedDevianceStart", Attr::F64(st.deviance_start)),
+        ("part:learnedDeviance", Attr::F64(st.deviance)),
+        ("part:learnedRmsStart", Attr::F64(st.rms_start)),
+        ("part:learnedRms", Attr::F64(st.rms)),
+        ("part:learnedSeconds", Attr::F64(st.seconds)),
+    ]
 }
 
 /// Flat values laid out in channels of `n` texels each (the last one padded with zeros): how a

@@ -5,7 +5,9 @@ use std::time::Instant;
 
 use super::factor::{prepare, SharedDesign};
 use super::normal::{Image, NormalSums};
-use super::options::{holdout_indices, partial_coverage, ptm_coverage, FitOptions, FitReport};
+use super::options::{
+    holdout_indices, partial_coverage, ptm_coverage, FitOptions, FitReport, LearnedStats,
+};
 use crate::logistic::counts::Counts;
 use crate::logistic::image::fit_image;
 use crate::logistic::pool::Pooled;
@@ -316,6 +318,36 @@ impl Accumulator {
         ptm.coverage = ptm_coverage(&self.full_coverage);
         report.seconds.insert(0, ("accumulate", t_acc));
         Ok((ptm, report))
+    }
+
+    /// Fits against `table` (learned elsewhere, with `stats`) instead of learning a basis: a
+    /// farm shard's fit ([`FitOptions::given_basis`]).
+    pub fn set_given_basis(&mut self, table: ptm_format::LearnedTable, stats: LearnedStats) {
+        self.opts.given_basis = Some(Box::new((table, stats)));
+    }
+
+    /// Learns the basis of this accumulator's learned options from its samples and returns the
+    /// tables and what the learning did, fitting no texel: a farm shard's first step, on the
+    /// whole bake's subsample of texels (traced apart, in increasing image order: the learning
+    /// then sees exactly the texels, in the order, a fit of the whole image learns from).
+    /// Its tables go to the shard's fit as [`FitOptions::given_basis`].
+    pub fn learn_basis(&self) -> Result<(ptm_format::LearnedTable, LearnedStats)> {
+        if self.opts.link != Link::Logistic || !self.opts.basis.is_learned() {
+            return Err(Error::Invalid(format!(
+                "learning a basis needs a learned basis and the logistic link, not {} with the \
+                 {} link",
+                self.opts.basis.name(),
+                self.opts.link.name()
+            )));
+        }
+        self.check_complete()?;
+        crate::logistic::image::learn_basis(
+            &self.counts.source(),
+            &self.prep,
+            &self.lights,
+            &self.masked,
+            &self.opts,
+        )
     }
 
     /// Solves the rows of a farm shard: this accumulator holds rows `rows` of an image

@@ -3,7 +3,7 @@
 use crate::logistic;
 use crate::simd::Isa;
 use crate::{Diagnostic, Error, Result};
-use ptm_format::{Basis, Link, UvMap};
+use ptm_format::{Basis, LearnedTable, Link, UvMap};
 
 /// How each light's squared error counts in the fit. Under either, lights at or below the
 /// horizon get weight 0 (left out: K = 1 there by definition).
@@ -58,6 +58,11 @@ pub struct FitOptions {
     pub skip_bad: bool,
     /// Number of lights kept out of the fit to measure the error honestly (0 = none).
     pub holdout: usize,
+    /// A learned basis: fit every texel against these tables, and report these statistics of
+    /// their learning, instead of learning them from this fit's samples. A farm shard's fit,
+    /// whose basis was learned from the whole bake's subsample ([`crate::Accumulator::learn_basis`]),
+    /// and the merge's deeper MIP levels. `None`: learn them (a whole fit).
+    pub given_basis: Option<Box<(LearnedTable, LearnedStats)>>,
 }
 
 /// Default relative singular-value cutoff. Well-spread domes have condition numbers of 6 (ptm6)
@@ -87,6 +92,7 @@ impl FitOptions {
             strict: false,
             skip_bad: false,
             holdout: 0,
+            given_basis: None,
         }
     }
 }
