@@ -52,10 +52,25 @@ pub mod shade {
     pub const NORMAL_MAP: Binding = b("normal_tex", 12);
     /// A learned basis's tables, node-major (`SceneBuffers::learned`).
     pub const LEARNED: Binding = b("learned", 13);
+    /// Mesh path: the macro shadow's depth maps, one layer per light.
+    pub const SHADOW_MAPS: Binding = b("shadow_maps", 14);
     /// Every binding of the shading pass.
     pub const ALL: &[Binding] = &[
-        FRAME, LIGHTS, COEFFS, ALBEDO, OPACITY, SAT, MIP, MIP_LEVELS, SEP_MAP, PTM_LEVELS,
-        COVERAGE, PLANE, NORMAL_MAP, LEARNED,
+        FRAME,
+        LIGHTS,
+        COEFFS,
+        ALBEDO,
+        OPACITY,
+        SAT,
+        MIP,
+        MIP_LEVELS,
+        SEP_MAP,
+        PTM_LEVELS,
+        COVERAGE,
+        PLANE,
+        NORMAL_MAP,
+        LEARNED,
+        SHADOW_MAPS,
     ];
 }
 
