@@ -1,9 +1,11 @@
 //! Benchmark of the mesh path: a ~1M-triangle drape at 1920×1080 (ptm11 with its MIP chain,
-//! normal map, sheen, one light) against the plane preview of the same PTM at the same size on
-//! the same adapter. Prints the vertex buffer's memory, the setup times (tangents, upload) and
-//! the frame time of each as the median after a warm-up, and their ratio. Run: `cargo run
-//! --release -p ptm-runtime --example bench_mesh` (`-- --quick`: 3 frames instead of 7;
-//! `-- --detail N`: the drape's N² quads, default 708 → 1.0M triangles).
+//! normal map, sheen, one light), without and with its macro shadow (2048² depth map), against
+//! the plane preview of the same PTM at the same size on the same adapter. Prints the GPU
+//! buffers' memory, the process's peak resident memory (on lavapipe the GPU's memory is the
+//! process's), the setup times (tangents, upload) and the frame time of each as the median
+//! after a warm-up, and their ratios. Run: `cargo run --release --workspace --features
+//! ptm-runtime/window --example bench_mesh` (`-- --quick`: 3 frames instead of 7; `-- --detail
+//! N`: the drape's N² quads, default 708 → 1.0M triangles).
 //!
 //! On lavapipe the "GPU" is the CPU: the ratio, not the absolute time, is what carries over.
 
@@ -11,13 +13,21 @@ use std::time::Instant;
 
 use ptm_format::Basis;
 use ptm_runtime::gpu::Renderer;
-use ptm_runtime::mesh::{vertex_bytes, Mesh, MeshScene};
+use ptm_runtime::mesh::{shadow_bytes, vertex_bytes, Mesh, MeshScene, DEFAULT_SHADOW_SIZE};
 use ptm_runtime::scene::Perspective;
 use ptm_runtime::{Gpu, Light, Scene};
 
 fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
+}
+
+/// Peak resident memory of this process (`VmHWM`, Linux), MiB.
+fn peak_rss_mib() -> Option<f64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
 }
 
 fn frame_median(r: &Renderer, frames: usize) -> f64 {
@@ -84,35 +94,53 @@ fn main() {
             .collect(),
     ));
     let t = Instant::now();
-    let (mp, report) = ms.prepare().unwrap();
+    let (mut mp, report) = ms.prepare().unwrap();
     let prepare_s = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let r = Renderer::new(&gpu, &mp).unwrap();
     let upload_s = t.elapsed().as_secs_f64();
     let mesh_s = frame_median(&r, frames);
+    drop(r);
+    // The same buffers with the macro shadow switched on (the frame's shadow fields from a
+    // prepare without vertices: no second MikkTSpace pass).
+    ms.shadow_size = DEFAULT_SHADOW_SIZE;
+    let shadowed = ms.prepare_frame().unwrap();
+    mp.frame = shadowed.frame;
+    mp.variant = shadowed.variant;
+    let r = Renderer::new(&gpu, &mp).unwrap();
+    let shadow_s = frame_median(&r, frames);
     let bytes = vertex_bytes(triangles);
+    let shadow = shadow_bytes(DEFAULT_SHADOW_SIZE, 1);
+    let mib = |b: u64| b as f64 / 1048576.0;
     println!(
         "mesh: drape {detail}² quads = {triangles} triangles, {} tangent fallbacks",
         report.fallback_triangles
     );
     println!(
-        "memory: vertex buffer {:.1} MiB ({} B per corner × 3 per triangle) + depth {:.1} MiB + \
-         target {:.1} MiB; CPU side the same vertices once more while preparing",
-        bytes as f64 / 1048576.0,
+        "GPU memory: vertex buffer {:.1} MiB ({} B per corner × 3 per triangle) + depth {:.1} MiB \
+         + target {:.1} MiB + shadow map {:.1} MiB ({DEFAULT_SHADOW_SIZE}² × 4 B per light) = \
+         {:.1} MiB; peak resident memory of the process (lavapipe: GPU included) {}",
+        mib(bytes),
         std::mem::size_of::<ptm_runtime::layout::MeshVertex>(),
-        (size[0] * size[1] * 4) as f64 / 1048576.0,
-        (size[0] * size[1] * 16) as f64 / 1048576.0
+        mib(size[0] as u64 * size[1] as u64 * 4),
+        mib(size[0] as u64 * size[1] as u64 * 16),
+        mib(shadow),
+        mib(bytes + shadow + size[0] as u64 * size[1] as u64 * 20),
+        peak_rss_mib().map_or("unknown".into(), |m| format!("{m:.0} MiB"))
     );
     println!(
         "setup: mesh {build_s:.2} s, prepare (MikkTSpace tangents, vertices) {prepare_s:.2} s, \
          pipeline + upload {upload_s:.2} s"
     );
     println!(
-        "frame at {}×{}: plane preview {:.1} ms, mesh {:.1} ms, ratio mesh/plane {:.2}",
+        "frame at {}×{}: plane preview {:.1} ms, mesh {:.1} ms (ratio {:.2}), mesh with its \
+         macro shadow {:.1} ms (ratio {:.2})",
         size[0],
         size[1],
         plane_s * 1e3,
         mesh_s * 1e3,
-        mesh_s / plane_s
+        mesh_s / plane_s,
+        shadow_s * 1e3,
+        shadow_s / plane_s
     );
 }

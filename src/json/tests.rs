@@ -420,6 +420,7 @@ impl Sample for Window {
             blur: s(),
             ptm_on: s(),
             light: s(),
+            camera: s(),
             mean_rgb: s(),
         }
     }
