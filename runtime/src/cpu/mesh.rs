@@ -331,6 +331,11 @@ pub fn shadow_distance(sv: &ShadowView, z: f32) -> f32 {
     sv.near * sv.far / (sv.far - z * (sv.far - sv.near))
 }
 
+/// The stored depth of forward distance w.
+pub fn shadow_depth(sv: &ShadowView, w: f32) -> f32 {
+    (w - sv.near) * sv.far / ((sv.far - sv.near) * w)
+}
+
 /// The macro shadow's depth maps as the depth pass leaves them: `side`² z/w values per light,
 /// layer-major, row 0 at the top of the light's view, 1 where no surface is.
 #[derive(Clone, Debug, PartialEq)]
@@ -341,14 +346,14 @@ pub struct ShadowMaps {
     pub depth: Vec<f32>,
 }
 
-/// (bilinear weight of the 2×2 texels nearer the light than wr, weighted sum of their
+/// (bilinear weight of the 2×2 texels nearer the light than depth zr, weighted sum of their
 /// distances) around texel coordinates t of layer li.
 pub fn shadow_taps(
     maps: &ShadowMaps,
     li: usize,
     sv: &ShadowView,
     t: [f32; 2],
-    wr: f32,
+    zr: f32,
 ) -> [f32; 2] {
     let n = maps.side as i32;
     let c = [t[0] - 0.5, t[1] - 0.5];
@@ -365,10 +370,9 @@ pub fn shadow_taps(
         let wx = if o[0] == 1 { a[0] } else { 1.0 - a[0] };
         let wy = if o[1] == 1 { a[1] } else { 1.0 - a[1] };
         let z = maps.depth[(li * maps.side + q[1] as usize) * maps.side + q[0] as usize];
-        let w = shadow_distance(sv, z);
-        if w < wr {
+        if z < zr {
             blocked += wx * wy;
-            dist += wx * wy * w;
+            dist += wx * wy * shadow_distance(sv, z);
         }
     }
     [blocked, dist]
@@ -429,6 +433,7 @@ pub fn shadow_visibility(
     let moved: V3 = std::array::from_fn(|k| world[k] + n[k] * (SHADOW_NORMAL_OFFSET * footprint));
     let clip = shadow_clip(&sv, lp, moved);
     let wr = clip[3] - SHADOW_BIAS * footprint;
+    let zr = shadow_depth(&sv, wr);
     let t = [
         (clip[0] / clip[3] + 1.0) * (0.5 * size),
         (1.0 - clip[1] / clip[3]) * (0.5 * size),
@@ -444,13 +449,16 @@ pub fn shadow_visibility(
             li,
             &sv,
             [t[0] + d[0] * search, t[1] + d[1] * search],
-            wr,
+            zr,
         );
         blocked += b[0];
         dist += b[1];
     }
     if blocked <= 0.0 {
         return 1.0;
+    }
+    if blocked > SHADOW_DISC.len() as f32 - 1e-3 {
+        return 0.0;
     }
     let wb = dist / blocked;
     let penumbra = (radius * (wr - wb).max(0.0) / (wr * wb) * scale_).min(cap);
@@ -461,7 +469,7 @@ pub fn shadow_visibility(
             li,
             &sv,
             [t[0] + d[0] * penumbra, t[1] + d[1] * penumbra],
-            wr,
+            zr,
         )[0];
     }
     1.0 - occluded / SHADOW_DISC.len() as f32

@@ -128,10 +128,17 @@ fn shadow_distance(sv: ShadowView, z: f32) -> f32 {
     return sv.near * sv.far / (sv.far - z * (sv.far - sv.near));
 }
 
+// The stored depth z/w of forward distance w (shadow_clip's): taps compare depths, so only a
+// blocker's depth is turned back into a distance.
+fn shadow_depth(sv: ShadowView, w: f32) -> f32 {
+    return (w - sv.near) * sv.far / ((sv.far - sv.near) * w);
+}
+
 // The 2×2 texels of layer li around continuous texel coordinates t (texel centres at i + ½,
 // row 0 at the top of the light's view), bilinearly weighted: (weight of those nearer the light
-// than wr, weighted sum of their distances). Outside the map nothing is stored: no blocker.
-fn shadow_taps(li: u32, sv: ShadowView, t: vec2<f32>, wr: f32) -> vec2<f32> {
+// than depth zr, weighted sum of their distances). Outside the map nothing is stored: no
+// blocker.
+fn shadow_taps(li: u32, sv: ShadowView, t: vec2<f32>, zr: f32) -> vec2<f32> {
     let n = i32(frame.shadow_size);
     let c = t - 0.5;
     let c0 = floor(c);
@@ -147,10 +154,10 @@ fn shadow_taps(li: u32, sv: ShadowView, t: vec2<f32>, wr: f32) -> vec2<f32> {
         }
         let wx = select(1.0 - a.x, a.x, o.x == 1);
         let wy = select(1.0 - a.y, a.y, o.y == 1);
-        let w = shadow_distance(sv, textureLoad(shadow_maps, q, i32(li), 0));
-        if (w < wr) {
+        let z = textureLoad(shadow_maps, q, i32(li), 0);
+        if (z < zr) {
             blocked += wx * wy;
-            dist += wx * wy * w;
+            dist += wx * wy * shadow_distance(sv, z);
         }
     }
     return vec2<f32>(blocked, dist);
@@ -199,7 +206,8 @@ fn shadow_light_radius(l: Light) -> f32 {
 // disc crosses the near plane; their mean distance wb gives the penumbra on the map,
 // R·(wr − wb)/(wr·wb) in the same units (the cone's radius at the blockers, seen from the
 // light), over which the depth comparisons are averaged (bilinear PCF at each sample; both radii
-// capped at size/16 texels). A point light (R = 0) gets a hard shadow, filtered over one texel.
+// capped at size/16 texels). No search tap blocked: lit; every one: the umbra. A point light
+// (R = 0) gets a hard shadow, filtered over one texel.
 fn shadow_visibility(li: u32, world: vec3<f32>, n: vec3<f32>) -> f32 {
     let light = lights[li];
     let lp = light.position;
@@ -212,6 +220,7 @@ fn shadow_visibility(li: u32, world: vec3<f32>, n: vec3<f32>) -> f32 {
     let footprint = 2.0 * tan_half * dot(world - lp, sv.forward) / size;
     let clip = shadow_clip(sv, lp, world + n * (SHADOW_NORMAL_OFFSET * footprint));
     let wr = clip.w - SHADOW_BIAS * footprint;
+    let zr = shadow_depth(sv, wr);
     let t = vec2<f32>(clip.x / clip.w + 1.0, 1.0 - clip.y / clip.w) * (0.5 * size);
     let scale = 0.5 * size / tan_half;
     let cap = size / 16.0;
@@ -222,18 +231,22 @@ fn shadow_visibility(li: u32, world: vec3<f32>, n: vec3<f32>) -> f32 {
     var blocked = 0.0;
     var dist = 0.0;
     for (var k = 0u; k < SHADOW_SAMPLES; k++) {
-        let b = shadow_taps(li, sv, t + disc[k] * search, wr);
+        let b = shadow_taps(li, sv, t + disc[k] * search, zr);
         blocked += b.x;
         dist += b.y;
     }
     if (blocked <= 0.0) {
         return 1.0;
     }
+    // Every search tap blocked: the penumbra's disc (never wider than the search's) is too.
+    if (blocked > f32(SHADOW_SAMPLES) - 1e-3) {
+        return 0.0;
+    }
     let wb = dist / blocked;
     let penumbra = min(radius * max(wr - wb, 0.0) / (wr * wb) * scale, cap);
     var occluded = 0.0;
     for (var k = 0u; k < SHADOW_SAMPLES; k++) {
-        occluded += shadow_taps(li, sv, t + disc[k] * penumbra, wr).x;
+        occluded += shadow_taps(li, sv, t + disc[k] * penumbra, zr).x;
     }
     return 1.0 - occluded / f32(SHADOW_SAMPLES);
 }
