@@ -810,6 +810,47 @@ mod tests {
     }
 
     #[test]
+    fn shadow_maps_too_large_or_for_too_many_lights_are_refused_with_the_figures() {
+        let mut s = Scene::over_ptm(
+            crate::synthetic::random_ptm(ptm_format::Basis::Ptm6, 4, 4, 1),
+            1,
+            [16, 12],
+        );
+        s.perspective = Some(crate::scene::Perspective {
+            eye: [0.0, -3.0, 2.0],
+            target: [0.0, 0.0, 0.5],
+            fov_y_deg: 40.0,
+        });
+        s.lights = vec![crate::scene::Light {
+            position: [1.0, 1.0, 3.0],
+            radius: 0.1,
+            rect: None,
+            intensity: 1.0,
+            color: [1.0; 3],
+        }];
+        let mut m = MeshScene::plain(s, Mesh::sphere(0.5, 8, 4), [1.0, 1.0]);
+        m.shadow_size = 8193;
+        let e = m.prepare_frame().unwrap_err().to_string();
+        assert!(e.contains("8193×8193") && e.contains("8192"), "{e}");
+        m.shadow_size = 64;
+        m.scene.lights = vec![m.scene.lights[0]; 257];
+        let e = m.prepare_frame().unwrap_err().to_string();
+        assert!(e.contains("257 lights") && e.contains("256"), "{e}");
+        m.scene.lights.truncate(1);
+        let p = m.prepare_frame().unwrap();
+        let (lo, hi) = m.mesh.bounds();
+        assert!(p.variant.shadow && p.frame.shadow_size == 64);
+        assert_eq!((p.frame.shadow_lo, p.frame.shadow_hi), (lo, hi));
+        assert_eq!(shadow_bytes(64, 1), 64 * 64 * 4);
+        // Size 0 turns it off; no light, no map.
+        m.shadow_size = 0;
+        assert!(!m.prepare_frame().unwrap().variant.shadow);
+        m.shadow_size = 64;
+        m.scene.lights.clear();
+        assert!(!m.prepare_frame().unwrap().variant.shadow);
+    }
+
+    #[test]
     fn a_mesh_too_large_for_the_gpu_is_refused_with_the_figures() {
         let max = 256 << 20;
         assert!(check_fits(1_000_000, max).is_ok());
