@@ -53,24 +53,13 @@ pub mod shade {
     /// A learned basis's tables, node-major (`SceneBuffers::learned`).
     pub const LEARNED: Binding = b("learned", 13);
     /// Mesh path: the macro shadow's depth maps, one layer per light.
-    pub const SHADOW_MAPS: Binding = b("shadow_maps", 14);
+    pub const SHADOWS: Binding = b("shadow_maps", 14);
+    /// Mesh path: the sampler the macro shadow gathers its depth maps with.
+    pub const GATHER: Binding = b("shadow_sampler", 15);
     /// Every binding of the shading pass.
     pub const ALL: &[Binding] = &[
-        FRAME,
-        LIGHTS,
-        COEFFS,
-        ALBEDO,
-        OPACITY,
-        SAT,
-        MIP,
-        MIP_LEVELS,
-        SEP_MAP,
-        PTM_LEVELS,
-        COVERAGE,
-        PLANE,
-        NORMAL_MAP,
-        LEARNED,
-        SHADOW_MAPS,
+        FRAME, LIGHTS, COEFFS, ALBEDO, OPACITY, SAT, MIP, MIP_LEVELS, SEP_MAP, PTM_LEVELS,
+        COVERAGE, PLANE, NORMAL_MAP, LEARNED, SHADOWS, GATHER,
     ];
 }
 

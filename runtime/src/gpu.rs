@@ -290,10 +290,18 @@ impl Renderer {
                 resource: buffer.as_entire_binding(),
             })
             .collect();
-        if let Some(view) = &shadow_view {
+        let shadow_sampler = shadow_view.is_some().then(|| {
+            gpu.device
+                .create_sampler(&wgpu::SamplerDescriptor::default())
+        });
+        if let (Some(view), Some(sampler)) = (&shadow_view, &shadow_sampler) {
             bind_entries.push(wgpu::BindGroupEntry {
-                binding: b::SHADOW_MAPS.index,
+                binding: b::SHADOWS.index,
                 resource: wgpu::BindingResource::TextureView(view),
+            });
+            bind_entries.push(wgpu::BindGroupEntry {
+                binding: b::GATHER.index,
+                resource: wgpu::BindingResource::Sampler(sampler),
             });
         }
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {

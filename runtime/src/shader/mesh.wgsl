@@ -42,6 +42,8 @@ fn mesh_clip(q: vec3<f32>) -> vec4<f32> {
 // light's centre by vs_shadow before the shading pass, read by shadow_visibility (PCSS: a
 // blocker search, then percentage-closer filtering over the light's penumbra).
 @group(0) @binding(14) var shadow_maps: texture_depth_2d_array;
+// Nearest, clamped: shadow_taps gathers a 2×2 block of depths with it (no filtering).
+@group(0) @binding(15) var shadow_sampler: sampler;
 
 // The perspective view a light's shadow map is rendered with: from the light's centre towards
 // the centre of the box (frame.shadow_lo … shadow_hi) that bounds the mesh, the square frustum
@@ -144,6 +146,10 @@ fn shadow_taps(li: u32, sv: ShadowView, t: vec2<f32>, zr: f32) -> vec2<f32> {
     let c0 = floor(c);
     let a = c - c0;
     let i0 = vec2<i32>(c0);
+    // The block's shared corner, half a texel from every texel centre: the gather takes exactly
+    // texels i0 … i0 + 1 there (x: (x0, y1), y: (x1, y1), z: (x1, y0), w: (x0, y0)).
+    let g = textureGather(shadow_maps, shadow_sampler, (c0 + 1.0) / f32(n), i32(li));
+    var depths = array<f32, 4>(g.w, g.z, g.x, g.y);
     var blocked = 0.0;
     var dist = 0.0;
     for (var k = 0; k < 4; k++) {
@@ -154,7 +160,7 @@ fn shadow_taps(li: u32, sv: ShadowView, t: vec2<f32>, zr: f32) -> vec2<f32> {
         }
         let wx = select(1.0 - a.x, a.x, o.x == 1);
         let wy = select(1.0 - a.y, a.y, o.y == 1);
-        let z = textureLoad(shadow_maps, q, i32(li), 0);
+        let z = depths[k];
         if (z < zr) {
             blocked += wx * wy;
             dist += wx * wy * shadow_distance(sv, z);

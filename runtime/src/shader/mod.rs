@@ -233,6 +233,7 @@ mod tests {
             "normal_tex",
             "vs_mesh",
             "shadow_maps",
+            "shadow_sampler",
         ] {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
