@@ -359,6 +359,7 @@ impl Scene {
             uv,
             mesh: false,
             normal_map: false,
+            shadow: false,
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
@@ -598,6 +599,8 @@ pub struct Variant {
     pub mesh: bool,
     /// Mesh path: a tangent-space normal map.
     pub normal_map: bool,
+    /// Mesh path: the mesh's macro shadow (a depth pass per light, `shadow_visibility`).
+    pub shadow: bool,
 }
 
 impl Variant {
@@ -654,12 +657,15 @@ impl Variant {
                                 uv,
                                 mesh: false,
                                 normal_map: false,
+                                shadow: false,
                             });
                         }
                     }
                 }
-                // The mesh path: no caster, with or without a normal map.
-                for normal_map in [false, true] {
+                // The mesh path: no caster, with or without a normal map and a macro shadow.
+                for (normal_map, shadow) in
+                    [(false, false), (true, false), (false, true), (true, true)]
+                {
                     for &(link, uv, ptm_mip, coverage) in &ptm_kinds {
                         out.push(Variant {
                             basis,
@@ -673,6 +679,7 @@ impl Variant {
                             uv,
                             mesh: true,
                             normal_map,
+                            shadow,
                         });
                     }
                 }
@@ -713,6 +720,9 @@ impl Variant {
         }
         if self.normal_map {
             parts.push("normal-map".into());
+        }
+        if self.shadow {
+            parts.push("shadow".into());
         }
         parts.join("+")
     }

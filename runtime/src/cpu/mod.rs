@@ -157,7 +157,10 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
         "blit.wgsl" => blit::vs_main, blit::srgb_encode, blit::fs_main;
         "mesh.wgsl" => mesh::mesh_clip, mesh::vs_mesh, mesh::mesh_lod, mesh::tangent_frame,
             mesh::normal_at, mesh::sheen_d, mesh::sheen_l, mesh::sheen_lambda,
-            mesh::sheen_visibility, mesh::sheen_brdf, mesh::shade_mesh, mesh::fs_mesh;
+            mesh::sheen_visibility, mesh::sheen_brdf, mesh::shade_mesh, mesh::fs_mesh,
+            mesh::shadow_view, mesh::shadow_clip, mesh::vs_shadow, mesh::shadow_distance,
+            mesh::shadow_depth,
+            mesh::shadow_taps, mesh::shadow_light_radius, mesh::shadow_visibility;
     }
 }
 

@@ -48,6 +48,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.mesh && v.normal_map {
         d.push("NORMAL_MAP");
     }
+    if v.mesh && v.shadow {
+        d.push("SHADOW");
+    }
     d
 }
 
@@ -169,8 +172,9 @@ mod tests {
         let all = Variant::all();
         // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
         // and without coverage, or learned6 or learned11 (logistic, hemispherical) × MIP chain
-        // × coverage; × albedo × (caster, or a mesh with or without a normal map).
-        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 2));
+        // × coverage; × albedo × (caster, or a mesh with or without a normal map and a macro
+        // shadow).
+        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4));
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -208,6 +212,7 @@ mod tests {
             uv: UvMap::Projected,
             mesh: false,
             normal_map: false,
+            shadow: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -227,6 +232,8 @@ mod tests {
             "ptm_coverage",
             "normal_tex",
             "vs_mesh",
+            "shadow_maps",
+            "shadow_sampler",
         ] {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }

@@ -38,6 +38,10 @@ struct Frame {
     normal_size: vec2<u32>,     // mesh: normal map texels nx, ny
     far: f32,                   // mesh: far plane (depth 1)
     pad5: f32,
+    shadow_lo: vec3<f32>,       // mesh: low corner of the box the shadow maps frame (the mesh's)
+    shadow_size: u32,           // mesh: shadow map side (texels; 0 without macro shadow)
+    shadow_hi: vec3<f32>,       // mesh: its high corner
+    pad6: f32,
 }
 
 struct Light {
