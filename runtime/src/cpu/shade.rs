@@ -291,6 +291,15 @@ impl Twin<'_> {
         c
     }
 
+    /// Terms 4q … 4q + 3 of grid node `node` of the learned table (`learned_node` in WGSL:
+    /// one texel of the table's texture, the node-major `learned` buffer's floats
+    /// `node·s + 4q …`, s = [`crate::scene::learned_stride`]).
+    pub fn learned_node(&self, node: usize, q: usize) -> [f32; 4] {
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        let s = crate::scene::learned_stride(n);
+        std::array::from_fn(|lane| self.p.learned[node * s + 4 * q + lane])
+    }
+
     /// p = Σₖ cₖ·Bₖ(u, v) of a learned basis: each table read bilinearly at `uv` (the
     /// node-major `learned` buffer, [`crate::scene::learned_stride`] floats a node), dotted with
     /// the coefficients.
@@ -318,17 +327,17 @@ impl Twin<'_> {
         let n = self.p.variant.basis.map_or(0, |b| b.len());
         let grid = self.p.variant.learned_grid;
         let (i, w) = learned_bilinear(grid, uv);
-        let t = &self.p.learned;
         let s = crate::scene::learned_stride(n);
         let d: [f32; 4] = std::array::from_fn(|j| {
             // dot(ck, node quad) per quad, summed: the padding adds 0.
             let mut acc = 0f32;
             for q in 0..s / 4 {
+                let t = self.learned_node(i[j], q);
                 let mut dq = 0f32;
-                for lane in 0..4 {
+                for (lane, t) in t.iter().enumerate() {
                     let k = 4 * q + lane;
                     let ck = if k < n { c[k] } else { 0.0 };
-                    dq += ck * t[i[j] * s + k];
+                    dq += ck * t;
                 }
                 acc += dq;
             }

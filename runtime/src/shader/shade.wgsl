@@ -96,10 +96,13 @@ struct PtmLevel {
 //#endif
 //#if PTM_LEARNED
 // A learned basis's NC tables B_k (`ptm_format::LearnedTable`, shared by every MIP level),
-// node-major in vec4s: the NC values of grid node (column i, row j) fill the LEARNED_QUADS vec4s
-// from (j·G + i)·LEARNED_QUADS, zero after the NC values (`scene::node_major`), so each
-// bilinear tap is ⌈NC/4⌉ vec4 loads rather than NC scalar ones (gathers on a CPU rasteriser).
-@group(0) @binding(13) var<storage, read> learned: array<vec4<f32>>;
+// node-major in vec4s: the NC values of grid node (column i, row j) fill the LEARNED_QUADS
+// texels (i·LEARNED_QUADS + q, j), q = 0, 1, …, zero after the NC values (`scene::node_major`),
+// so each bilinear tap is ⌈NC/4⌉ texel loads rather than NC scalar ones. A texture, not a
+// storage buffer: a CPU rasteriser (lavapipe) fetches texels in SIMD where it gathers storage
+// loads lane by lane. Its texels are the f32 bits as u32 (`learned_node`): an integer format
+// is never filterable, so it binds without FLOAT32_FILTERABLE, and the bits come back exactly.
+@group(0) @binding(13) var learned: texture_2d<u32>;
 //#endif
 
 //#if MESH
@@ -335,15 +338,21 @@ fn learned_bilinear(uv: vec2<f32>) -> Bilinear {
 // vec4s per grid node: NC rounded up to whole vec4s.
 const LEARNED_QUADS: u32 = (NC + 3u) / 4u;
 
+// Terms 4q … 4q + 3 of grid node `node` (= j·G + i): texel (i·LEARNED_QUADS + q, j).
+fn learned_node(node: u32, q: u32) -> vec4<f32> {
+    let x = (node % LEARNED_GRID) * LEARNED_QUADS + q;
+    return bitcast<vec4<f32>>(textureLoad(learned, vec2<u32>(x, node / LEARNED_GRID), 0));
+}
+
 // p = Σ_k c_k·B_k(u, v): each table read bilinearly at (u, v), dotted with the coefficients;
 // per term the same operations in the same order as the twin (`Twin::learned_eval`).
 fn learned_eval(c: array<f32, {{NC}}>, uv: vec2<f32>) -> f32 {
     let b = learned_bilinear(uv);
-    let i = b.index * LEARNED_QUADS;
+    let i = b.index;
     var p = 0.0;
     for (var q = 0u; q < LEARNED_QUADS; q++) {
-        let t = b.weight.x * learned[i.x + q] + b.weight.y * learned[i.y + q]
-            + b.weight.z * learned[i.z + q] + b.weight.w * learned[i.w + q];
+        let t = b.weight.x * learned_node(i.x, q) + b.weight.y * learned_node(i.y, q)
+            + b.weight.z * learned_node(i.z, q) + b.weight.w * learned_node(i.w, q);
         // Past the last term (k ≥ NC) the coefficient is 0 and the padding's table value is
         // 0: a padded term adds 0·0, and p keeps the CPU twin's value bit for bit.
         let k = vec4<u32>(4u * q) + vec4<u32>(0u, 1u, 2u, 3u);
@@ -362,14 +371,14 @@ fn learned_eval(c: array<f32, {{NC}}>, uv: vec2<f32>) -> f32 {
 // cell: bilinear in the grid coordinates, (G − 1)/2 of them per unit of u or v.
 fn learned_jet(c: array<f32, {{NC}}>, uv: vec2<f32>) -> PtmJet {
     let b = learned_bilinear(uv);
-    let i = b.index * LEARNED_QUADS;
+    let i = b.index;
     var d = vec4<f32>(0.0);
     for (var q = 0u; q < LEARNED_QUADS; q++) {
         let k = vec4<u32>(4u * q) + vec4<u32>(0u, 1u, 2u, 3u);
         let m = min(k, vec4<u32>(NC - 1u));
         let ck = select(vec4<f32>(0.0), vec4<f32>(c[m.x], c[m.y], c[m.z], c[m.w]), k < vec4<u32>(NC));
-        d += vec4<f32>(dot(ck, learned[i.x + q]), dot(ck, learned[i.y + q]),
-            dot(ck, learned[i.z + q]), dot(ck, learned[i.w + q]));
+        d += vec4<f32>(dot(ck, learned_node(i.x, q)), dot(ck, learned_node(i.y, q)),
+            dot(ck, learned_node(i.z, q)), dot(ck, learned_node(i.w, q)));
     }
     // The cell coordinates from the weights: a = (w1 + w3, w2 + w3).
     let a = vec2<f32>(b.weight.y + b.weight.w, b.weight.z + b.weight.w);
