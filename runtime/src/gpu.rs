@@ -167,12 +167,34 @@ impl Renderer {
                 gpu.storage("coeffs", bytemuck::cast_slice(&p.coeffs)),
             ));
         }
-        if v.basis.is_some_and(ptm_format::Basis::is_learned) {
-            entries.push((
-                b::LEARNED.index,
-                gpu.storage("learned table", bytemuck::cast_slice(&p.learned)),
-            ));
-        }
+        // A learned basis's table: a texture of its f32 bits as u32, (G·⌈k/4⌉) × G texels of
+        // four terms (`learned_node` in shade.wgsl; the node-major buffer is already in that
+        // texel order).
+        let learned = v.basis.is_some_and(ptm_format::Basis::is_learned).then(|| {
+            let g = v.learned_grid;
+            let quads = (p.learned.len() / 4) as u32 / (g * g);
+            gpu.device
+                .create_texture_with_data(
+                    &gpu.queue,
+                    &wgpu::TextureDescriptor {
+                        label: Some("learned table"),
+                        size: wgpu::Extent3d {
+                            width: g * quads,
+                            height: g,
+                            depth_or_array_layers: 1,
+                        },
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D2,
+                        format: wgpu::TextureFormat::Rgba32Uint,
+                        usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                        view_formats: &[],
+                    },
+                    wgpu::util::TextureDataOrder::LayerMajor,
+                    bytemuck::cast_slice(&p.learned),
+                )
+                .create_view(&Default::default())
+        });
         if v.albedo_texture {
             entries.push((
                 b::ALBEDO.index,
@@ -302,6 +324,12 @@ impl Renderer {
             bind_entries.push(wgpu::BindGroupEntry {
                 binding: b::GATHER.index,
                 resource: wgpu::BindingResource::Sampler(sampler),
+            });
+        }
+        if let Some(view) = &learned {
+            bind_entries.push(wgpu::BindGroupEntry {
+                binding: b::LEARNED.index,
+                resource: wgpu::BindingResource::TextureView(view),
             });
         }
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {

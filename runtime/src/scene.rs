@@ -460,7 +460,8 @@ fn learned_table(ptm: &Ptm) -> Result<&LearnedTable> {
 /// (column i, row j) at `(j·G + i)·s`, s = 4·⌈k/4⌉ (the stride [`learned_stride`]) and zeros
 /// after the k values (the file's `LearnedTable::values` are term-major). The shader reads each
 /// of the four bilinear taps as ⌈k/4⌉ `vec4`s, so 11 terms cost 12 loads a light, not 44 scalar
-/// ones (storage loads at per-pixel addresses are gathers on a CPU rasteriser such as lavapipe).
+/// ones; the GPU holds it as a texture of G·⌈k/4⌉ × G such texels (`learned_node` in
+/// shade.wgsl: lavapipe fetches texels in SIMD where it gathers storage loads lane by lane).
 fn node_major(table: &LearnedTable) -> Vec<f32> {
     let (k, g2) = (table.terms, table.cells());
     let s = learned_stride(k);

@@ -213,7 +213,10 @@ pub fn shade_mesh(t: &Twin, shadow: Option<&ShadowMaps>, m: &MeshOut) -> V3 {
         }
         let mut visible = 1.0;
         if let Some(c) = &c {
-            visible *= 1.0 - t.ptm_k(c, lt);
+            // K over the light's footprint as on the plane (see `shade_mesh` in WGSL).
+            let d = d2.sqrt();
+            let f = t.ptm_footprint(lt, scale(lt, d), d, light);
+            visible *= 1.0 - t.ptm_k_area(c, lt, &f);
         }
         if let Some(maps) = shadow {
             visible *= shadow_visibility(f, &t.p.lights, maps, li, world, tbn[2]);

@@ -401,7 +401,9 @@ fn shade_mesh(
         }
         var visible = vec3<f32>(1.0);
 //#if PTM
-        visible *= 1.0 - ptm_k(c, lt);
+        // K over the light's footprint as on the plane (a rectangle's sides taken along the
+        // tangent frame's axes).
+        visible *= 1.0 - ptm_k_area(c, lt, ptm_footprint(lt, lt * sqrt(d2), sqrt(d2), light));
 //#endif
 //#if SHADOW
         visible *= shadow_visibility(i, world, tbn[2]);
