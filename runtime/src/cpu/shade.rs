@@ -394,7 +394,8 @@ impl Twin<'_> {
         d: f32,
         light: &LightGpu,
     ) -> Footprint {
-        if light.shape == 0 && !(light.radius > 0.0) {
+        // (`prepare` refuses a NaN radius.)
+        if light.shape == 0 && light.radius <= 0.0 {
             return Footprint::default();
         }
         let r = (l[0] * l[0] + l[1] * l[1]).sqrt();
@@ -473,7 +474,8 @@ impl Twin<'_> {
     /// (identity).
     pub fn ptm_k_area(&self, c: &[f32], l: [f32; 3], f: &Footprint) -> f32 {
         let cv = f.cov;
-        if !(cv[0] + cv[2] > 0.0) {
+        // Not above 0, NaN included (as WGSL's `!(x > 0.0)`).
+        if (cv[0] + cv[2]).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return self.ptm_k(c, l);
         }
         let j = self.ptm_jet(c, f.centre);
@@ -484,7 +486,7 @@ impl Twin<'_> {
                     + 2.0 * j.g[0] * j.g[1] * cv[1]
                     + j.g[1] * j.g[1] * cv[2])
                     .max(0.0);
-                ptm_sigmoid(m / (1.0 + 0.392_699_08 * v).sqrt())
+                ptm_sigmoid(m / (1.0 + std::f32::consts::FRAC_PI_8 * v).sqrt())
             }
             Link::Identity => m,
         };
