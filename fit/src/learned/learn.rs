@@ -37,7 +37,7 @@ fn subsample(texels: usize, live: &dyn Fn(usize) -> bool) -> Vec<usize> {
     out
 }
 
-/// The `n` texels of `0..texels` of smallest subsample hash, by hash. [`learn`]'s subsample is
+/// The `n` texels of `0..texels` of smallest subsample hash, by hash. `learn`'s subsample is
 /// the first [`MAX_SUBSAMPLE`] live ones of this order, by index: a farm shard finds the whole
 /// bake's by testing texels in this order, tracing no more. O(texels) time, O(n) memory.
 pub fn subsample_order(texels: usize, n: usize) -> Vec<usize> {

@@ -80,7 +80,7 @@ pub fn ptm_eval_expr(basis: Basis) -> String {
 
 /// The WGSL expression of the predictor's jet at (u, v) (`{{PTM_JET}}`, a `PtmJet` of p, its
 /// gradient and Hessian), each a sum over the basis's monomials differentiated term by term,
-/// e.g. ∂/∂u of c[0]·u³ is `c[0] * (3.0 * u * u)`; for a learned basis `learned_jet(c, uv)`.
+/// e.g. ∂/∂u of `c[0]·u³` is `c[0] * (3.0 * u * u)`; for a learned basis `learned_jet(c, uv)`.
 pub fn ptm_jet_expr(basis: Basis) -> String {
     if basis.is_learned() {
         return "learned_jet(c, uv)".into();
