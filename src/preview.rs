@@ -6,7 +6,6 @@ use std::time::Instant;
 use anyhow::{bail, Context};
 use ptm_format::atomic::Transaction;
 use ptm_format::exrio::{self, Samples};
-use ptm_format::Ptm;
 use ptm_runtime::scene::{Perspective, SceneBuffers};
 use ptm_runtime::{compare, cpu, gpu, output, Blur, Caster, Gpu, Image, Light, Scene};
 
@@ -209,26 +208,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                 .with_context(|| crate::outputs::Named::new("reading", path))?;
             Scene::over_ptm(ptm, 1, [1, 1])
         }
-        None => {
-            let mut s = Scene::over_ptm(
-                Ptm {
-                    basis: ptm_format::Basis::Ptm6,
-                    width: 1,
-                    height: 1,
-                    link: ptm_format::Link::Identity,
-                    uv: ptm_format::UvMap::Projected,
-                    mips: Vec::new(),
-                    coverage: None,
-                    tile: [1.0, 1.0],
-                    planes: vec![vec![0.0]; 6],
-                    learned: None,
-                },
-                1,
-                [1, 1],
-            );
-            s.ptm = None;
-            s
-        }
+        None => Scene::without_ptm(),
     };
     // As `Scene::over_ptm` lays out its view, in f64 then rounded once.
     let tile = scene.ptm.as_ref().map_or([1.0, 1.0], |p| p.tile);

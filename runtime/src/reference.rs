@@ -53,19 +53,7 @@ pub fn mc_opacity(
         return [0.0; 3];
     }
     let axis = c.map(|x| x / d);
-    // Orthonormal frame around the axis.
-    let helper = if axis[2].abs() < 0.9 {
-        [0.0, 0.0, 1.0]
-    } else {
-        [1.0, 0.0, 0.0]
-    };
-    let e1 = normalize(cross(helper, axis));
-    let e2 = cross(axis, e1);
-    let cos_max = if r >= d {
-        -1.0
-    } else {
-        (1.0 - (r / d) * (r / d)).sqrt()
-    };
+    let (e1, e2, cos_max) = cone_frame(axis, r, d);
     let [w, ht] = plane.size;
     let rect = frame.caster_rect.map(|x| x as f64);
     let (sin_t, cos_t) = (frame.caster_sin_tilt as f64, frame.caster_cos_tilt as f64);
@@ -229,18 +217,7 @@ pub fn mc_k(
         let n = (samples as f64).sqrt().ceil() as u32;
         (n, n)
     };
-    let helper = if axis[2].abs() < 0.9 {
-        [0.0, 0.0, 1.0]
-    } else {
-        [1.0, 0.0, 0.0]
-    };
-    let e1 = normalize(cross(helper, axis));
-    let e2 = cross(axis, e1);
-    let cos_max = if r >= d {
-        -1.0
-    } else {
-        (1.0 - (r / d) * (r / d)).sqrt()
-    };
+    let (e1, e2, cos_max) = cone_frame(axis, r, d);
     let (mut sum_w, mut sum_k) = (0.0, 0.0);
     for s in 0..nx * ny {
         let (si, sj) = (s % nx, s / nx);
@@ -274,4 +251,22 @@ pub fn mc_k(
         return 1.0;
     }
     (sum_k / sum_w) as f32
+}
+
+/// An orthonormal frame (e1, e2) around the unit `axis` towards a sphere of radius `r` at
+/// distance `d`, and the cosine of the cone the sphere subtends (−1 from inside it).
+fn cone_frame(axis: [f64; 3], r: f64, d: f64) -> ([f64; 3], [f64; 3], f64) {
+    let helper = if axis[2].abs() < 0.9 {
+        [0.0, 0.0, 1.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    let e1 = normalize(cross(helper, axis));
+    let e2 = cross(axis, e1);
+    let cos_max = if r >= d {
+        -1.0
+    } else {
+        (1.0 - (r / d) * (r / d)).sqrt()
+    };
+    (e1, e2, cos_max)
 }

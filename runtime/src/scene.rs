@@ -91,6 +91,26 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// A scene with no PTM (the shading alone, K = 0), one unit tile viewed from above at 1×1
+    /// pixels, no lights, no caster: for a preview without a file, or a placeholder.
+    pub fn without_ptm() -> Scene {
+        let placeholder = Ptm {
+            basis: ptm_format::Basis::Ptm6,
+            width: 1,
+            height: 1,
+            link: Link::Identity,
+            uv: UvMap::Projected,
+            mips: Vec::new(),
+            coverage: None,
+            tile: [1.0, 1.0],
+            planes: vec![vec![0.0]; 6],
+            learned: None,
+        };
+        let mut s = Scene::over_ptm(placeholder, 1, [1, 1]);
+        s.ptm = None;
+        s
+    }
+
     /// A scene viewing `repeat`×`repeat` tiles of `ptm` from above, no lights, no caster.
     pub fn over_ptm(ptm: Ptm, repeat: u32, size: [u32; 2]) -> Scene {
         let view = [

@@ -146,7 +146,7 @@ impl Session {
     }
 
     fn with_mesh(mut mesh: MeshScene) -> Session {
-        let scene = std::mem::replace(&mut mesh.scene, Scene::over_ptm(empty_ptm(), 1, [1, 1]));
+        let scene = std::mem::replace(&mut mesh.scene, Scene::without_ptm());
         let mut s = Session::new(scene);
         s.mesh = Some(mesh);
         s
@@ -276,22 +276,6 @@ fn mean_rgb(image: &Image) -> [f32; 3] {
         }
     }
     mean
-}
-
-/// A placeholder PTM (1×1, K = 0) for the scene a mesh session swaps its own into.
-fn empty_ptm() -> ptm_format::Ptm {
-    ptm_format::Ptm {
-        basis: ptm_format::Basis::Ptm6,
-        width: 1,
-        height: 1,
-        link: ptm_format::Link::Identity,
-        uv: ptm_format::UvMap::Projected,
-        mips: Vec::new(),
-        coverage: None,
-        tile: [1.0, 1.0],
-        planes: vec![vec![0.0]; 6],
-        learned: None,
-    }
 }
 
 /// Opens the window on `scene` and runs until the user quits (or the script ends).

@@ -127,17 +127,30 @@ pub(crate) fn learn_basis(
     opts: &FitOptions,
 ) -> Result<(LearnedTable, LearnedStats)> {
     let (_, lambda) = learned_ridge(prep, lights, opts)?;
-    let l = learn::learn(
+    let l = learn_unmasked(src, prep, lights, masked, opts, lambda)?;
+    Ok((l.table, l.stats))
+}
+
+/// [`learn::learn`] on the texels of `src` that `masked` does not mask.
+fn learn_unmasked(
+    src: &Source,
+    prep: &SharedDesign,
+    lights: &LightSet,
+    masked: &[bool],
+    opts: &FitOptions,
+    lambda: f64,
+) -> Result<learn::Learned> {
+    let live = |ti: usize| !masked[ti];
+    learn::learn(
         src,
         masked.len(),
-        &|ti| !masked[ti],
+        &live,
         lights,
         &prep.w,
         &prep.held,
         opts,
         lambda,
-    )?;
-    Ok((l.table, l.stats))
+    )
 }
 
 /// The logistic fit of one image from `src` (level 0 and, with `opts.mips`, every MIP level),
@@ -172,16 +185,7 @@ pub(crate) fn fit_image(
                     opts.basis.name()
                 )))
             }
-            None => learn::learn(
-                src,
-                t,
-                &|ti| !masked[ti],
-                lights,
-                &prep.w,
-                &prep.held,
-                opts,
-                lambda,
-            )?,
+            None => learn_unmasked(src, prep, lights, masked, opts, lambda)?,
         };
         (l.tables, isa, lambda, Some((l.table, l.stats)))
     } else {
