@@ -292,6 +292,7 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                 rect: (!args.light_rect.is_empty())
                     .then(|| nth(&args.light_rect, i, (0.0, 0.0)))
                     .map(|(a, b)| [a, b]),
+                square_box: false,
                 intensity: nth(&args.intensity, i, 0.8 * d2 / cos),
                 color: nth(&args.color, i, [1.0, 1.0, 1.0]),
             }

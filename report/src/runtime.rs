@@ -92,6 +92,7 @@ fn light(position: [f32; 3], radius: f32) -> Light {
         position,
         radius,
         rect: None,
+        square_box: false,
         intensity: 4.0,
         color: [1.0; 3],
     }

@@ -110,6 +110,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         position: p,
         radius: 0.3,
         rect: None,
+        square_box: false,
         intensity: 8.0,
         color: [1.0; 3],
     };

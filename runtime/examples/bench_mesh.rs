@@ -43,6 +43,7 @@ fn main() {
         position: [-3.0, -4.0, 5.0],
         radius: 0.3,
         rect: None,
+        square_box: false,
         intensity: 50.0,
         color: [1.0; 3],
     };

@@ -61,6 +61,7 @@ fn main() {
         position: [1.0, 3.0, 2.5],
         radius: 0.3,
         rect: None,
+        square_box: false,
         intensity: 8.0,
         color: [1.0; 3],
     }];

@@ -34,10 +34,29 @@ pub struct Light {
     /// caster's fraction of the way to the light: a box of any aspect ratio, exact with the
     /// summed-area table.
     pub rect: Option<[f32; 2]>,
+    /// A sphere's penumbra kernel: `false` (the default) the ellipse where the cone from the
+    /// shaded point to the sphere cuts the caster plane (longer along the direction away from
+    /// the light, more so the more oblique the light); `true` the square box of half-side R·s
+    /// everywhere that the runtime used before the ellipse, kept for comparisons.
+    pub square_box: bool,
     /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
     pub intensity: f32,
     /// Linear RGB colour.
     pub color: [f32; 3],
+}
+
+impl Default for Light {
+    /// A white point light of intensity 1 one unit above the origin.
+    fn default() -> Light {
+        Light {
+            position: [0.0, 0.0, 1.0],
+            radius: 0.0,
+            rect: None,
+            square_box: false,
+            intensity: 1.0,
+            color: [1.0; 3],
+        }
+    }
 }
 
 impl Light {
@@ -139,7 +158,11 @@ impl Scene {
                 position: l.position,
                 radius: l.radius.max(0.0),
                 color: l.color.map(|c| c * l.intensity),
-                shape: u32::from(l.rect.is_some()),
+                shape: match (l.rect, l.square_box) {
+                    (Some(_), _) => LightGpu::RECT,
+                    (None, false) => LightGpu::SPHERE,
+                    (None, true) => LightGpu::SPHERE_SQUARE_BOX,
+                },
                 half: l.rect.map_or([0.0; 2], |r| r.map(|x| 0.5 * x)),
                 pad: [0.0; 2],
             })

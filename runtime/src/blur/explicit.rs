@@ -28,14 +28,15 @@ pub fn opacity_raw(opacity: &[u32], size: [u32; 2], t: [f32; 2]) -> [u32; 3] {
     [o & 255, (o >> 8) & 255, (o >> 16) & 255]
 }
 
-/// Reference blur: mean over an n×n grid of samples inside the ellipse of radii wt (texels)
-/// around t, or the whole grid for [`Kernel::Box`], n = clamp(⌈4·max(wt)⌉, 16, `samples`);
-/// integer sums divided once.
+/// Reference blur: mean over an n×n grid of samples inside the sheared ellipse of radii wt
+/// (texels) around t ([`Kernel::Disc`]), or the whole grid for [`Kernel::Box`],
+/// n = clamp(⌈4·max(wt)⌉, 16, `samples`); integer sums divided once.
 pub fn blur_explicit(
     plane: &Plane,
     samples: u32,
     t: [f32; 2],
     wt: [f32; 2],
+    shear: f32,
     kernel: Kernel,
 ) -> [f32; 3] {
     let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, samples);
@@ -51,7 +52,10 @@ pub fn blur_explicit(
                 let v = opacity_raw(
                     &plane.texels,
                     plane.size,
-                    [t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]],
+                    [
+                        t[0] + (o[0] * wt[0] + shear * o[1] * wt[1]),
+                        t[1] + o[1] * wt[1],
+                    ],
                 );
                 for c in 0..3 {
                     sum[c] += v[c];
@@ -97,8 +101,9 @@ impl Method for Explicit {
         _li: usize,
         t: [f32; 2],
         wt: [f32; 2],
+        shear: f32,
         kernel: Kernel,
     ) -> [f32; 3] {
-        blur_explicit(b.plane, b.uniform.samples, t, wt, kernel)
+        blur_explicit(b.plane, b.uniform.samples, t, wt, shear, kernel)
     }
 }

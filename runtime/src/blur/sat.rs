@@ -141,13 +141,47 @@ pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f3
     }
 }
 
+/// Boxes the ellipse is cut into (`SAT_SLABS`), their bands' edges (`SLAB_EDGE`, −cos(πk/4))
+/// and widths (`SLAB_WIDTH`, the mean chord over the band) in units of the radii.
+pub const SAT_SLABS: usize = 4;
+const SLAB_EDGE: [f32; 5] = [-1.0, -0.707_106_78, 0.0, 0.707_106_78, 1.0];
+const SLAB_WIDTH: [f32; 4] = [0.487_205_14, 0.908_913_76, 0.908_913_76, 0.487_205_14];
+
+/// The sheared ellipse ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 around t as [`SAT_SLABS`] boxes,
+/// one per band of rows, each with its band's exact area (see `blur_sat_ellipse` in WGSL).
+pub fn blur_sat_ellipse(
+    sat: &[u32],
+    size: [u32; 2],
+    channels: u32,
+    t: [f32; 2],
+    wt: [f32; 2],
+    shear: f32,
+) -> [f32; 3] {
+    let mut sum = [0f32; 3];
+    let mut area = 0f32;
+    for k in 0..SAT_SLABS {
+        let mid = 0.5 * (SLAB_EDGE[k] + SLAB_EDGE[k + 1]) * wt[1];
+        let half = [
+            SLAB_WIDTH[k] * wt[0],
+            0.5 * (SLAB_EDGE[k + 1] - SLAB_EDGE[k]) * wt[1],
+        ];
+        let a = half[0] * half[1];
+        let m = blur_sat(sat, size, channels, [t[0] + shear * mid, t[1] + mid], half);
+        for c in 0..3 {
+            sum[c] += a * m[c];
+        }
+        area += a;
+    }
+    sum.map(|x| x / area)
+}
+
 impl Method for Sat {
     fn blur(&self) -> Blur {
         Blur::Sat
     }
 
     fn kernels(&self) -> &'static [Kernel] {
-        &[Kernel::Box]
+        &[Kernel::Box, Kernel::Disc]
     }
 
     fn wgsl(&self) -> &'static str {
@@ -189,9 +223,13 @@ impl Method for Sat {
         _li: usize,
         t: [f32; 2],
         wt: [f32; 2],
-        _kernel: Kernel,
+        shear: f32,
+        kernel: Kernel,
     ) -> [f32; 3] {
         let table: &Vec<u32> = own(b.built, "sat");
+        if kernel == Kernel::Disc {
+            return blur_sat_ellipse(table, b.plane.size, b.plane.channels, t, wt, shear);
+        }
         blur_sat(table, b.plane.size, b.plane.channels, t, wt)
     }
 }

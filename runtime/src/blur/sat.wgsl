@@ -72,7 +72,34 @@ fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
     return out;
 }
 
-// The method's entry point, called by `light_opacity` (see blur/explicit.wgsl).
-fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, kernel: u32) -> vec3<f32> {
+// The sheared ellipse ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 around t as SAT_SLABS boxes, one
+// per band of rows: band k spans y/wt.y ∈ [SLAB_EDGE[k], SLAB_EDGE[k + 1]] (edges at −cos(πk/4),
+// thinner at the ends where the outline turns fastest), centred on the chords' midpoints there
+// and as wide as the ellipse's mean chord over the band (SLAB_WIDTH: ∫√(1 − η²)dη over the band
+// / its height), so each box has its band's exact area and the boxes together the ellipse's.
+// Constant cost: SAT_SLABS box lookups whatever the radii.
+const SAT_SLABS: u32 = 4u;
+const SLAB_EDGE = array<f32, 5>(-1.0, -0.70710678, 0.0, 0.70710678, 1.0);
+const SLAB_WIDTH = array<f32, 4>(0.48720514, 0.90891376, 0.90891376, 0.48720514);
+
+fn blur_sat_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec3<f32> {
+    var sum = vec3<f32>(0.0);
+    var area = 0.0;
+    for (var k = 0u; k < SAT_SLABS; k++) {
+        let mid = 0.5 * (SLAB_EDGE[k] + SLAB_EDGE[k + 1u]) * wt.y;
+        let hw = vec2<f32>(SLAB_WIDTH[k] * wt.x, 0.5 * (SLAB_EDGE[k + 1u] - SLAB_EDGE[k]) * wt.y);
+        let a = hw.x * hw.y;
+        sum += a * blur_sat(t + vec2<f32>(shear * mid, mid), hw);
+        area += a;
+    }
+    return sum / area;
+}
+
+// The method's entry point, called by `light_opacity` (see blur/explicit.wgsl): the box, or
+// the ellipse as boxes.
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec3<f32> {
+    if (kernel == KERNEL_DISC) {
+        return blur_sat_ellipse(t, wt, shear);
+    }
     return blur_sat(t, wt);
 }

@@ -301,6 +301,7 @@ impl Method for Separable {
         li: usize,
         t: [f32; 2],
         _wt: [f32; 2],
+        _shear: f32,
         _kernel: Kernel,
     ) -> [f32; 3] {
         let map: &Vec<f32> = own(b.built, "separable");

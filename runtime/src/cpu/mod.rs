@@ -141,14 +141,16 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             shade::ptm_sigmoid, shade::learned_bilinear, shade::Twin::learned_eval,
             shade::Twin::ptm_k, shade::Twin::coverage_level,
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
-            shade::caster_texel_coords, shade::Twin::light_opacity, shade::Twin::shade,
+            shade::caster_texel_coords, shade::Twin::light_opacity, shade::sphere_ellipse,
+            shade::Twin::shade,
             shade::Twin::fs_main;
         "blur/explicit.wgsl" => explicit::opacity_raw, explicit::blur_explicit,
             <explicit::Explicit as Method>::blur_lookup;
-        "blur/sat.wgsl" => sat::sat_load, sat::sat_spans, sat::blur_sat,
+        "blur/sat.wgsl" => sat::sat_load, sat::sat_spans, sat::blur_sat, sat::blur_sat_ellipse,
             <sat::Sat as Method>::blur_lookup;
         "blur/sat_build.wgsl" => sat::sat_rows, sat::sat_columns;
-        "blur/mip.wgsl" => mip::mip_texel, mip::mip_bilinear, mip::blur_mip,
+        "blur/mip.wgsl" => mip::mip_texel, mip::mip_bilinear, mip::mip_trilinear, mip::blur_mip,
+            mip::ewa_area, mip::blur_mip_ellipse,
             <mip::Mip as Method>::blur_lookup;
         "blur/separable.wgsl" => separable::sep_tap, separable::blur_separable,
             <separable::Separable as Method>::blur_lookup;

@@ -23,6 +23,7 @@ pub fn light(position: [f32; 3], radius: f32, intensity: f32) -> Light {
         position,
         radius,
         rect: None,
+        square_box: false,
         intensity,
         color: [1.0, 1.0, 1.0],
     }
