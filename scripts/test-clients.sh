@@ -21,8 +21,10 @@ if [ ! -e .deps/bpy/.installed-5.0.1 ]; then
     touch .deps/bpy/.installed-5.0.1
 fi
 bash scripts/setup.sh  # .deps/py: the pinned MaterialX that generates the OSL
-cargo build --release -q -p ptm
-cargo build --release -q -p ptm-fit --example ptm_eval
+# The workspace's one feature set (as scripts/test.sh builds): a `-p` build would resolve its own
+# and compile the shared dependencies again.
+cargo build --release -q --workspace --features "${PTM_CARGO_FEATURES:-ptm-runtime/window}" \
+    --bin ptm --example ptm_eval
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 .deps/py/bin/python integrations/materialx/mtlx_osl.py "$work/ptm_k.osl" >/dev/null

@@ -20,7 +20,7 @@ pub struct MeshArgs {
     /// PTM tiles --repeat times per UV unit (per unit of cloth for the built-ins, whose UVs are
     /// lengths); the light is brought into each pixel's MikkTSpace tangent frame for K. Default
     /// camera and light frame the mesh.
-    #[arg(long, value_name = "NAME|FILE.obj", conflicts_with_all = ["caster", "compare_blur", "window"])]
+    #[arg(long, value_name = "NAME|FILE.obj", conflicts_with_all = ["caster", "compare_blur"])]
     pub mesh: Option<String>,
     /// How an OBJ without texture coordinates gets UVs: none (refuse it), planar (uv = xy)
     /// or box (each triangle along its dominant axis).
@@ -60,6 +60,14 @@ pub struct MeshArgs {
     /// Tessellation of a built-in mesh relative to its default (the drape: 200² quads).
     #[arg(long, default_value_t = 1.0, requires = "mesh")]
     pub mesh_detail: f32,
+    /// Side of the macro shadow's depth maps in texels, one map per light framing the mesh from
+    /// the light's centre (16 MiB a light at 2048); the shadow's penumbra follows each light's
+    /// size (--light-radius). 0 turns the mesh's shadow on itself off.
+    #[arg(long, default_value_t = ptm_runtime::mesh::DEFAULT_SHADOW_SIZE, requires = "mesh")]
+    pub shadow_size: u32,
+    /// No macro shadow (the mesh does not shadow itself; K still darkens the weave).
+    #[arg(long, requires = "mesh")]
+    pub no_shadow: bool,
 }
 
 /// The flags the mesh path shares with the plane preview.
@@ -274,6 +282,7 @@ pub fn build(
             fill: args.fill,
             normal_map,
             tile,
+            shadow_size: if args.no_shadow { 0 } else { args.shadow_size },
         },
         name: name.to_string(),
         maps: maps_path,

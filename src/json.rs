@@ -623,6 +623,11 @@ pub struct MeshReport {
     pub yarn_colors: bool,
     /// Whether K darkened the key light (false with `--no-k` or without `--ptm`).
     pub k: bool,
+    /// Side of the macro shadow's depth maps, one per light (0: no macro shadow, with
+    /// `--no-shadow`, `--shadow-size 0` or no light).
+    pub shadow_map_size: u32,
+    /// Bytes of those depth maps on the GPU (0 without).
+    pub shadow_map_bytes: u64,
 }
 
 /// The range of K a preview evaluated before clamping.
@@ -712,6 +717,9 @@ pub struct Window {
     pub ptm_on: bool,
     /// The first light's position at the end (null without lights).
     pub light: Option<[f32; 3]>,
+    /// The perspective camera's eye at the end (orbited on a mesh; null for the orthographic
+    /// top view).
+    pub camera: Option<[f32; 3]>,
     /// Mean linear RGB of the last frame (null before any).
     pub mean_rgb: Option<[f32; 3]>,
 }

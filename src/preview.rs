@@ -110,8 +110,9 @@ pub struct Args {
     #[arg(long, default_value_t = 256)]
     pub mc_samples: u32,
     /// Interactive window instead of a PNG: drag to move the first light, keys 1-4 or B pick
-    /// the blur method, P toggles the PTM, Esc quits (needs a build with `--features window`).
-    #[arg(long, conflicts_with_all = ["output", "exr", "turntable", "compare_blur"])]
+    /// the blur method, P toggles the PTM, Esc quits; on a --mesh, right-drag or the arrow keys
+    /// orbit the camera (needs a build with `--features window`).
+    #[arg(long, conflicts_with_all = ["output", "exr", "turntable", "compare_blur", "sheet"])]
     pub window: bool,
     /// Smoke test of --window: script N frames (every blur method, PTM off/on, a light move),
     /// then close.
@@ -400,18 +401,28 @@ fn check_image_size(path: &Path, flag: &str) -> anyhow::Result<()> {
 #[cfg(feature = "window")]
 fn run_window(args: &Args) -> anyhow::Result<json::Preview> {
     use ptm_runtime::window::{self, WindowOptions};
-    let scene = build_scene(args)?;
-    // The window prepares every frame; the opening view's warnings are told once, here.
-    for w in &scene.prepare()?.warnings {
-        eprintln!("ptm preview: {w}");
-    }
-    let report = window::run(
-        scene,
-        WindowOptions {
-            exposure: args.exposure,
-            exit_after_frames: args.window_frames,
-        },
-    )?;
+    let mut scene = build_scene(args)?;
+    let options = WindowOptions {
+        exposure: args.exposure,
+        exit_after_frames: args.window_frames,
+    };
+    let report = match &args.garment.mesh {
+        Some(name) => {
+            let m = crate::garment::build(&args.garment, &view_of(args), name, &mut scene)?;
+            // Refused here, before the window opens, if the mesh scene cannot be prepared.
+            for w in &m.scene.prepare_frame()?.warnings {
+                eprintln!("ptm preview: {w}");
+            }
+            window::run_mesh(m.scene, options)?
+        }
+        None => {
+            // The window prepares every frame; the opening view's warnings are told once, here.
+            for w in &scene.prepare()?.warnings {
+                eprintln!("ptm preview: {w}");
+            }
+            window::run(scene, options)?
+        }
+    };
     Ok(json::Preview::Window(json::Window {
         adapter: report.adapter,
         surface_format: report.surface_format,
@@ -421,6 +432,7 @@ fn run_window(args: &Args) -> anyhow::Result<json::Preview> {
         blur: report.blur,
         ptm_on: report.ptm_on,
         light: report.light,
+        camera: report.camera,
         mean_rgb: report.mean_rgb,
     }))
 }
@@ -481,6 +493,12 @@ pub fn run(args: &Args) -> anyhow::Result<json::Preview> {
             normal_map: m.scene.normal_map.is_some(),
             yarn_colors: m.yarn_colors,
             k: m.scene.scene.ptm.is_some(),
+            shadow_map_size: prepared.frame.shadow_size,
+            shadow_map_bytes: if prepared.variant.shadow {
+                ptm_runtime::mesh::shadow_bytes(prepared.frame.shadow_size, scene.lights.len())
+            } else {
+                0
+            },
         }),
         ..Default::default()
     };

@@ -460,3 +460,168 @@ fn preview_renders_a_learned_file_and_names_a_bad_one() {
         out.stderr
     );
 }
+
+/// A user's OBJ (not a built-in): a 4 × 4 floor and a 1 × 1 square floating above it, both with
+/// UVs, and one sliver triangle whose UVs are a single point (a degenerate map).
+fn write_floor_and_square(dir: &Path) -> PathBuf {
+    let obj = "# floor, a floating square, a degenerate-UV sliver\n\
+               v -2 -2 0\nv 2 -2 0\nv 2 2 0\nv -2 2 0\n\
+               v -0.5 -0.5 1\nv 0.5 -0.5 1\nv 0.5 0.5 1\nv -0.5 0.5 1\n\
+               v 1.5 1.5 0.01\nv 1.8 1.5 0.01\nv 1.8 1.8 0.01\n\
+               vt 0 0\nvt 4 0\nvt 4 4\nvt 0 4\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+               f 1/1 2/2 3/3 4/4\nf 5/5 6/6 7/7 8/8\nf 9/1 10/1 11/1\n";
+    let path = dir.join("user_mesh.obj");
+    std::fs::write(&path, obj).unwrap();
+    path
+}
+
+/// Issue #21: `--turntable` on a mesh turns the light about the mesh's centre, frame by frame,
+/// and the mesh's macro shadow turns with it; `--json` counts the degenerate-UV triangle and
+/// states the shadow maps. `--window` is no longer refused with `--mesh` by the parser.
+#[test]
+fn a_mesh_turntable_turns_the_light_and_the_shadow_with_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let ptm_path = write_ptm(dir.path());
+    let obj = write_floor_and_square(dir.path());
+    let png = dir.path().join("turn.png");
+    let j = run_json(&[
+        "--ptm",
+        p(&ptm_path),
+        "--mesh",
+        p(&obj),
+        "--size",
+        "48,36",
+        "--shadow-size",
+        "256",
+        "--camera",
+        "0,-3.5,4.5",
+        "--light",
+        "1.5,0,3",
+        "--turntable",
+        "4",
+        "-o",
+        p(&png),
+    ]);
+    assert_eq!(j["turntable"]["frames"], 4, "{j}");
+    let m = &j["mesh"];
+    assert_eq!(m["triangles"], 5, "{j}");
+    assert_eq!(m["tangent_fallback_triangles"], 1, "{j}");
+    assert_eq!(m["shadow_map_size"], 256, "{j}");
+    assert_eq!(m["shadow_map_bytes"], 256 * 256 * 4, "{j}");
+    assert!(
+        j["variant"].as_str().unwrap().contains("mesh+shadow"),
+        "{j}"
+    );
+    // Four frames, 2 × 2 (48 × 36 under a 7-pixel label, 2-pixel gutters); each frame's floor
+    // is shadowed somewhere else.
+    let t = &j["turntable"];
+    assert_eq!(
+        (t["columns"].as_u64(), t["rows"].as_u64()),
+        (Some(2), Some(2))
+    );
+    let (w, h, rgba) = ptm_runtime::output::read_rgba8(&png).unwrap();
+    assert_eq!((w, h), (2 * 48 + 3 * 2, 2 * 43 + 3 * 2));
+    let frame = |k: usize| -> Vec<u8> {
+        let (x0, y0) = (2 + (k % 2) * 50, 2 + (k / 2) * 45 + 7);
+        (y0..y0 + 36)
+            .flat_map(|y| (x0..x0 + 48).map(move |x| (x, y)))
+            .map(|(x, y)| rgba[y * w + x][0])
+            .collect()
+    };
+    for k in 1..4 {
+        let differ = frame(0)
+            .iter()
+            .zip(frame(k))
+            .filter(|(a, b)| a.abs_diff(*b) > 8)
+            .count();
+        assert!(
+            differ > 40,
+            "frame {k} differs from frame 0 in {differ} pixels"
+        );
+    }
+    // The same without the macro shadow: no shadow maps, and the floor is lighter under the
+    // square in frame 0.
+    let flat = dir.path().join("flat.png");
+    let j = run_json(&[
+        "--ptm",
+        p(&ptm_path),
+        "--mesh",
+        p(&obj),
+        "--size",
+        "48,36",
+        "--no-shadow",
+        "--camera",
+        "0,-3.5,4.5",
+        "--light",
+        "1.5,0,3",
+        "-o",
+        p(&flat),
+    ]);
+    assert_eq!(j["mesh"]["shadow_map_size"], 0, "{j}");
+    assert!(!j["variant"].as_str().unwrap().contains("shadow"), "{j}");
+    let (_, _, lit) = ptm_runtime::output::read_rgba8(&flat).unwrap();
+    let sum = |px: &[[u8; 4]]| px.iter().map(|p| p[0] as u64).sum::<u64>();
+    let first: Vec<[u8; 4]> = frame(0).iter().map(|&r| [r, 0, 0, 255]).collect();
+    assert!(
+        sum(&lit) > sum(&first) + 200,
+        "{} vs {}",
+        sum(&lit),
+        sum(&first)
+    );
+    // The window is not refused by the parser with a mesh (this build may lack the window).
+    let out = ptm(
+        [
+            "preview",
+            "--mesh",
+            "drape",
+            "--window",
+            "--window-frames",
+            "1",
+        ],
+        dir.path(),
+    );
+    assert!(
+        !out.stderr.contains("cannot be used with"),
+        "{}",
+        out.stderr
+    );
+}
+
+/// Issue #21's bad input, through the command: an OBJ without UVs is refused with its name and
+/// the flag that projects some; `--uv-projection planar` renders it.
+#[test]
+fn a_mesh_without_uvs_is_refused_by_name_or_projected() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("no_uv.obj");
+    std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n").unwrap();
+    let png = dir.path().join("m.png");
+    let out = ptm(
+        [
+            "preview",
+            "--mesh",
+            p(&obj),
+            "--size",
+            "32,24",
+            "-o",
+            p(&png),
+        ],
+        dir.path(),
+    );
+    assert!(!out.ok);
+    assert!(
+        out.stderr.contains("no_uv.obj") && out.stderr.contains("--uv-projection"),
+        "{}",
+        out.stderr
+    );
+    let j = run_json(&[
+        "--mesh",
+        p(&obj),
+        "--uv-projection",
+        "planar",
+        "--size",
+        "32,24",
+        "-o",
+        p(&png),
+    ]);
+    assert_eq!(j["mesh"]["triangles"], 2, "{j}");
+}

@@ -241,6 +241,16 @@ fn expected_csv_headers(swatches: &[&str]) -> Vec<(String, String)> {
                     "swatch,time budget (s),best setting within it,seconds,RMS err K,p99 err K",
                 ),
                 (
+                    "alternatives",
+                    "swatch,RMS ptm6 identity (6),RMS ptm6 logistic (6),RMS ptm11 identity (11),\
+                     RMS ptm11 logistic (11),RMS learned6 logistic (6),RMS learned11 logistic (11),\
+                     RMS horizon 8 (9),RMS horizon 10 (11),RMS AO micro-shadowing (1),\
+                     fit s ptm6 identity (6),fit s ptm6 logistic (6),fit s ptm11 identity (11),\
+                     fit s ptm11 logistic (11),fit s learned6 logistic (6),\
+                     fit s learned11 logistic (11),fit s horizon 8 (9),fit s horizon 10 (11),\
+                     fit s AO micro-shadowing (1),bake s,truth noise",
+                ),
+                (
                     "stability_layouts",
                     "light layout,basis,\"link, uv\",rank,cond,what ptm says,max |coef|,\
                      RMS err K (held out),\"K outside [0,1]\",Newton iterations mean/max,\
@@ -277,6 +287,46 @@ fn expected_csv_headers(swatches: &[&str]) -> Vec<(String, String)> {
         )
         .collect();
     want.into_iter().map(|(n, c)| (n, c.into())).collect()
+}
+
+/// The comparison with the classic alternatives: one row per study swatch (quick plan), every
+/// model with a finite error, the one-number AO worst, and the logistic PTMs and learned bases
+/// better than the patent's plain PTM.
+fn check_alternatives(report: &Report) {
+    let names: Vec<&str> = report
+        .alternatives
+        .iter()
+        .map(|(r, _)| r.swatch.as_str())
+        .collect();
+    assert_eq!(names, ["plain-weave", "jersey", "velvet"]);
+    for (row, noise) in &report.alternatives {
+        assert_eq!(row.models.len(), 9, "{}", row.swatch);
+        assert!(noise.is_finite() && *noise >= 0.0);
+        let rms = |n: &str| row.models.iter().find(|m| m.name == n).unwrap().rms;
+        for m in &row.models {
+            assert!(
+                m.rms > 0.0 && m.rms < 1.0,
+                "{} {}: {}",
+                row.swatch,
+                m.name,
+                m.rms
+            );
+            assert!(m.fit_s >= 0.0);
+            assert!(
+                m.rms <= rms("AO micro-shadowing"),
+                "{} {}",
+                row.swatch,
+                m.name
+            );
+        }
+        for m in ["ptm11 logistic", "learned6 logistic", "learned11 logistic"] {
+            assert!(rms(m) < rms("ptm6 identity"), "{} {m}", row.swatch);
+        }
+    }
+    assert_eq!(
+        report.tables().alternatives.rows.len(),
+        report.alternatives.len()
+    );
 }
 
 /// The tables `ptm report` writes as CSV: their names and header lines, and one line per
@@ -328,6 +378,7 @@ fn check_csv_columns(report: &Report) {
 fn quick_study_measures_what_the_stability_cases_must_show() {
     let report = quick_study();
     check_sweep(&report);
+    check_alternatives(&report);
     check_ridge(&report);
     check_layouts(&report);
     check_runtime(&report);
@@ -354,6 +405,7 @@ fn quick_report_command_writes_every_table_and_the_plots() {
         "## Stability",
         "### Light layouts",
         "### Link and (u, v) map",
+        "### Against the classic alternatives",
         "### Ridge λ of the logistic link",
         "### Geometry",
         "## Runtime: soft shadows",

@@ -34,6 +34,10 @@ Use as a script (a whole scene rendered in one command: ``ptm_scene.py`` beside 
     plane = bpy.context.active_object
     plane.data.materials.append(ptm_blender.build_material("w.ptm.c0.exr", light="Light"))
 
+On a mesh of your own, one call sets up the whole material (PTM, the bake's normal map and AO,
+the key light's occlusion) and assigns it: ``ptm_blender.apply_material(obj, "w.ptm.c0.exr",
+light="Light", repeat=8)``.
+
 Blender's own Python has no OpenEXR module: the header is read here by hand (``read_header``).
 """
 
@@ -604,4 +608,46 @@ def build_material(path, light, mode="nodes", output="lit", albedo=(0.8, 0.7, 0.
             amb.aov_name = AMBIENT_AOV
             tree.links.new(occ.outputs[0], amb.inputs["Value"])
         occlude_key_light(light_obj, scene, ambient="ao" in maps)
+    return mat
+
+
+def apply_material(obj, path, light, repeat=1.0, uv_map=None, albedo=(0.8, 0.7, 0.6, 1.0),
+                   mode="nodes", output="lit", maps="auto", scene=None):
+    """The whole lookdev material on a user's mesh in one call: ``build_material`` for the PTM at
+    `path` with its companion maps (``NAME.normal.png``, ``NAME.ao.png`` beside it, from ``ptm
+    bake --maps --maps-png``; ``maps`` as in ``build_material``), tiled `repeat` times per UV
+    unit (a number, or (across, down)), the key light `light` occluded by K (``output="lit"``:
+    its light group and the compositor), assigned to every material slot of `obj` (an object or
+    its name; the material replaces what the slots held, and a mesh without slots gets one).
+
+    `uv_map` names the UV map the PTM, the normal map and the tangents follow (default: the
+    mesh's active render UV map); it becomes the active render UV map, which is what the
+    material's Texture Coordinate, Normal Map and Tangent nodes read. Returns the material.
+
+    Refused with ``ValueError`` naming the object: not a mesh, no UV map (the PTM tiles over the
+    UVs: unwrap it first, UV ▸ Unwrap), or a `uv_map` it does not have."""
+    if isinstance(obj, str):
+        if obj not in bpy.data.objects:
+            raise ValueError(f"apply_material: no object named {obj!r}")
+        obj = bpy.data.objects[obj]
+    if obj.type != "MESH":
+        raise ValueError(f"apply_material: {obj.name!r} is a {obj.type.lower()}, not a mesh")
+    uvs = obj.data.uv_layers
+    if len(uvs) == 0:
+        raise ValueError(f"apply_material: mesh {obj.name!r} has no UV map, and the PTM tiles over "
+                         "the UVs: unwrap it (Edit Mode, UV ▸ Unwrap) or import it with its UVs")
+    if uv_map is not None:
+        if uv_map not in uvs:
+            raise ValueError(f"apply_material: mesh {obj.name!r} has no UV map {uv_map!r} "
+                             f"(it has {', '.join(repr(u.name) for u in uvs)})")
+        uvs[uv_map].active_render = True
+        uvs.active = uvs[uv_map]
+    mat = build_material(path, light, mode=mode, output=output, albedo=albedo, repeat=repeat,
+                         name=f"PTM {os.path.basename(stem_of(path))} on {obj.name}", scene=scene,
+                         maps=maps)
+    slots = obj.data.materials
+    if len(slots) == 0:
+        slots.append(mat)
+    for i in range(len(slots)):
+        slots[i] = mat
     return mat

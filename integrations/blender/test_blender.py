@@ -10,11 +10,14 @@ The README's OSL shader group is built as written and lit: its shadowing equals 
 The README's Blender examples run as written (the Python block in a fresh default scene, the
 ptm_scene.py command line); output="lit" occludes the key light only (composite = Image − key
 pass × K, never darker than the world alone), where output="multiply" darkens the world light too.
+``apply_material`` sets the whole material (PTM, normal map, AO) on a user's imported OBJ in one
+call; K and AO only darken its render.
 Then renders the lit example (plane tiled 4×, micro-shadows from one key sun) to a PNG.
 
     python test_blender.py PTM_BIN PTM_EVAL MTLX_OSL WORKDIR [LIT_PNG]
 """
 import json
+import math
 import os
 import subprocess
 import sys
@@ -410,6 +413,90 @@ def maps_lit():
     return max(err_amb, err_comp), problems
 
 
+def user_mesh():
+    """``apply_material`` on a mesh of the user's (an OBJ written here, imported with Blender's
+    OBJ importer: a wavy 2 × 1 sheet with its own UVs and two material slots, not one of our
+    built-ins) in one call: the material in every slot, the companion maps picked up (normal
+    map, AO), K in the AOV on the mesh, and the composite (key × K and the rest × (1 − AO) taken
+    off) nowhere lighter and on average darker than the render before it. A mesh without UVs is
+    refused by name. Returns problems."""
+    name = os.path.join(WORK, "maps.ptm.exr")  # baked with its maps by maps_lit()
+    obj_path = os.path.join(WORK, "user_garment.obj")
+    nu, nv = 24, 12
+    with open(obj_path[:-4] + ".mtl", "w") as f:
+        f.write("newmtl front\nKd 0.8 0.2 0.2\nnewmtl back\nKd 0.2 0.2 0.8\n")
+    with open(obj_path, "w") as f:
+        f.write("# a wavy sheet with UVs, two materials\nmtllib user_garment.mtl\n")
+        for j in range(nv + 1):
+            for i in range(nu + 1):
+                x, y = -1.0 + 2.0 * i / nu, -0.5 + j / nv
+                f.write(f"v {x:.6f} {y:.6f} {0.12 * math.sin(3.0 * x) * math.cos(2.0 * y):.6f}\n")
+        for j in range(nv + 1):
+            for i in range(nu + 1):
+                f.write(f"vt {2.0 * i / nu:.6f} {j / nv:.6f}\n")
+        for j in range(nv):
+            f.write(f"usemtl {'front' if j < nv // 2 else 'back'}\n")
+            for i in range(nu):
+                a = j * (nu + 1) + i + 1
+                q = (a, a + 1, a + nu + 2, a + nu + 1)
+                f.write("f " + " ".join(f"{k}/{k}" for k in q) + "\n")
+    sc, plane, sun = scene_setup()
+    bpy.data.objects.remove(plane)
+    bpy.ops.wm.obj_import(filepath=obj_path, forward_axis="Y", up_axis="Z")
+    obj = bpy.context.selected_objects[0]
+    sc.camera.location = (0.0, -2.2, 2.0)
+    sc.camera.data.type = "PERSP"
+    sc.camera.rotation_euler = (mathutils.Vector((0, 0, 0)) - sc.camera.location).to_track_quat("-Z", "Y").to_euler()
+    bg = sc.world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    bg.inputs["Strength"].default_value = 0.15
+    sun.data.energy = 3.0
+    aim(sun, (0.5, 0.3, 0.6))
+    sc.cycles.samples = 4
+    sc.render.resolution_x, sc.render.resolution_y = 48, 32
+    problems = []
+    slots_before = len(obj.data.materials)
+    mat = ptm_blender.apply_material(obj, name, light="Key", repeat=4.0)
+    kinds = {n.bl_idname for n in mat.node_tree.nodes}
+    nmap = [n for n in mat.node_tree.nodes if n.bl_idname == "ShaderNodeNormalMap"]
+    images = {os.path.basename(n.image.filepath) for n in mat.node_tree.nodes
+              if n.bl_idname == "ShaderNodeTexImage" and n.image}
+    if slots_before != 2 or list(obj.data.materials) != [mat, mat]:
+        problems.append(f"slots: {slots_before} before, {[m.name for m in obj.data.materials]} after")
+    if not nmap or not {"maps.normal.png", "maps.ao.png"} <= images or "ShaderNodeGroup" not in kinds:
+        problems.append(f"material lacks the PTM group, normal map or AO: {sorted(kinds)}, {sorted(images)}")
+    # The composite against the same render before the compositor: K and AO only darken it (the
+    # normal map may lighten a texel facing the key: it is in both); K is on the mesh.
+    composite = render_k(sc, os.path.join(WORK, "user-composite.exr"))
+    raw = render_socket(sc, "Image", os.path.join(WORK, "user-image.exr"))
+    k = render_socket(sc, ptm_blender.AOV, os.path.join(WORK, "user-k.exr"))
+    cells = [(r, c) for r in range(len(raw)) for c in range(len(raw[0])) if raw[r][c] > 0.02]
+    diff = [raw[r][c] - composite[r][c] for r, c in cells]
+    mean = sum(diff) / max(len(diff), 1)
+    kmax = max((k[r][c] for r, c in cells), default=0.0)
+    print(f"blender: apply_material on a user's OBJ ({len(obj.data.polygons)} faces, 2 slots): "
+          f"image - composite over {len(cells)} pixels: mean {mean:.4f}, lowest {min(diff):+.4f}; "
+          f"K up to {kmax:.2f}", flush=True)
+    if len(cells) < 200:
+        problems.append(f"the mesh covers only {len(cells)} pixels")
+    if min(diff) < -2e-3:
+        problems.append(f"the composite is lighter than the render by {-min(diff):.4f} somewhere")
+    if not mean > 0.005 or not kmax > 0.05:
+        problems.append(f"K and AO darken the user's mesh by only {mean:.4f} on average (K up to "
+                        f"{kmax:.2f}): are they applied?")
+    me = bpy.data.meshes.new("no-uv")
+    me.from_pydata([(0, 0, 0), (1, 0, 0), (1, 1, 0)], [], [(0, 1, 2)])
+    bare = bpy.data.objects.new("bare sheet", me)
+    sc.collection.objects.link(bare)
+    try:
+        ptm_blender.apply_material(bare, name, light="Key")
+        problems.append("a mesh without UVs was accepted")
+    except ValueError as e:
+        if "bare sheet" not in str(e) or "UV" not in str(e):
+            problems.append(f"a mesh without UVs refused in other words: {e}")
+    return problems
+
+
 def readme_blender(fresh_scene_block, command_block):
     """The Blender examples of docs/pipeline.md as written: the Python-console block in a fresh
     default scene (a cube, a point light named "Light", a camera), then rendered; the one-line
@@ -523,6 +610,7 @@ def main():
     bad.update({f"key-light occlusion: {p}": 1.0 for p in problems})
     worst["companion maps: AO (output=lit)"], problems = maps_lit()
     bad.update({f"companion maps: {p}": 1.0 for p in problems})
+    bad.update({f"apply_material on a user's mesh: {p}": 1.0 for p in user_mesh()})
     worst["README OSL shader group (lit ratio)"] = readme_osl_group()
     bad.update({k: v for k, v in worst.items() if not v <= TOL})
     if LIT_PNG:

@@ -1,5 +1,5 @@
 //! The model-comparison row of issue #22 for one swatch: the PTMs (ptm6/ptm11, identity and
-//! logistic, hemispherical (u, v)) beside the horizon-map and AO micro-shadowing baselines of
+//! logistic, hemispherical (u, v)) and the learned bases (learned6, learned11) beside the horizon-map and AO micro-shadowing baselines of
 //! [`crate::baselines`], all fitted from one bake of a Fibonacci training dome and measured
 //! as the RMS error of K against the held-out truth (the error [`crate::study::measure`]
 //! reports for PTMs: clamped K, covered texels).
@@ -34,7 +34,8 @@ pub struct CompareRow {
     pub swatch: String,
     /// Seconds of the training bake the baselines are fitted from.
     pub bake_s: f64,
-    /// In a fixed order: the four PTMs, horizon 8 and 10, AO.
+    /// In a fixed order: the four PTMs, learned6 and learned11 (where the dome has 4 lights
+    /// per term), horizon 8 and 10, AO.
     pub models: Vec<ModelScore>,
 }
 
@@ -49,20 +50,25 @@ pub fn compare(
     res: usize,
 ) -> Result<CompareRow> {
     let coarse = truth.at(res);
-    let settings: Vec<Setting> = [Basis::Ptm6, Basis::Ptm11]
+    let setting = |basis, link| Setting {
+        dirs,
+        spp,
+        res,
+        basis,
+        weight: Weight::Uniform,
+        link,
+        uv: UvMap::Hemispherical,
+    };
+    let mut settings: Vec<Setting> = [Basis::Ptm6, Basis::Ptm11]
         .into_iter()
-        .flat_map(|basis| {
-            [Link::Identity, Link::Logistic].map(|link| Setting {
-                dirs,
-                spp,
-                res,
-                basis,
-                weight: Weight::Uniform,
-                link,
-                uv: UvMap::Hemispherical,
-            })
-        })
+        .flat_map(|basis| [Link::Identity, Link::Logistic].map(|link| setting(basis, link)))
         .collect();
+    // The learned bases (logistic, hemispherical by definition) where the dome allows them.
+    for k in [6u8, 11] {
+        if dirs >= ptm_fit::learned::LIGHTS_PER_TERM * k as usize {
+            settings.push(setting(Basis::Learned(k), Link::Logistic));
+        }
+    }
     let mut models: Vec<ModelScore> = run_settings(swatch, truth, &coarse, &settings)?
         .into_iter()
         .map(|o| ModelScore {
@@ -161,10 +167,11 @@ mod tests {
         let truth = Truth::bake(&swatch, 16, 8, test).unwrap();
         let row = compare("plain-weave", &swatch, &truth, 48, 4, 16).unwrap();
         let rms = |name: &str| row.models.iter().find(|m| m.name == name).unwrap().rms;
-        assert_eq!(row.models.len(), 7);
+        assert_eq!(row.models.len(), 9);
         assert!(row.models.iter().all(|m| m.rms.is_finite() && m.rms > 0.0));
         let ao = rms("AO micro-shadowing");
         assert!(rms("horizon 8") < ao && rms("ptm11 logistic") < ao);
+        assert!(rms("learned11 logistic") < ao);
         assert!(rms("ptm11 identity") < rms("ptm6 identity"));
     }
 }

@@ -104,6 +104,11 @@ pub struct Plan {
     pub sheet_spp: u32,
     /// Contact sheet: the light's elevation, degrees above the swatch plane.
     pub sheet_elevation_deg: f64,
+    /// The models against the classic alternatives (issue #22): texels a side, samples per
+    /// texel and Fibonacci training lights above 5° (the truth: 4× the samples).
+    pub alternatives: (usize, u32, usize),
+    /// … on every parameterless builtin (the full study) or the study's swatches (quick).
+    pub alternatives_all: bool,
 }
 
 impl Plan {
@@ -178,6 +183,8 @@ impl Plan {
             sheet_texels: if quick { 64 } else { 128 },
             sheet_spp: 4,
             sheet_elevation_deg: 20.0,
+            alternatives: if quick { (32, 4, 64) } else { (96, 8, 256) },
+            alternatives_all: !quick,
         }
     }
 }
@@ -191,6 +198,9 @@ pub struct Report {
     pub swatches: Vec<SwatchStudy>,
     /// Every parameterless builtin under one low light.
     pub contact_sheet: ContactSheet,
+    /// The PTMs and learned bases against a horizon map and AO micro-shadowing, per swatch
+    /// ([`Plan::alternatives`]), each with its truth's own sampling noise.
+    pub alternatives: Vec<(compare::CompareRow, f64)>,
     /// On the first swatch.
     pub stability: Stability,
     /// Blur methods and penumbra extremes on the adapter found.
@@ -212,6 +222,20 @@ pub fn run(opts: &Options, progress: &mut dyn FnMut(&str)) -> Result<Report> {
         first.get_or_insert((swatch, truth));
     }
     let (swatch, truth) = first.ok_or(Error::NoSwatch)?;
+    let (res, spp, dirs) = plan.alternatives;
+    let names: Vec<String> = if plan.alternatives_all {
+        sheet::names().into_iter().map(String::from).collect()
+    } else {
+        opts.swatches.clone()
+    };
+    let mut alternatives = Vec::new();
+    for name in &names {
+        progress(&format!("{name}: against the classic alternatives"));
+        let mesh = PreparedMesh::load(&format!("builtin:{name}"), None)?;
+        let truth = study::Truth::bake(&mesh, res, spp * 4, test.clone())?;
+        let row = compare::compare(name, &mesh, &truth, dirs, spp, res)?;
+        alternatives.push((row, truth.noise));
+    }
     progress("contact sheet");
     let contact_sheet =
         ContactSheet::bake(plan.sheet_texels, plan.sheet_spp, plan.sheet_elevation_deg)?;
@@ -223,6 +247,7 @@ pub fn run(opts: &Options, progress: &mut dyn FnMut(&str)) -> Result<Report> {
         plan,
         swatches,
         contact_sheet,
+        alternatives,
         stability,
         runtime,
     })

@@ -6,17 +6,17 @@ pub struct Table {
     /// File stem of the CSV (`<name>.csv`).
     pub name: String,
     /// Column headers.
-    pub columns: Vec<&'static str>,
+    pub columns: Vec<String>,
     /// Rows of cells, as many as `columns` each.
     pub rows: Vec<Vec<String>>,
 }
 
 impl Table {
     /// An empty table with these column headers.
-    pub fn new(name: impl Into<String>, columns: &[&'static str]) -> Self {
+    pub fn new(name: impl Into<String>, columns: &[&str]) -> Self {
         Table {
             name: name.into(),
-            columns: columns.to_vec(),
+            columns: columns.iter().map(|c| c.to_string()).collect(),
             rows: Vec::new(),
         }
     }

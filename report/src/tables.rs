@@ -2,6 +2,7 @@
 //! columns and cells `ptm report` writes as CSV and into `report.md`.
 use ptm_fit::solve::LogisticStats;
 
+use crate::compare::CompareRow;
 use crate::runtime::{BlurRow, ExtremeRow, ProfileWidth};
 use crate::stability::{Geometry, GeometryCase, LayoutRow, PrecisionRow, RidgeRow, Variant};
 use crate::study::SwatchStudy;
@@ -16,6 +17,8 @@ pub struct Tables {
     pub models: Table,
     /// The best setting per time budget.
     pub recommendations: Table,
+    /// The PTMs and learned bases against the classic alternatives.
+    pub alternatives: Table,
     /// Light layouts of the stability study.
     pub layouts: Table,
     /// The ridge-λ sweep.
@@ -36,6 +39,7 @@ impl Tables {
         self.studies.iter().chain([
             &self.models,
             &self.recommendations,
+            &self.alternatives,
             &self.layouts,
             &self.ridge,
             &self.precision,
@@ -54,6 +58,7 @@ impl Report {
             studies: self.swatches.iter().map(study).collect(),
             models: models(&self.swatches),
             recommendations: recommendations(&self.swatches),
+            alternatives: alternatives(&self.alternatives),
             layouts: layouts(&s.layouts),
             ridge: ridge(&s.ridge),
             precision: precision(&s.precision),
@@ -168,6 +173,33 @@ fn models(studies: &[SwatchStudy]) -> Table {
             row.push(format!("{:.0}%", 100.0 * m.default_gain()));
             t.push(row);
         }
+    }
+    t
+}
+
+/// One row per swatch: each model's held-out RMS error of K, then its fit seconds, the
+/// training bake's seconds and the truth's own noise. The columns come from the first row
+/// (every row has the same models, in the same order).
+fn alternatives(rows: &[(CompareRow, f64)]) -> Table {
+    let names: Vec<String> = rows.first().map_or(Vec::new(), |(r, _)| {
+        r.models
+            .iter()
+            .map(|m| format!("{} ({})", m.name, m.numbers))
+            .collect()
+    });
+    let mut head = vec!["swatch".to_string()];
+    head.extend(names.iter().map(|n| format!("RMS {n}")));
+    head.extend(names.iter().map(|n| format!("fit s {n}")));
+    head.extend(["bake s".to_string(), "truth noise".to_string()]);
+    let head: Vec<&str> = head.iter().map(String::as_str).collect();
+    let mut t = Table::new("alternatives", &head);
+    for (r, noise) in rows {
+        let mut row = vec![r.swatch.clone()];
+        row.extend(r.models.iter().map(|m| g3(m.rms)));
+        row.extend(r.models.iter().map(|m| g3(m.fit_s)));
+        row.push(g3(r.bake_s));
+        row.push(g3(*noise));
+        t.push(row);
     }
     t
 }

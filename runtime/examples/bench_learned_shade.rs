@@ -8,8 +8,9 @@
 //! each file, its ratio learned11 / ptm11, and what K itself costs over the same scene without
 //! a PTM.
 //!
-//! `cargo run --release -p ptm-runtime --example bench_learned_shade [-- SWATCH RES SPP FRAMES]`
-//! (default jersey 96 8 9; the example links Embree without the `ptm` binary's rpath: run the
+//! `cargo run --release -p ptm-runtime --example bench_learned_shade [-- SWATCH RES SPP FRAMES
+//! RADIUS]` (default jersey 96 8 9 0.3; RADIUS the spheres' radius, 0 for point lights; the
+//! example links Embree without the `ptm` binary's rpath: run the
 //! built binary with `LD_LIBRARY_PATH=.deps/embree/lib` when cargo does not find it). Times are wall clock around submit + blocking wait, as in
 //! `bench_runtime`: the two files' frames interleaved, the fastest and the median of FRAMES
 //! after a warm-up each. On lavapipe the "GPU" is the CPU (its name is printed): the ratio, not
@@ -45,6 +46,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let swatch_name = args.first().map_or("jersey", String::as_str);
     let num = |i: usize, d: usize| args.get(i).map_or(d, |s| s.parse().expect("a number"));
     let (res, spp, frames) = (num(1, 96), num(2, 8) as u32, num(3, 9));
+    // The spheres' radius, swatch units (0: point lights, K at their centres; else K averaged
+    // over each light's footprint, `ptm_k_area`).
+    let radius: f32 = args.get(4).map_or(0.3, |s| s.parse().expect("a number"));
 
     // --- one bake, two fits from the same counts, each through a file ---
     let t = Instant::now();
@@ -108,7 +112,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let size = [1920u32, 1080];
     let light = |p: [f32; 3]| Light {
         position: p,
-        radius: 0.3,
+        radius,
         rect: None,
         square_box: false,
         intensity: 8.0,

@@ -52,10 +52,14 @@ pub mod shade {
     pub const NORMAL_MAP: Binding = b("normal_tex", 12);
     /// A learned basis's tables, node-major (`SceneBuffers::learned`).
     pub const LEARNED: Binding = b("learned", 13);
+    /// Mesh path: the macro shadow's depth maps, one layer per light.
+    pub const SHADOWS: Binding = b("shadow_maps", 14);
+    /// Mesh path: the sampler the macro shadow gathers its depth maps with.
+    pub const GATHER: Binding = b("shadow_sampler", 15);
     /// Every binding of the shading pass.
     pub const ALL: &[Binding] = &[
         FRAME, LIGHTS, COEFFS, ALBEDO, OPACITY, SAT, MIP, MIP_LEVELS, SEP_MAP, PTM_LEVELS,
-        COVERAGE, PLANE, NORMAL_MAP, LEARNED,
+        COVERAGE, PLANE, NORMAL_MAP, LEARNED, SHADOWS, GATHER,
     ];
 }
 

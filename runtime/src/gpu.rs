@@ -29,11 +29,23 @@ pub struct Renderer {
     blur: Option<(&'static dyn Method, Prepared, PlaneGpu)>,
     bind_group: wgpu::BindGroup,
     target: wgpu::Texture,
+    /// The uniform block's buffer (`COPY_DST`: rewritten by `set_frame`).
+    uniform: wgpu::Buffer,
     /// Mesh path: the vertex buffer, its corner count and the depth buffer.
     mesh: Option<(wgpu::Buffer, u32, wgpu::Texture)>,
+    /// Mesh path with the macro shadow: the depth pass, its bind group and the depth maps
+    /// (one layer per light), rendered at the start of every frame.
+    shadow: Option<Shadow>,
     size: [u32; 2],
     /// Setup timings (`compile`, `upload`, `sat_build`).
     pub setup: Timings,
+}
+
+/// The macro shadow's depth pass (`vs_shadow` in `shader/mesh.wgsl`) and its maps.
+struct Shadow {
+    pipeline: wgpu::RenderPipeline,
+    bind_group: wgpu::BindGroup,
+    maps: wgpu::Texture,
 }
 
 const TARGET_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -105,6 +117,31 @@ impl Renderer {
                 multiview_mask: None,
                 cache: None,
             });
+        let shadow_pipeline = (v.mesh && v.shadow).then(|| {
+            gpu.device
+                .create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                    label: Some("shadow maps"),
+                    layout: None,
+                    vertex: wgpu::VertexState {
+                        module: &module,
+                        entry_point: Some("vs_shadow"),
+                        compilation_options: Default::default(),
+                        buffers: &mesh_layout,
+                    },
+                    primitive: Default::default(),
+                    depth_stencil: Some(wgpu::DepthStencilState {
+                        format: DEPTH_FORMAT,
+                        depth_write_enabled: Some(true),
+                        depth_compare: Some(wgpu::CompareFunction::Less),
+                        stencil: Default::default(),
+                        bias: Default::default(),
+                    }),
+                    multisample: Default::default(),
+                    fragment: None,
+                    multiview_mask: None,
+                    cache: None,
+                })
+        });
         setup.passes.push(("compile", t.elapsed().as_secs_f64()));
 
         let t = Instant::now();
@@ -113,26 +150,51 @@ impl Renderer {
             .create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some("frame"),
                 contents: bytemuck::bytes_of(&p.frame),
-                usage: wgpu::BufferUsages::UNIFORM,
+                usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             });
         let lights = gpu.storage_with(
             "lights",
             bytemuck::cast_slice(&p.lights),
             wgpu::BufferUsages::COPY_DST,
         );
-        let mut entries = vec![(b::FRAME.index, uniform), (b::LIGHTS.index, lights.clone())];
+        let mut entries = vec![
+            (b::FRAME.index, uniform.clone()),
+            (b::LIGHTS.index, lights.clone()),
+        ];
         if v.basis.is_some() {
             entries.push((
                 b::COEFFS.index,
                 gpu.storage("coeffs", bytemuck::cast_slice(&p.coeffs)),
             ));
         }
-        if v.basis.is_some_and(ptm_format::Basis::is_learned) {
-            entries.push((
-                b::LEARNED.index,
-                gpu.storage("learned table", bytemuck::cast_slice(&p.learned)),
-            ));
-        }
+        // A learned basis's table: a texture of its f32 bits as u32, (G·⌈k/4⌉) × G texels of
+        // four terms (`learned_node` in shade.wgsl; the node-major buffer is already in that
+        // texel order).
+        let learned = v.basis.is_some_and(ptm_format::Basis::is_learned).then(|| {
+            let g = v.learned_grid;
+            let quads = (p.learned.len() / 4) as u32 / (g * g);
+            gpu.device
+                .create_texture_with_data(
+                    &gpu.queue,
+                    &wgpu::TextureDescriptor {
+                        label: Some("learned table"),
+                        size: wgpu::Extent3d {
+                            width: g * quads,
+                            height: g,
+                            depth_or_array_layers: 1,
+                        },
+                        mip_level_count: 1,
+                        sample_count: 1,
+                        dimension: wgpu::TextureDimension::D2,
+                        format: wgpu::TextureFormat::Rgba32Uint,
+                        usage: wgpu::TextureUsages::TEXTURE_BINDING,
+                        view_formats: &[],
+                    },
+                    wgpu::util::TextureDataOrder::LayerMajor,
+                    bytemuck::cast_slice(&p.learned),
+                )
+                .create_view(&Default::default())
+        });
         if v.albedo_texture {
             entries.push((
                 b::ALBEDO.index,
@@ -192,14 +254,84 @@ impl Renderer {
             entries.extend(method.upload(gpu, &p.plane, p.prepared.as_ref(), &mut setup)?);
         }
 
+        // The macro shadow: a depth pass over the mesh per light into one layer each of the
+        // maps, which the shading pass reads (its own bind group: frame and lights only).
+        let shadow = match shadow_pipeline {
+            Some(pipeline) => {
+                let side = p.frame.shadow_size;
+                let maps = gpu.device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some("shadow maps"),
+                    size: wgpu::Extent3d {
+                        width: side,
+                        height: side,
+                        depth_or_array_layers: p.lights.len().max(1) as u32,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: DEPTH_FORMAT,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                    view_formats: &[],
+                });
+                let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("shadow maps"),
+                    layout: &pipeline.get_bind_group_layout(0),
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: b::FRAME.index,
+                            resource: uniform.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: b::LIGHTS.index,
+                            resource: lights.as_entire_binding(),
+                        },
+                    ],
+                });
+                Some(Shadow {
+                    pipeline,
+                    bind_group,
+                    maps,
+                })
+            }
+            None => None,
+        };
+        let shadow_view = shadow.as_ref().map(|s| {
+            s.maps.create_view(&wgpu::TextureViewDescriptor {
+                dimension: Some(wgpu::TextureViewDimension::D2Array),
+                ..Default::default()
+            })
+        });
+
         let layout = pipeline.get_bind_group_layout(0);
-        let bind_entries: Vec<wgpu::BindGroupEntry> = entries
+        let mut bind_entries: Vec<wgpu::BindGroupEntry> = entries
             .iter()
             .map(|(binding, buffer)| wgpu::BindGroupEntry {
                 binding: *binding,
                 resource: buffer.as_entire_binding(),
             })
             .collect();
+        let shadow_sampler = shadow_view.is_some().then(|| {
+            gpu.device
+                .create_sampler(&wgpu::SamplerDescriptor::default())
+        });
+        if let (Some(view), Some(sampler)) = (&shadow_view, &shadow_sampler) {
+            bind_entries.push(wgpu::BindGroupEntry {
+                binding: b::SHADOWS.index,
+                resource: wgpu::BindingResource::TextureView(view),
+            });
+            bind_entries.push(wgpu::BindGroupEntry {
+                binding: b::GATHER.index,
+                resource: wgpu::BindingResource::Sampler(sampler),
+            });
+        }
+        if let Some(view) = &learned {
+            bind_entries.push(wgpu::BindGroupEntry {
+                binding: b::LEARNED.index,
+                resource: wgpu::BindingResource::TextureView(view),
+            });
+        }
         let bind_group = gpu.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shade"),
             layout: &layout,
@@ -229,10 +361,68 @@ impl Renderer {
                 .map(|m| (crate::blur::method(m), p.prepared.clone(), p.plane_gpu)),
             bind_group,
             target,
+            uniform,
             mesh,
+            shadow,
             size,
             setup,
         })
+    }
+
+    /// Rewrites the uniform block for the next [`Renderer::frame`]: a moved camera (the
+    /// window's orbit). `frame` must come from the same scene prepared again
+    /// ([`crate::mesh::MeshScene::prepare_frame`]); what else it changes (the variant, the
+    /// buffers' sizes) needs a new renderer.
+    pub fn set_frame(&mut self, frame: &Frame) {
+        self.frame = *frame;
+        self.gpu
+            .queue
+            .write_buffer(&self.uniform, 0, bytemuck::bytes_of(frame));
+    }
+
+    /// Reads the macro shadow's depth maps back (one `side`² layer per light, row 0 at the top
+    /// of the light's view, z/w of the nearest surface, 1 where there is none); `None` without
+    /// a macro shadow. For tests against the twin's `cpu::mesh::shadow_maps`.
+    pub fn read_shadow_maps(&self) -> Result<Option<Vec<f32>>> {
+        let Some(s) = &self.shadow else {
+            return Ok(None);
+        };
+        let size = s.maps.size();
+        let bytes_per_row = (size.width * 4).next_multiple_of(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT);
+        let rows = size.height * size.depth_or_array_layers;
+        let staging = self.gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("shadow readback"),
+            size: (bytes_per_row * rows) as u64,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        enc.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &s.maps,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::DepthOnly,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &staging,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(bytes_per_row),
+                    rows_per_image: Some(size.height),
+                },
+            },
+            size,
+        );
+        self.gpu.queue.submit([enc.finish()]);
+        let bytes = map_read(&self.gpu, &staging)?;
+        let mut out = Vec::with_capacity((size.width * rows) as usize);
+        for row in bytes.chunks_exact(bytes_per_row as usize) {
+            out.extend(bytemuck::pod_collect_to_vec::<u8, f32>(
+                &row[..(size.width * 4) as usize],
+            ));
+        }
+        Ok(Some(out))
     }
 
     /// Rewrites the light buffer (`queue.write_buffer`) for the next [`Renderer::frame`], e.g.
@@ -268,6 +458,38 @@ impl Renderer {
             .as_ref()
             .map(|(_, _, d)| d.create_view(&Default::default()));
         let mut enc = self.gpu.device.create_command_encoder(&Default::default());
+        if let (Some(s), Some((vertices, n, _))) = (&self.shadow, &self.mesh) {
+            for li in 0..s.maps.size().depth_or_array_layers {
+                let layer = s.maps.create_view(&wgpu::TextureViewDescriptor {
+                    dimension: Some(wgpu::TextureViewDimension::D2),
+                    base_array_layer: li,
+                    array_layer_count: Some(1),
+                    ..Default::default()
+                });
+                let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                    label: Some("shadow map"),
+                    color_attachments: &[],
+                    depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                        view: &layer,
+                        depth_ops: Some(wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(1.0),
+                            store: wgpu::StoreOp::Store,
+                        }),
+                        stencil_ops: None,
+                    }),
+                    timestamp_writes: None,
+                    occlusion_query_set: None,
+                    multiview_mask: None,
+                });
+                if (li as usize) < self.light_count {
+                    pass.set_pipeline(&s.pipeline);
+                    pass.set_bind_group(0, &s.bind_group, &[]);
+                    pass.set_vertex_buffer(0, vertices.slice(..));
+                    // The instance index is the light's (vs_shadow reads lights[li]).
+                    pass.draw(0..*n, li..li + 1);
+                }
+            }
+        }
         {
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("shade"),

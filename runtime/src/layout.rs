@@ -71,6 +71,15 @@ pub struct Frame {
     pub far: f32,
     /// Padding to 16 bytes.
     pub pad5: f32,
+    /// Mesh path: the low corner of the box that bounds the mesh, which every light's shadow
+    /// map frames (world).
+    pub shadow_lo: [f32; 3],
+    /// Mesh path: the shadow maps' side in texels (0: no macro shadow).
+    pub shadow_size: u32,
+    /// Mesh path: the box's high corner.
+    pub shadow_hi: [f32; 3],
+    /// Padding to 16 bytes.
+    pub pad6: f32,
 }
 
 impl Frame {
@@ -323,7 +332,7 @@ mod tests {
             caster_height, caster_sin_tilt, caster_cos_tilt, pad3, ptm_size, albedo_size,
             ptm_texels_per_pixel, ptm_level_count, pad4, eye, perspective, cam_right, pad0,
             cam_up, pad1, cam_forward, pad2, fill, sheen_roughness, sheen_color, near,
-            normal_size, far, pad5);
+            normal_size, far, pad5, shadow_lo, shadow_size, shadow_hi, pad6);
         check(&shade_module(), "Frame", want, size_of::<Frame>());
         // A uniform block's size is a multiple of 16 bytes.
         assert_eq!(size_of::<Frame>() % 16, 0);

@@ -463,9 +463,20 @@ pub fn vertex_bytes(triangles: usize) -> u64 {
     triangles as u64 * 3 * std::mem::size_of::<MeshVertex>() as u64
 }
 
+/// Bytes of the shadow maps of a scene: `side`² 32-bit depths per light (at least one layer).
+pub fn shadow_bytes(side: u32, lights: usize) -> u64 {
+    side as u64 * side as u64 * 4 * lights.max(1) as u64
+}
+
+/// The default side of the macro shadow's maps (`--shadow-size`): 2048² texels, 16 MiB a light.
+pub const DEFAULT_SHADOW_SIZE: u32 = 2048;
+
+/// Most lights a shadowed mesh scene may have: wgpu's guaranteed `max_texture_array_layers`.
+pub const MAX_SHADOW_LIGHTS: usize = 256;
+
 /// A mesh scene: the plane scene's PTM, albedo, lights and perspective camera, with a mesh in
-/// place of the plane and the mesh path's shading (sheen, fill, normal map). No caster: the
-/// mesh's own macro shadow is left out (see docs/model.md).
+/// place of the plane and the mesh path's shading (sheen, fill, normal map, and the mesh's own
+/// macro shadow from every light: `shader/mesh.wgsl`'s `shadow_visibility`). No caster.
 #[derive(Clone, Debug)]
 pub struct MeshScene {
     /// PTM, albedo (constant or texture, tiled as the PTM), lights, size and the perspective
@@ -487,11 +498,14 @@ pub struct MeshScene {
     /// The period (PTM swatch units) the albedo texture and normal map tile with when the
     /// scene has no PTM (the render without K); with a PTM its own tile is used.
     pub tile: [f32; 2],
+    /// The macro shadow's depth maps, one per light, `shadow_size`² texels each, framing the
+    /// mesh's bounding box from the light's centre; 0 turns the macro shadow off.
+    pub shadow_size: u32,
 }
 
 impl MeshScene {
-    /// The mesh scene of `scene`, no sheen, no fill, no normal map: shaded exactly as the
-    /// plane path shades (what the plane-mesh equivalence test renders).
+    /// The mesh scene of `scene`, no sheen, no fill, no normal map, no macro shadow: shaded
+    /// exactly as the plane path shades (what the plane-mesh equivalence test renders).
     pub fn plain(scene: Scene, mesh: Mesh, uv_to_ptm: [f32; 2]) -> MeshScene {
         MeshScene {
             scene,
@@ -502,12 +516,23 @@ impl MeshScene {
             fill: [0.0; 3],
             normal_map: None,
             tile: [1.0, 1.0],
+            shadow_size: 0,
         }
     }
 
     /// Lays the scene out as the shader's buffers (the plane scene's, then the mesh's vertex
     /// buffer, the normal map and the mesh fields of the uniform block).
     pub fn prepare(&self) -> Result<(SceneBuffers, TangentReport)> {
+        let mut p = self.prepare_frame()?;
+        let (vertices, report) = self.mesh.vertices(self.uv_to_ptm);
+        p.mesh_vertices = vertices;
+        Ok((p, report))
+    }
+
+    /// [`MeshScene::prepare`] without the vertex buffer (left empty; no MikkTSpace pass): the
+    /// uniform block, lights and textures, what a moved camera needs
+    /// ([`crate::gpu::Renderer::set_frame`]).
+    pub fn prepare_frame(&self) -> Result<SceneBuffers> {
         let Some(cam) = self.scene.perspective else {
             return Err(Error::Scene(
                 "a mesh needs the perspective camera (set Scene::perspective)".into(),
@@ -585,11 +610,32 @@ impl MeshScene {
             // would have.
             p.frame.tile = self.tile;
         }
-        let (vertices, report) = self.mesh.vertices(self.uv_to_ptm);
-        p.mesh_vertices = vertices;
+        if self.shadow_size > 0 && !self.scene.lights.is_empty() {
+            if self.shadow_size > crate::scene::MAX_IMAGE_SIDE {
+                return Err(Error::Scene(format!(
+                    "shadow maps of {0}×{0} texels exceed {1} a side (the largest texture GPUs \
+                     are required to offer): lower the shadow map size",
+                    self.shadow_size,
+                    crate::scene::MAX_IMAGE_SIDE
+                )));
+            }
+            if self.scene.lights.len() > MAX_SHADOW_LIGHTS {
+                return Err(Error::Scene(format!(
+                    "{} lights cast the mesh's shadow, one shadow map each, more than the {} \
+                     layers GPUs are required to offer: use fewer lights or turn the macro \
+                     shadow off",
+                    self.scene.lights.len(),
+                    MAX_SHADOW_LIGHTS
+                )));
+            }
+            p.frame.shadow_lo = lo;
+            p.frame.shadow_hi = hi;
+            p.frame.shadow_size = self.shadow_size;
+            p.variant.shadow = true;
+        }
         p.variant.mesh = true;
         p.variant.normal_map = self.normal_map.is_some();
-        Ok((p, report))
+        Ok(p)
     }
 }
 
@@ -761,6 +807,48 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("line 2") && e.contains("nan.obj"), "{e}");
+    }
+
+    #[test]
+    fn shadow_maps_too_large_or_for_too_many_lights_are_refused_with_the_figures() {
+        let mut s = Scene::over_ptm(
+            crate::synthetic::random_ptm(ptm_format::Basis::Ptm6, 4, 4, 1),
+            1,
+            [16, 12],
+        );
+        s.perspective = Some(crate::scene::Perspective {
+            eye: [0.0, -3.0, 2.0],
+            target: [0.0, 0.0, 0.5],
+            fov_y_deg: 40.0,
+        });
+        s.lights = vec![crate::scene::Light {
+            position: [1.0, 1.0, 3.0],
+            radius: 0.1,
+            rect: None,
+            square_box: false,
+            intensity: 1.0,
+            color: [1.0; 3],
+        }];
+        let mut m = MeshScene::plain(s, Mesh::sphere(0.5, 8, 4), [1.0, 1.0]);
+        m.shadow_size = 8193;
+        let e = m.prepare_frame().unwrap_err().to_string();
+        assert!(e.contains("8193×8193") && e.contains("8192"), "{e}");
+        m.shadow_size = 64;
+        m.scene.lights = vec![m.scene.lights[0]; 257];
+        let e = m.prepare_frame().unwrap_err().to_string();
+        assert!(e.contains("257 lights") && e.contains("256"), "{e}");
+        m.scene.lights.truncate(1);
+        let p = m.prepare_frame().unwrap();
+        let (lo, hi) = m.mesh.bounds();
+        assert!(p.variant.shadow && p.frame.shadow_size == 64);
+        assert_eq!((p.frame.shadow_lo, p.frame.shadow_hi), (lo, hi));
+        assert_eq!(shadow_bytes(64, 1), 64 * 64 * 4);
+        // Size 0 turns it off; no light, no map.
+        m.shadow_size = 0;
+        assert!(!m.prepare_frame().unwrap().variant.shadow);
+        m.shadow_size = 64;
+        m.scene.lights.clear();
+        assert!(!m.prepare_frame().unwrap().variant.shadow);
     }
 
     #[test]

@@ -187,3 +187,91 @@ pub fn mc_opacity_rect(
     }
     sum_o.map(|x| (x / sum_w) as f32)
 }
+
+/// Ground truth for K under an area light: the mean of [`Ptm::eval_dir`] at texel `texel`
+/// (column, row) over the directions from cloth point `p` to `light`, weighted as its
+/// irradiance is (cos θ at p over the solid angle; a point light is its centre's K).
+/// `samples` stratified directions, as [`mc_opacity`] (sphere: uniform in solid angle within
+/// its cone, directions below the horizon weigh 0) and [`mc_opacity_rect`] (rectangle: uniform
+/// in area, weighted z²/r⁴) draw them. Deterministic: the random numbers hash (`key`, sample).
+///
+/// [`Ptm::eval_dir`]: ptm_format::Ptm::eval_dir
+pub fn mc_k(
+    ptm: &ptm_format::Ptm,
+    texel: [usize; 2],
+    p: [f32; 2],
+    light: &LightGpu,
+    samples: u32,
+    key: u64,
+) -> f32 {
+    let c = [
+        light.position[0] as f64 - p[0] as f64,
+        light.position[1] as f64 - p[1] as f64,
+        light.position[2] as f64,
+    ];
+    let d = dot(c, c).sqrt();
+    if d <= 0.0 || c[2] <= 0.0 {
+        return 1.0;
+    }
+    let axis = c.map(|x| x / d);
+    let k = |dir: [f64; 3]| ptm.eval_dir(texel[0], texel[1], dir) as f64;
+    let r = light.radius as f64;
+    if light.shape == 0 && r <= 0.0 {
+        return k(axis) as f32;
+    }
+    let half = light.half.map(|x| x as f64);
+    // Strata: square for a sphere, in proportion to the sides for a rectangle.
+    let (nx, ny) = if light.shape == 1 {
+        let aspect = (half[0] / half[1].max(1e-30)).clamp(1.0 / samples as f64, samples as f64);
+        let nx = ((samples as f64 * aspect).sqrt().round() as u32).clamp(1, samples);
+        (nx, (samples / nx).max(1))
+    } else {
+        let n = (samples as f64).sqrt().ceil() as u32;
+        (n, n)
+    };
+    let helper = if axis[2].abs() < 0.9 {
+        [0.0, 0.0, 1.0]
+    } else {
+        [1.0, 0.0, 0.0]
+    };
+    let e1 = normalize(cross(helper, axis));
+    let e2 = cross(axis, e1);
+    let cos_max = if r >= d {
+        -1.0
+    } else {
+        (1.0 - (r / d) * (r / d)).sqrt()
+    };
+    let (mut sum_w, mut sum_k) = (0.0, 0.0);
+    for s in 0..nx * ny {
+        let (si, sj) = (s % nx, s / nx);
+        let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
+        let u1 = (si as f64 + unit(hs)) / nx as f64;
+        let u2 = (sj as f64 + unit(hash(hs))) / ny as f64;
+        let (dir, weight) = if light.shape == 1 {
+            let q = [
+                c[0] + (2.0 * u1 - 1.0) * half[0],
+                c[1] + (2.0 * u2 - 1.0) * half[1],
+                c[2],
+            ];
+            let r2 = dot(q, q);
+            (q.map(|x| x / r2.sqrt()), c[2] * c[2] / (r2 * r2))
+        } else {
+            let cos_t = 1.0 - u1 * (1.0 - cos_max);
+            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+            let phi = 2.0 * PI * u2;
+            let dir: [f64; 3] = std::array::from_fn(|k| {
+                axis[k] * cos_t + (e1[k] * phi.cos() + e2[k] * phi.sin()) * sin_t
+            });
+            (dir, dir[2])
+        };
+        if weight <= 0.0 {
+            continue;
+        }
+        sum_w += weight;
+        sum_k += weight * k(dir);
+    }
+    if sum_w <= 0.0 {
+        return 1.0;
+    }
+    (sum_k / sum_w) as f32
+}

@@ -382,6 +382,7 @@ impl Scene {
             uv,
             mesh: false,
             normal_map: false,
+            shadow: false,
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
@@ -482,7 +483,8 @@ fn learned_table(ptm: &Ptm) -> Result<&LearnedTable> {
 /// (column i, row j) at `(j·G + i)·s`, s = 4·⌈k/4⌉ (the stride [`learned_stride`]) and zeros
 /// after the k values (the file's `LearnedTable::values` are term-major). The shader reads each
 /// of the four bilinear taps as ⌈k/4⌉ `vec4`s, so 11 terms cost 12 loads a light, not 44 scalar
-/// ones (storage loads at per-pixel addresses are gathers on a CPU rasteriser such as lavapipe).
+/// ones; the GPU holds it as a texture of G·⌈k/4⌉ × G such texels (`learned_node` in
+/// shade.wgsl: lavapipe fetches texels in SIMD where it gathers storage loads lane by lane).
 fn node_major(table: &LearnedTable) -> Vec<f32> {
     let (k, g2) = (table.terms, table.cells());
     let s = learned_stride(k);
@@ -621,6 +623,8 @@ pub struct Variant {
     pub mesh: bool,
     /// Mesh path: a tangent-space normal map.
     pub normal_map: bool,
+    /// Mesh path: the mesh's macro shadow (a depth pass per light, `shadow_visibility`).
+    pub shadow: bool,
 }
 
 impl Variant {
@@ -677,12 +681,15 @@ impl Variant {
                                 uv,
                                 mesh: false,
                                 normal_map: false,
+                                shadow: false,
                             });
                         }
                     }
                 }
-                // The mesh path: no caster, with or without a normal map.
-                for normal_map in [false, true] {
+                // The mesh path: no caster, with or without a normal map and a macro shadow.
+                for (normal_map, shadow) in
+                    [(false, false), (true, false), (false, true), (true, true)]
+                {
                     for &(link, uv, ptm_mip, coverage) in &ptm_kinds {
                         out.push(Variant {
                             basis,
@@ -696,6 +703,7 @@ impl Variant {
                             uv,
                             mesh: true,
                             normal_map,
+                            shadow,
                         });
                     }
                 }
@@ -736,6 +744,9 @@ impl Variant {
         }
         if self.normal_map {
             parts.push("normal-map".into());
+        }
+        if self.shadow {
+            parts.push("shadow".into());
         }
         parts.join("+")
     }

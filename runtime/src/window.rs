@@ -1,9 +1,13 @@
-//! `ptm preview --window` (cargo feature `window`): an interactive winit window over a [`Scene`].
+//! `ptm preview --window` (cargo feature `window`): an interactive winit window over a [`Scene`]
+//! ([`run`]) or a mesh scene ([`run_mesh`], `ptm preview --mesh … --window`).
 //!
 //! Dragging with the left mouse button moves the first light's x, y to the point under the
-//! cursor (its height z stays); keys `1`–`4` pick the blur method (explicit, sat, mip,
-//! separable), `B` cycles it, `P` turns the PTM on and off, `Esc` (or closing the window) quits.
-//! The title shows the blur method, the light position, PTM on/off and the last render time.
+//! cursor (its height z stays; on a mesh, the point of the mesh's footprint under it); keys
+//! `1`–`4` pick the blur method (explicit, sat, mip, separable), `B` cycles it, `P` turns the
+//! PTM on and off, `Esc` (or closing the window) quits. On a mesh, dragging with the right button
+//! or the arrow keys orbit the camera about the point it looks at (the mesh's shadow follows the
+//! light: its depth maps are rendered every frame). The title shows the blur method (or the
+//! mesh), the light position, PTM on/off and the last render time.
 //!
 //! A [`Session`] (no winit in it) keeps the headless [`Renderer`] between frames: dragging the
 //! light only rewrites the light buffer (`queue.write_buffer`) and draws again; a change of blur
@@ -32,8 +36,9 @@ use winit::window::{Window, WindowId};
 use crate::bindings::blit;
 use crate::gpu::{Gpu, Renderer};
 use crate::layout::BlitParams;
+use crate::mesh::MeshScene;
 use crate::output::Image;
-use crate::scene::{Blur, Scene};
+use crate::scene::{Blur, Scene, SceneBuffers};
 use crate::shader::BLIT_WGSL;
 use crate::{Error, Result};
 
@@ -69,6 +74,8 @@ pub struct WindowReport {
     pub ptm_on: bool,
     /// The dragged light's position when the window closed (world), if there was one.
     pub light: Option<[f32; 3]>,
+    /// The perspective camera's eye when the window closed (world; moved by orbiting a mesh).
+    pub camera: Option<[f32; 3]>,
     /// Mean linear RGB of the last rendered frame (scripted mode only; read back for tests).
     pub mean_rgb: Option<[f32; 3]>,
 }
@@ -82,6 +89,9 @@ enum Action {
     /// Light x, y at this point of the view, as fractions (0, 0) = top left, (1, 1) = bottom
     /// right of the picture.
     LightAt([f32; 2]),
+    /// Mesh: the camera orbited about its target by these azimuth and elevation steps
+    /// (radians; the elevation stays within ±85°).
+    Orbit([f32; 2]),
 }
 
 /// What the user can change, applied to the base scene for each render.
@@ -97,6 +107,8 @@ enum Change {
     None,
     /// Only light positions: rewrite the light buffer.
     Lights,
+    /// The camera (and maybe the lights): rewrite the uniform block and the light buffer.
+    Camera,
     /// Anything else (blur method, PTM): prepare the scene and build a pipeline.
     Scene,
 }
@@ -104,9 +116,11 @@ enum Change {
 /// The window's state without winit: the base scene, the controls and the renderer kept from
 /// one render to the next. Exercised headless by the tests.
 struct Session {
-    /// The scene as given, its first light moved by drags; the controls are applied to a copy
-    /// for each build.
+    /// The scene as given, its first light moved by drags (and its camera by orbits); the
+    /// controls are applied to a copy for each build.
     base: Scene,
+    /// The mesh path: the mesh scene whose `scene` `base` stands for (swapped in to prepare).
+    mesh: Option<MeshScene>,
     controls: Controls,
     renderer: Option<Renderer>,
     change: Change,
@@ -123,11 +137,36 @@ impl Session {
                 ptm_on: scene.ptm.is_some(),
             },
             base: scene,
+            mesh: None,
             renderer: None,
             change: Change::Scene,
             renders: 0,
             builds: 0,
         }
+    }
+
+    fn with_mesh(mut mesh: MeshScene) -> Session {
+        let scene = std::mem::replace(&mut mesh.scene, Scene::over_ptm(empty_ptm(), 1, [1, 1]));
+        let mut s = Session::new(scene);
+        s.mesh = Some(mesh);
+        s
+    }
+
+    /// The current scene laid out for the GPU (the whole mesh scene on the mesh path, or its
+    /// uniform block and textures alone when `frame_only`).
+    fn prepare(&mut self, frame_only: bool) -> Result<SceneBuffers> {
+        let mut scene = self.current_scene();
+        let Some(m) = self.mesh.as_mut() else {
+            return scene.prepare();
+        };
+        std::mem::swap(&mut m.scene, &mut scene);
+        let p = if frame_only {
+            m.prepare_frame()
+        } else {
+            m.prepare().map(|(p, _)| p)
+        };
+        std::mem::swap(&mut m.scene, &mut scene);
+        p
     }
 
     fn current_scene(&self) -> Scene {
@@ -163,6 +202,24 @@ impl Session {
                 }
                 Change::Lights
             }
+            Action::Orbit([da, de]) => {
+                let Some(cam) = self
+                    .base
+                    .perspective
+                    .as_mut()
+                    .filter(|_| self.mesh.is_some())
+                else {
+                    return;
+                };
+                let d: [f32; 3] = std::array::from_fn(|k| cam.eye[k] - cam.target[k]);
+                let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+                let limit = 85f32.to_radians();
+                let az = d[1].atan2(d[0]) + da;
+                let el = ((d[2] / r).clamp(-1.0, 1.0).asin() + de).clamp(-limit, limit);
+                let dir = [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()];
+                cam.eye = std::array::from_fn(|k| cam.target[k] + r * dir[k]);
+                Change::Camera
+            }
         };
         self.change = self.change.max(change);
     }
@@ -176,15 +233,29 @@ impl Session {
     /// renderer, so the next change of any kind builds again.
     fn render(&mut self, gpu: &Gpu) -> Result<&Renderer> {
         let change = std::mem::replace(&mut self.change, Change::None);
-        let kept = match (&self.renderer, change) {
+        // A moved camera: the uniform block of the scene prepared again (no vertices).
+        let frame = if self.renderer.is_some() && change == Change::Camera {
+            Some(self.prepare(true)?.frame)
+        } else {
+            None
+        };
+        let lights = self.base.gpu_lights();
+        let kept = match (&mut self.renderer, change) {
             (Some(_), Change::None) => true,
             // Refused only if the lights need more than a buffer write: then build.
-            (Some(r), Change::Lights) => r.set_lights(&self.base.gpu_lights()).is_ok(),
+            (Some(r), Change::Lights) => r.set_lights(&lights).is_ok(),
+            (Some(r), Change::Camera) => {
+                let ok = r.set_lights(&lights).is_ok();
+                if let (true, Some(frame)) = (ok, &frame) {
+                    r.set_frame(frame);
+                }
+                ok
+            }
             _ => false,
         };
         if !kept {
             self.renderer = None;
-            let prepared = self.current_scene().prepare()?;
+            let prepared = self.prepare(false)?;
             self.renderer = Some(Renderer::new(gpu, &prepared)?);
             self.builds += 1;
         }
@@ -207,11 +278,38 @@ fn mean_rgb(image: &Image) -> [f32; 3] {
     mean
 }
 
+/// A placeholder PTM (1×1, K = 0) for the scene a mesh session swaps its own into.
+fn empty_ptm() -> ptm_format::Ptm {
+    ptm_format::Ptm {
+        basis: ptm_format::Basis::Ptm6,
+        width: 1,
+        height: 1,
+        link: ptm_format::Link::Identity,
+        uv: ptm_format::UvMap::Projected,
+        mips: Vec::new(),
+        coverage: None,
+        tile: [1.0, 1.0],
+        planes: vec![vec![0.0]; 6],
+        learned: None,
+    }
+}
+
 /// Opens the window on `scene` and runs until the user quits (or the script ends).
 ///
 /// The scene's first light follows the mouse; its PTM (if any) can be toggled. Needs a display
 /// (X11 or Wayland); errors name what failed.
 pub fn run(scene: Scene, options: WindowOptions) -> Result<WindowReport> {
+    run_session(Session::new(scene), options)
+}
+
+/// As [`run`] for a mesh scene (it needs its perspective camera): the first light follows the
+/// mouse over the mesh's footprint (`scene.view`), the right button or the arrow keys orbit
+/// the camera, `P` toggles the PTM.
+pub fn run_mesh(scene: MeshScene, options: WindowOptions) -> Result<WindowReport> {
+    run_session(Session::with_mesh(scene), options)
+}
+
+fn run_session(session: Session, options: WindowOptions) -> Result<WindowReport> {
     let mut builder = EventLoop::builder();
     // Tests run on a worker thread; the CLI is on the main thread either way.
     #[cfg(target_os = "linux")]
@@ -221,12 +319,13 @@ pub fn run(scene: Scene, options: WindowOptions) -> Result<WindowReport> {
     }
     let event_loop = builder.build().map_err(|e| window_error("event loop", e))?;
     let mut app = App {
-        session: Session::new(scene),
+        session,
         options,
         state: None,
         error: None,
         report: WindowReport::default(),
         dragging: false,
+        orbiting: None,
         cursor: None,
         script_step: 0,
     };
@@ -242,6 +341,7 @@ pub fn run(scene: Scene, options: WindowOptions) -> Result<WindowReport> {
     app.report.blur = scene.blur.name();
     app.report.ptm_on = scene.ptm.is_some();
     app.report.light = scene.lights.first().map(|l| l.position);
+    app.report.camera = scene.perspective.map(|c| c.eye);
     Ok(app.report)
 }
 
@@ -259,9 +359,15 @@ struct App {
     error: Option<Error>,
     report: WindowReport,
     dragging: bool,
+    /// Mesh: where the right-button drag that orbits the camera was last seen.
+    orbiting: Option<PhysicalPosition<f64>>,
     cursor: Option<PhysicalPosition<f64>>,
     script_step: u32,
 }
+
+/// Orbit per window pixel dragged (radians), and per arrow key press.
+const ORBIT_PER_PIXEL: f32 = 0.01;
+const ORBIT_PER_KEY: f32 = 0.1745;
 
 /// The window and everything on the GPU (created in `resumed`).
 struct State {
@@ -283,23 +389,26 @@ impl App {
     }
 
     /// The scripted action after frame `step` (smoke tests): every blur method, PTM off and
-    /// on again, the light moved to two places.
+    /// on again, the light moved, then (a mesh) the camera orbited.
     fn scripted(step: u32) -> Action {
-        match step % 7 {
+        match step % 8 {
             0 => Action::SetBlur(Blur::ALL[0]),
             1 => Action::NextBlur,
             2 => Action::SetBlur(Blur::ALL[2 % Blur::ALL.len()]),
             3 => Action::SetBlur(Blur::ALL[Blur::ALL.len() - 1]),
             4 => Action::TogglePtm,
             5 => Action::LightAt([0.25, 0.25]),
-            _ => Action::TogglePtm,
+            6 => Action::TogglePtm,
+            _ => Action::Orbit([0.5, 0.2]),
         }
     }
 
     fn title(&self) -> String {
         let s = &self.session.base;
         let controls = &self.session.controls;
-        let blur = if s.caster.is_some() {
+        let blur = if self.session.mesh.is_some() {
+            "– (mesh)".to_string()
+        } else if s.caster.is_some() {
             controls.blur.name().to_string()
         } else {
             format!("{} (no caster)", controls.blur.name())
@@ -316,9 +425,13 @@ impl App {
             (true, true) => "on",
             (true, false) => "off",
         };
+        let keys = if self.session.mesh.is_some() {
+            "drag: light · right-drag/arrows: orbit · P: PTM · Esc: quit"
+        } else {
+            "drag: light · 1-4/B: blur · P: PTM · Esc: quit"
+        };
         format!(
-            "ptm preview — blur {blur} · light {light} · PTM {ptm} · {:.0} ms   \
-             [drag: light · 1-4/B: blur · P: PTM · Esc: quit]",
+            "ptm preview — blur {blur} · light {light} · PTM {ptm} · {:.0} ms   [{keys}]",
             1e3 * self.report.last_render_s
         )
     }
@@ -528,11 +641,16 @@ impl ApplicationHandler for App {
                 if event.state != ElementState::Pressed || event.repeat {
                     return;
                 }
+                let orbit = |a: f32, e: f32| Action::Orbit([a * ORBIT_PER_KEY, e * ORBIT_PER_KEY]);
                 let action = match event.logical_key.as_ref() {
                     Key::Named(NamedKey::Escape) => {
                         event_loop.exit();
                         return;
                     }
+                    Key::Named(NamedKey::ArrowLeft) => orbit(-1.0, 0.0),
+                    Key::Named(NamedKey::ArrowRight) => orbit(1.0, 0.0),
+                    Key::Named(NamedKey::ArrowUp) => orbit(0.0, 1.0),
+                    Key::Named(NamedKey::ArrowDown) => orbit(0.0, -1.0),
                     Key::Character(c) => match c.to_ascii_lowercase().as_str() {
                         // 1, 2, …: the blur methods in the order `Blur::ALL` lists them.
                         d if blur_key(d).is_some() => Action::SetBlur(blur_key(d).unwrap()),
@@ -556,12 +674,30 @@ impl ApplicationHandler for App {
                     }
                 }
             }
+            WindowEvent::MouseInput {
+                state,
+                button: MouseButton::Right,
+                ..
+            } => {
+                self.orbiting = (state == ElementState::Pressed)
+                    .then_some(self.cursor)
+                    .flatten();
+            }
             WindowEvent::CursorMoved { position, .. } => {
                 self.cursor = Some(position);
                 if self.dragging {
                     if let Some(at) = self.cursor_in_picture() {
                         self.apply(Action::LightAt(at));
                     }
+                }
+                if let Some(from) = self.orbiting.replace(position) {
+                    // Dragging right turns the camera left about the target (the mesh turns
+                    // right under it); dragging up raises it.
+                    let (dx, dy) = (position.x - from.x, position.y - from.y);
+                    self.apply(Action::Orbit([
+                        -(dx as f32) * ORBIT_PER_PIXEL,
+                        dy as f32 * ORBIT_PER_PIXEL,
+                    ]));
                 }
             }
             _ => {}
@@ -867,6 +1003,64 @@ mod tests {
         }
     }
 
+    /// A small shadowed drape under one light, seen in perspective (its view is the drape's
+    /// footprint, where a drag puts the light).
+    fn mesh_scene() -> MeshScene {
+        let mut scene = smoke_scene();
+        scene.caster = None;
+        scene.size = [64, 48];
+        scene.view = [-1.3, -1.3, 1.3, 1.3];
+        scene.lights[0].position = [-1.5, -1.8, 2.5];
+        scene.lights[0].intensity = 10.0;
+        scene.lights[0].radius = 0.2;
+        scene.perspective = Some(crate::scene::Perspective {
+            eye: [0.0, -4.0, 2.4],
+            target: [0.0, 0.0, 0.45],
+            fov_y_deg: 40.0,
+        });
+        let mut m = MeshScene::plain(scene, crate::mesh::Mesh::drape(24), [2.0, 2.0]);
+        m.shadow_size = 128;
+        m.fill = [0.1; 3];
+        m
+    }
+
+    /// On a mesh, the light moves and the camera orbits without a pipeline build, and every
+    /// frame equals a fresh render of the moved scene (the shadow maps follow the light).
+    #[test]
+    fn on_a_mesh_the_light_moves_and_the_camera_orbits_without_a_build() {
+        let gpu = Gpu::new().expect("GPU tests need a wgpu adapter (lavapipe in CI)");
+        let mut session = Session::with_mesh(mesh_scene());
+        let mut last = session.render(&gpu).unwrap().readback().unwrap();
+        for (k, action) in [
+            Action::LightAt([0.2, 0.3]),
+            Action::Orbit([0.6, 0.0]),
+            Action::Orbit([0.0, 0.3]),
+            Action::LightAt([0.8, 0.7]),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            session.apply(action);
+            let image = session.render(&gpu).unwrap().readback().unwrap();
+            assert_eq!(session.builds, 1, "{action:?} built a pipeline");
+            let fresh = crate::gpu::render(&gpu, &session.prepare(false).unwrap())
+                .unwrap()
+                .0;
+            let diff = image.max_abs_diff(&fresh).unwrap();
+            assert!(diff < 1e-6, "step {k} {action:?} vs a fresh render: {diff}");
+            let moved = image.max_abs_diff(&last).unwrap();
+            assert!(moved > 1e-3, "step {k} {action:?} changed nothing");
+            last = image;
+        }
+        let eye = session.base.perspective.unwrap().eye;
+        let r = |e: [f32; 3]| ((e[0]).powi(2) + (e[1]).powi(2) + (e[2] - 0.45).powi(2)).sqrt();
+        assert!((r(eye) - r([0.0, -4.0, 2.4])).abs() < 1e-4, "{eye:?}");
+        // The plane has no orbit: the camera stays.
+        let mut plane = Session::new(smoke_scene());
+        plane.apply(Action::Orbit([0.5, 0.5]));
+        assert_eq!(plane.change, Change::Scene, "a fresh session builds first");
+    }
+
     /// Opens the window for a few scripted frames (every blur method, PTM off/on, a light
     /// move). Needs a display (`scripts/test.sh` runs it under Xvfb: `xvfb-run -a cargo test
     /// -p ptm-runtime --features window`) and an adapter that presents to it; without either
@@ -908,5 +1102,69 @@ mod tests {
         assert!((light[0] - 0.5).abs() < 1e-5 && (light[1] - 1.125).abs() < 1e-5);
         let mean = report.mean_rgb.expect("scripted mode reads back");
         assert!(mean.iter().all(|&c| c > 0.01 && c.is_finite()), "{mean:?}");
+    }
+
+    /// The window on a mesh (`ptm preview --mesh … --window`) for nine scripted frames: the
+    /// script's light move and camera orbit reach the mesh scene. winit makes one event loop
+    /// per process, and the plane's smoke test has it: this test runs itself again in a child
+    /// process (`PTM_WINDOW_CHILD=1`), where it opens the window.
+    #[test]
+    fn mesh_window_smoke_test_needs_a_display() {
+        let name = "window::tests::mesh_window_smoke_test_needs_a_display";
+        if std::env::var_os("DISPLAY").is_none() && std::env::var_os("WAYLAND_DISPLAY").is_none() {
+            skip(
+                name,
+                "no DISPLAY or WAYLAND_DISPLAY (run under xvfb-run -a)",
+            );
+            return;
+        }
+        if std::env::var_os("PTM_WINDOW_CHILD").is_none() {
+            let out = std::process::Command::new(std::env::current_exe().unwrap())
+                .args([name, "--exact", "--nocapture", "--test-threads=1"])
+                .env("PTM_WINDOW_CHILD", "1")
+                .output()
+                .unwrap();
+            let stderr = String::from_utf8_lossy(&out.stderr);
+            let stdout = String::from_utf8_lossy(&out.stdout);
+            assert!(
+                out.status.success() && stdout.contains("1 passed"),
+                "the child process failed:\n{stdout}\n{stderr}"
+            );
+            for line in stderr
+                .lines()
+                .filter(|l| l.starts_with("SKIPPED") || l.starts_with("mesh window report"))
+            {
+                eprintln!("{line}");
+            }
+            return;
+        }
+        let options = WindowOptions {
+            exposure: 0.0,
+            exit_after_frames: Some(9),
+        };
+        let report = match run_mesh(mesh_scene(), options) {
+            Ok(report) => report,
+            Err(e @ Error::NoAdapter(_)) => {
+                skip(name, &format!("a display but {e}"));
+                return;
+            }
+            Err(e) => panic!("window runs: {e}"),
+        };
+        eprintln!("mesh window report: {report:?}");
+        assert_eq!(report.frames, 9);
+        assert!(report.ptm_on);
+        // The light went to the footprint's point at (¼, ¼) of the picture; the camera orbited.
+        let light = report.light.expect("one light");
+        assert!(
+            (light[0] + 0.65).abs() < 1e-5 && (light[1] - 0.65).abs() < 1e-5,
+            "{light:?}"
+        );
+        let eye = report.camera.expect("a perspective camera");
+        assert!(
+            (eye[0] - 0.0).abs() > 0.5,
+            "the camera did not orbit: {eye:?}"
+        );
+        let mean = report.mean_rgb.expect("scripted mode reads back");
+        assert!(mean.iter().all(|&c| c > 0.005 && c.is_finite()), "{mean:?}");
     }
 }

@@ -7,7 +7,7 @@
 mod common;
 
 use common::*;
-use ptm_format::{Basis, LearnedTable, LightSet, Link, Ptm, UvMap};
+use ptm_format::{Basis, LearnedTable, Link, Ptm, UvMap};
 use ptm_runtime::cpu::shade::Twin;
 use ptm_runtime::mesh::{Mesh, MeshScene};
 use ptm_runtime::scene::{Perspective, SceneBuffers};
@@ -77,45 +77,16 @@ fn twin_vs_eval(ptm: &Ptm, dirs: &[[f64; 3]]) -> (f32, f32) {
     (worst, hi - lo)
 }
 
-/// K of a synthetic cloth: texel (x, y) of `n`² sees the sky above a horizon of elevation
-/// 0.3 + 0.25·cos(φ − 2πx/n) + 0.1·y/n rad with a soft edge, as a bake of `spp` = 8 samples
-/// counts it (multiples of 1/8).
-fn synthetic_k(n: usize, l: [f64; 3]) -> Vec<f32> {
-    let (el, az) = (l[2].asin(), l[1].atan2(l[0]));
-    (0..n * n)
-        .map(|t| {
-            let (x, y) = ((t % n) as f64 / n as f64, (t / n) as f64 / n as f64);
-            let horizon = 0.3 + 0.25 * (az - std::f64::consts::TAU * x).cos() + 0.1 * y;
-            let k = ((horizon - el) / 0.2 + 0.5).clamp(0.0, 1.0);
-            ((k * 8.0).round() / 8.0) as f32
-        })
-        .collect()
-}
-
-/// A learned6 PTM fitted by ptm-fit (logistic, hemispherical, with its MIP levels) from
-/// [`synthetic_k`] under a 64-light Fibonacci dome above 8°.
+/// A learned6 PTM fitted by ptm-fit from the synthetic bake (`common::fitted`), with its MIP
+/// levels.
 fn fitted_learned6(n: usize) -> Ptm {
-    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
-    let floor = 8f64.to_radians().sin();
-    let lights = LightSet::from_dirs((0..64).map(|i| {
-        let z = floor + (1.0 - floor) * (i as f64 + 0.5) / 64.0;
-        let r = (1.0 - z * z).sqrt();
-        let a = golden * i as f64;
-        [r * a.cos(), r * a.sin(), z]
-    }));
-    let opts = ptm_fit::FitOptions {
-        link: Link::Logistic,
-        uv: UvMap::Hemispherical,
-        mips: true,
-        ..ptm_fit::FitOptions::new(Basis::Learned(6))
-    };
-    let mut acc = ptm_fit::Accumulator::new(&lights, n, n, &opts).unwrap();
-    acc.set_spp(8).unwrap();
-    for (i, l) in lights.dirs.iter().enumerate() {
-        acc.add_light(i, &synthetic_k(n, *l)).unwrap();
-    }
-    let (ptm, _) = acc.finish([1.0, 1.0]).unwrap();
-    assert_eq!(ptm.basis, Basis::Learned(6));
+    let ptm = fitted(
+        Basis::Learned(6),
+        Link::Logistic,
+        UvMap::Hemispherical,
+        n,
+        true,
+    );
     assert!(ptm.learned.is_some() && !ptm.mips.is_empty());
     ptm
 }

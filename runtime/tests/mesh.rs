@@ -1,12 +1,13 @@
 //! The mesh path (`ptm preview --mesh`): one model with the plane path (a flat plane mesh with
 //! the identity UV map renders the plane preview's image), the GPU against its CPU twin, the
-//! light direction K sees on a sphere with analytic tangents, and a golden drape.
+//! light direction K sees on a sphere with analytic tangents, the macro shadow of a floating
+//! square against its analytic umbra and lit region, near-plane clipping, and a golden drape.
 
 mod common;
 
 use common::*;
 use ptm_format::{Basis, Link, Ptm, UvMap};
-use ptm_runtime::mesh::{Mesh, MeshScene};
+use ptm_runtime::mesh::{Corner, Mesh, MeshScene};
 use ptm_runtime::scene::{Perspective, SceneBuffers};
 use ptm_runtime::{cpu, gpu, Image, Scene};
 
@@ -262,11 +263,209 @@ fn k_on_a_sphere_sees_the_light_in_the_analytic_tangent_frame() {
     assert!(worst_rad < 0.02, "radiance off by {worst_rad}");
 }
 
+/// A 4 × 4 floor (z = 0) and a 1 × 1 square floating at height `h` above its centre, one mesh.
+fn floor_and_square(h: f32) -> Mesh {
+    let mut m = Mesh::plane([-2.0, -2.0, 2.0, 2.0], 16);
+    let square = Mesh::plane([-0.5, -0.5, 0.5, 0.5], 4);
+    m.corners.extend(square.corners.iter().map(|c| Corner {
+        position: [c.position[0], c.position[1], h],
+        ..*c
+    }));
+    m
+}
+
+/// The floor and square under one sphere light, seen obliquely, no PTM, no fill: each floor
+/// pixel's radiance is the light's Lambert term × the macro shadow's visibility.
+fn floating_square_scene(shadow_size: u32) -> MeshScene {
+    let mut s = Scene::over_ptm(random_ptm(Basis::Ptm6, 4, 4, 1), 1, [96, 72]);
+    s.ptm = None;
+    s.albedo = [1.0; 3];
+    s.lights = vec![light([0.4, 0.3, 3.0], 0.3, 9.0)];
+    s.perspective = Some(Perspective {
+        eye: [0.5, -3.4, 3.2],
+        target: [0.0, -0.1, 0.0],
+        fov_y_deg: 50.0,
+    });
+    let mut m = MeshScene::plain(s, floor_and_square(1.0), [1.0, 1.0]);
+    m.shadow_size = shadow_size;
+    m
+}
+
+/// Where floor point (x, y) stands under the square's shadow: the centre of the light as seen
+/// from it crosses the square's plane at q = p + s·(L − p), s = h/L_z, and the light (radius R)
+/// covers a disc of radius ≈ R·s there (exact for a disc of light parallel to the floor; the
+/// sphere and the light's tilt enlarge it by < 10 % here). Returns the signed distances from q
+/// to the square's edges across x and y (> 0 inside) and that radius.
+fn square_shadow(p: [f32; 2], l: [f32; 3], r: f32, h: f32) -> ([f32; 2], f32) {
+    let s = h / l[2];
+    let q = [p[0] + s * (l[0] - p[0]), p[1] + s * (l[1] - p[1])];
+    ([0.5 - q[0].abs(), 0.5 - q[1].abs()], r * s)
+}
+
+#[test]
+fn the_macro_shadow_of_a_floating_square_is_dark_in_its_umbra_and_lit_outside() {
+    let g = gpu();
+    let (lit_scene, _) = floating_square_scene(0).prepare().unwrap();
+    let (p, _) = floating_square_scene(512).prepare().unwrap();
+    assert!(p.variant.shadow && !lit_scene.variant.shadow);
+    let frags = cpu::mesh::rasterise(&p);
+    let unshadowed = cpu::render(&lit_scene);
+    let ci = cpu::render(&p);
+    let r = gpu::Renderer::new(&g, &p).unwrap();
+    r.frame().unwrap();
+    let gi = r.readback().unwrap();
+    let (l, radius) = (p.lights[0].position, p.lights[0].radius);
+    let (mut umbra, mut lit, mut mid) = (0, 0, 0);
+    let (mut worst_umbra, mut worst_lit, mut worst_mid) = (0f32, 0f32, 0f32);
+    for (i, f) in frags.iter().enumerate() {
+        let Some(f) = f else { continue };
+        if f.world[2].abs() > 1e-4 || unshadowed.pixels[i][0] < 0.05 {
+            continue; // the square itself, or a floor point the light barely reaches
+        }
+        let ([dx, dy], w) = square_shadow([f.world[0], f.world[1]], l, radius, 1.0);
+        // Clear of the penumbra (its half-width < 1.3 w, and a margin of a few map texels), or
+        // on the middle line of an edge's penumbra away from the corners (half the light hidden).
+        let clear = 1.3 * w + 0.03;
+        let class = if dx.min(dy) > clear {
+            0 // umbra
+        } else if dx.min(dy) < -clear {
+            1 // lit
+        } else if (dx.abs() < 0.1 * w && dy > clear) || (dy.abs() < 0.1 * w && dx > clear) {
+            2 // the middle of the penumbra
+        } else {
+            continue;
+        };
+        let base = unshadowed.pixels[i][0];
+        for img in [&ci, &gi] {
+            let v = img.pixels[i][0] / base;
+            match class {
+                0 => worst_umbra = worst_umbra.max(v),
+                1 => worst_lit = worst_lit.max((1.0 - v).abs()),
+                _ => worst_mid = worst_mid.max((v - 0.5).abs()),
+            }
+        }
+        match class {
+            0 => umbra += 1,
+            1 => lit += 1,
+            _ => mid += 1,
+        }
+    }
+    eprintln!(
+        "floating square: umbra visibility ≤ {worst_umbra:.2e} over {umbra} pixels, lit region \
+         off 1 by ≤ {worst_lit:.2e} over {lit}, penumbra's middle off ½ by ≤ {worst_mid:.3} over \
+         {mid} (GPU and CPU)"
+    );
+    assert!(umbra > 100 && lit > 1000 && mid > 10, "{umbra} {lit} {mid}");
+    assert!(worst_umbra < 0.01, "light in the umbra: {worst_umbra}");
+    assert!(worst_lit < 1e-4, "shadow outside the penumbra: {worst_lit}");
+    assert!(worst_mid < 0.15, "penumbra's middle at {worst_mid} from ½");
+    twin_with_shadow(&r, &p, &gi, &ci, "floating square");
+}
+
+/// The macro shadow on the GPU against the twin, in two parts: the depth maps (rasterised by
+/// each), and the shading from the same maps (the GPU's read back into the twin).
+fn twin_with_shadow(r: &gpu::Renderer, p: &SceneBuffers, gi: &Image, ci: &Image, what: &str) {
+    let gpu_maps = r.read_shadow_maps().unwrap().expect("shadow maps");
+    let cpu_maps = cpu::mesh::shadow_maps(p);
+    assert_eq!(gpu_maps.len(), cpu_maps.depth.len());
+    let differ = gpu_maps
+        .iter()
+        .zip(&cpu_maps.depth)
+        .filter(|(a, b)| (*a - *b).abs() > 1e-5)
+        .count();
+    let covered = cpu_maps.depth.iter().filter(|&&z| z < 1.0).count();
+    let same = cpu::mesh::ShadowMaps {
+        side: cpu_maps.side,
+        depth: gpu_maps,
+    };
+    let shaded = cpu::mesh::render_with_shadow_maps(p, Some(&same));
+    let (worst_same, one, both) = covered_diff(gi, &shaded);
+    let far: Vec<f32> = gi
+        .pixels
+        .iter()
+        .zip(&ci.pixels)
+        .filter(|(a, b)| a[3] > 0.5 && b[3] > 0.5)
+        .map(|(a, b)| (0..3).map(|c| (a[c] - b[c]).abs()).fold(0f32, f32::max))
+        .collect();
+    let outliers = far.iter().filter(|&&d| d > TWIN).count();
+    eprintln!(
+        "{what}: shadow maps GPU vs twin: {differ} of {covered} covered texels differ by > 1e-5; \
+         shading from the same maps: max {worst_same:.2e} over {both} pixels ({one} covered by \
+         one only); each with its own maps: {outliers} of {} pixels differ by > {TWIN}",
+        far.len()
+    );
+    assert!(covered > 1000, "{covered}");
+    // Texels a silhouette edge passes through: fill rules and lavapipe's subpixel snapping.
+    assert!(
+        differ * 100 <= covered,
+        "{differ} of {covered} depth texels differ"
+    );
+    assert!(one <= both / 100);
+    assert!(
+        worst_same <= TWIN,
+        "{what}: GPU and twin shade the same maps {worst_same} apart"
+    );
+    assert!(
+        outliers * 100 <= far.len(),
+        "{outliers} of {} pixels",
+        far.len()
+    );
+}
+
+#[test]
+fn a_triangle_crossing_the_near_plane_is_clipped_as_the_gpu_clips_it() {
+    // A 20 × 20 floor of two triangles seen from just above it: both reach behind the eye,
+    // so both cross the near plane, and the part in front must still be drawn.
+    let mut s = plane_scene(Some(Basis::Ptm6));
+    s.perspective = Some(Perspective {
+        eye: [0.5, -1.0, 0.4],
+        target: [0.5, 3.0, 0.0],
+        fov_y_deg: 60.0,
+    });
+    let plane = s.prepare().unwrap();
+    let (mp, _) = MeshScene::plain(s, Mesh::plane([-10.0, -10.0, 10.0, 10.0], 1), [1.0, 1.0])
+        .prepare()
+        .unwrap();
+    let eye = [0.5, -1.0, 0.4];
+    let behind = mp
+        .mesh_vertices
+        .iter()
+        .filter(|v| {
+            let d = [
+                v.position[0] - eye[0],
+                v.position[1] - eye[1],
+                v.position[2] - eye[2],
+            ];
+            let f = mp.frame.cam_forward;
+            d[0] * f[0] + d[1] * f[1] + d[2] * f[2] < mp.frame.near
+        })
+        .count();
+    assert!(
+        behind >= 2,
+        "a corner of each triangle behind the near plane: {behind}"
+    );
+    let cpu_mesh = cpu::render(&mp);
+    let (gpu_mesh, _) = gpu::render(&gpu(), &mp).unwrap();
+    let cpu_plane = cpu::render(&plane);
+    let (d_gpu, one, both) = covered_diff(&gpu_mesh, &cpu_mesh);
+    // The plane path sees the floor beyond the mesh's far edge too: compare where the mesh is.
+    let (d_plane, _, _) = covered_diff(&cpu_plane, &cpu_mesh);
+    let n = cpu_mesh.pixels.len();
+    eprintln!(
+        "near plane: the twin covers {both} of {n} pixels as the GPU ({one} by one only); GPU vs \
+         twin {d_gpu:.2e}, plane path vs twin {d_plane:.2e}"
+    );
+    assert!(both > n / 2, "{both} of {n}");
+    assert!(one <= both / 100, "{one}");
+    assert!(d_gpu <= TWIN && d_plane <= TWIN, "{d_gpu} {d_plane}");
+}
+
 #[test]
 fn golden_drape() {
-    // The built-in drape at a low tessellation under one light with sheen and fill.
-    let mut s = Scene::over_ptm(random_ptm(Basis::Ptm6, 12, 10, 5), 1, [64, 48]);
-    s.lights = vec![light([-2.0, -2.5, 3.0], 0.3, 16.0)];
+    // The built-in drape at a low tessellation under one light from the side (its folds shadow
+    // the cloth beside them) with sheen and fill.
+    let mut s = Scene::over_ptm(random_ptm(Basis::Ptm6, 12, 10, 5), 1, [96, 72]);
+    s.lights = vec![light([-2.6, -0.8, 1.5], 0.3, 12.0)];
     s.perspective = Some(Perspective {
         eye: [0.0, -4.5, 2.6],
         target: [0.0, 0.0, 0.45],
@@ -275,9 +474,35 @@ fn golden_drape() {
     let mut m = MeshScene::plain(s, Mesh::drape(40), [4.0, 4.0]);
     m.sheen_color = [0.25; 3];
     m.fill = [0.12; 3];
+    // The folds shadow each other and the floor-level hem under the key light.
+    m.shadow_size = 256;
     let (p, report) = m.prepare().unwrap();
     assert_eq!(report.fallback_triangles, 0);
     golden::check("mesh_drape", &p);
+    // The macro shadow darkens the drape and matches the twin.
+    let g = gpu();
+    let r = gpu::Renderer::new(&g, &p).unwrap();
+    r.frame().unwrap();
+    let gi = r.readback().unwrap();
+    let ci = cpu::render(&p);
+    let mut unshadowed = m.clone();
+    unshadowed.shadow_size = 0;
+    let (gu, _) = gpu::render(&g, &unshadowed.prepare().unwrap().0).unwrap();
+    let darker = gi
+        .pixels
+        .iter()
+        .zip(&gu.pixels)
+        .filter(|(a, b)| a[3] > 0.5 && a[0] < b[0] - 0.01)
+        .count();
+    let lighter = gi
+        .pixels
+        .iter()
+        .zip(&gu.pixels)
+        .filter(|(a, b)| a[3] > 0.5 && a[0] > b[0] + 1e-5)
+        .count();
+    eprintln!("drape: {darker} pixels darker with the macro shadow, {lighter} lighter");
+    assert!(darker > 50 && lighter == 0, "{darker} {lighter}");
+    twin_with_shadow(&r, &p, &gi, &ci, "drape");
 }
 
 mod golden {

@@ -435,6 +435,7 @@ impl Sample for Window {
             blur: s(),
             ptm_on: s(),
             light: s(),
+            camera: s(),
             mean_rgb: s(),
         }
     }

@@ -144,7 +144,13 @@ pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f3
 /// Boxes the ellipse is cut into (`SAT_SLABS`), their bands' edges (`SLAB_EDGE`, −cos(πk/4))
 /// and widths (`SLAB_WIDTH`, the mean chord over the band) in units of the radii.
 pub const SAT_SLABS: usize = 4;
-const SLAB_EDGE: [f32; 5] = [-1.0, -0.707_106_78, 0.0, 0.707_106_78, 1.0];
+const SLAB_EDGE: [f32; 5] = [
+    -1.0,
+    -std::f32::consts::FRAC_1_SQRT_2,
+    0.0,
+    std::f32::consts::FRAC_1_SQRT_2,
+    1.0,
+];
 const SLAB_WIDTH: [f32; 4] = [0.487_205_14, 0.908_913_76, 0.908_913_76, 0.487_205_14];
 
 /// The sheared ellipse ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 around t as [`SAT_SLABS`] boxes,

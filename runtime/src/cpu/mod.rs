@@ -138,8 +138,11 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
         "shade.wgsl" => shade::vs_main, shade::view_dir, shade::pixel_world,
             shade::tile_bilinear, shade::ptm_lod, shade::level_axis, shade::level_bilinear,
             shade::Twin::ptm_level, shade::Twin::ptm_coeffs, shade::ptm_hemispherical,
-            shade::ptm_sigmoid, shade::learned_bilinear, shade::Twin::learned_eval,
-            shade::Twin::ptm_k, shade::Twin::coverage_level,
+            shade::ptm_sigmoid, shade::learned_bilinear, shade::Twin::learned_node,
+            shade::Twin::learned_eval,
+            shade::Twin::learned_jet, shade::Twin::ptm_k, shade::Twin::ptm_jet,
+            shade::cap_moments, shade::Twin::ptm_footprint,
+            shade::Twin::ptm_k_area, shade::Twin::coverage_level,
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
             shade::caster_texel_coords, shade::Twin::light_opacity, shade::sphere_ellipse,
             shade::Twin::shade,
@@ -159,7 +162,10 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
         "blit.wgsl" => blit::vs_main, blit::srgb_encode, blit::fs_main;
         "mesh.wgsl" => mesh::mesh_clip, mesh::vs_mesh, mesh::mesh_lod, mesh::tangent_frame,
             mesh::normal_at, mesh::sheen_d, mesh::sheen_l, mesh::sheen_lambda,
-            mesh::sheen_visibility, mesh::sheen_brdf, mesh::shade_mesh, mesh::fs_mesh;
+            mesh::sheen_visibility, mesh::sheen_brdf, mesh::shade_mesh, mesh::fs_mesh,
+            mesh::shadow_view, mesh::shadow_clip, mesh::vs_shadow, mesh::shadow_distance,
+            mesh::shadow_depth,
+            mesh::shadow_taps, mesh::shadow_light_radius, mesh::shadow_visibility;
     }
 }
 

@@ -167,6 +167,63 @@ pub fn learned_bilinear(grid: u32, uv: [f32; 2]) -> ([usize; 4], [f32; 4]) {
     )
 }
 
+/// The predictor's value, gradient (∂/∂u, ∂/∂v) and Hessian (uu, uv, vv) at one (u, v)
+/// (`PtmJet` in WGSL).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PtmJet {
+    /// p.
+    pub p: f32,
+    /// ∂p/∂u, ∂p/∂v.
+    pub g: [f32; 2],
+    /// ∂²p/∂u², ∂²p/∂u∂v, ∂²p/∂v².
+    pub h: [f32; 3],
+}
+
+/// Where a light's directions fall in the PTM's (u, v), irradiance-weighted: their mean and
+/// covariance (uu, uv, vv), zero for a point light (`Footprint` in WGSL).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Footprint {
+    /// Weighted mean (u, v).
+    pub centre: [f32; 2],
+    /// Covariance uu, uv, vv.
+    pub cov: [f32; 3],
+}
+
+/// Irradiance-weighted moments of a spherical light's cap of angular radius `rho` seen at θ
+/// from the zenith (r = sin θ, z = cos θ): mean and variance of the radial angle, variance of
+/// the tangential one (radians); the disc |t| ≤ rho under the weight z − r·t_radial, clipped
+/// where it reaches 0 (see `cap_moments` in WGSL).
+pub fn cap_moments(rho: f32, r: f32, z: f32) -> [f32; 3] {
+    let q = rho * r / z;
+    let mut e = [-0.25 * q, 0.25, 0.25];
+    if q > 1.0 {
+        let h = 1.0 / q;
+        let s = (1.0 - h * h).max(0.0).sqrt();
+        let a = h.asin();
+        let s3 = s * s * s;
+        let i0 = 0.5 * (h * s + a) + std::f32::consts::FRAC_PI_4;
+        let i1 = -s3 / 3.0;
+        let i2 = (a - h * s * (1.0 - 2.0 * h * h)) / 8.0 + std::f32::consts::PI / 16.0;
+        let i3 = -s3 / 3.0 + s3 * s * s / 5.0;
+        let w = h * i0 - i1;
+        e = [
+            (h * i1 - i2) / w,
+            (h * i2 - i3) / w,
+            (h * (i0 - i2) - (i1 - i3)) / (3.0 * w),
+        ];
+    }
+    [
+        rho * e[0],
+        rho * rho * (e[1] - e[0] * e[0]).max(0.0),
+        rho * rho * e[2],
+    ]
+}
+
+/// WGSL's `mix(a, b, t)`.
+fn mix(a: f32, b: f32, t: f32) -> f32 {
+    a * (1.0 - t) + b * t
+}
+
 /// Continuous caster texel coordinates (column, row from the far edge) of a caster-plane point.
 pub fn caster_texel_coords(f: &Frame, plane: &PlaneGpu, q: [f32; 2]) -> [f32; 2] {
     let r = f.caster_rect;
@@ -234,6 +291,15 @@ impl Twin<'_> {
         c
     }
 
+    /// Terms 4q … 4q + 3 of grid node `node` of the learned table (`learned_node` in WGSL:
+    /// one texel of the table's texture, the node-major `learned` buffer's floats
+    /// `node·s + 4q …`, s = [`crate::scene::learned_stride`]).
+    pub fn learned_node(&self, node: usize, q: usize) -> [f32; 4] {
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        let s = crate::scene::learned_stride(n);
+        std::array::from_fn(|lane| self.p.learned[node * s + 4 * q + lane])
+    }
+
     /// p = Σₖ cₖ·Bₖ(u, v) of a learned basis: each table read bilinearly at `uv` (the
     /// node-major `learned` buffer, [`crate::scene::learned_stride`] floats a node), dotted with
     /// the coefficients.
@@ -253,6 +319,178 @@ impl Twin<'_> {
                     + w[3] * t[i[3] * s + k]);
         }
         p
+    }
+
+    /// The learned predictor's jet at `uv` (`learned_jet` in WGSL): the four nodes' values of
+    /// p, then p and its derivatives within the cell.
+    pub fn learned_jet(&self, c: &[f32], uv: [f32; 2]) -> PtmJet {
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        let grid = self.p.variant.learned_grid;
+        let (i, w) = learned_bilinear(grid, uv);
+        let s = crate::scene::learned_stride(n);
+        let d: [f32; 4] = std::array::from_fn(|j| {
+            // dot(ck, node quad) per quad, summed: the padding adds 0.
+            let mut acc = 0f32;
+            for q in 0..s / 4 {
+                let t = self.learned_node(i[j], q);
+                let mut dq = 0f32;
+                for (lane, t) in t.iter().enumerate() {
+                    let k = 4 * q + lane;
+                    let ck = if k < n { c[k] } else { 0.0 };
+                    dq += ck * t;
+                }
+                acc += dq;
+            }
+            acc
+        });
+        let a = [w[1] + w[3], w[2] + w[3]];
+        let sc = 0.5 * (grid - 1) as f32;
+        PtmJet {
+            p: w[0] * d[0] + w[1] * d[1] + w[2] * d[2] + w[3] * d[3],
+            g: [
+                sc * mix(d[1] - d[0], d[3] - d[2], a[1]),
+                sc * mix(d[2] - d[0], d[3] - d[1], a[0]),
+            ],
+            h: [0.0, sc * sc * (d[0] - d[1] - d[2] + d[3]), 0.0],
+        }
+    }
+
+    /// The predictor's jet at `uv`: from the monomials (the WGSL's generated expressions) or
+    /// the learned table.
+    pub fn ptm_jet(&self, c: &[f32], uv: [f32; 2]) -> PtmJet {
+        let basis = self.p.variant.basis.expect("ptm_jet without a PTM");
+        if basis.is_learned() {
+            return self.learned_jet(c, uv);
+        }
+        let [u, v] = uv;
+        // c·a!/(a−i)!·u^(a−i) · b!/(b−j)!·v^(b−j): the (i, j)-th derivative of c·u^a·v^b.
+        let term = |c: f32, a: u8, b: u8, i: u8, j: u8| {
+            if a < i || b < j {
+                return 0.0;
+            }
+            let fall = |n: u8, k: u8| (0..k).map(|t| (n - t) as f32).product::<f32>();
+            c * fall(a, i) * fall(b, j) * u.powi((a - i) as i32) * v.powi((b - j) as i32)
+        };
+        let mut jet = PtmJet::default();
+        for (&ci, m) in c.iter().zip(basis.monomials()) {
+            let (a, b) = (m.pu, m.pv);
+            jet.p += term(ci, a, b, 0, 0);
+            jet.g[0] += term(ci, a, b, 1, 0);
+            jet.g[1] += term(ci, a, b, 0, 1);
+            jet.h[0] += term(ci, a, b, 2, 0);
+            jet.h[1] += term(ci, a, b, 1, 1);
+            jet.h[2] += term(ci, a, b, 0, 2);
+        }
+        jet
+    }
+
+    /// The footprint of `light` seen from a cloth point in unit direction l at distance d
+    /// (`ptm_footprint` in WGSL): mean and covariance of its irradiance-weighted directions in
+    /// the variant's (u, v), the map's bend included to second order.
+    pub fn ptm_footprint(
+        &self,
+        l: [f32; 3],
+        to_light: [f32; 3],
+        d: f32,
+        light: &LightGpu,
+    ) -> Footprint {
+        // (`prepare` refuses a NaN radius.)
+        if light.shape == 0 && light.radius <= 0.0 {
+            return Footprint::default();
+        }
+        let r = (l[0] * l[0] + l[1] * l[1]).sqrt();
+        let axis = if r > 1e-6 {
+            [l[0] / r, l[1] / r]
+        } else {
+            [1.0, 0.0]
+        };
+        let (ax, ay) = (axis[0], axis[1]);
+        // Mean (radial, tangential) angle and covariance (rr, rt, tt), radians.
+        let (mean, cov) = if light.shape == 1 {
+            let h = light.half;
+            let h2 = [h[0] * h[0], h[1] * h[1]];
+            let shift: [f32; 2] = std::array::from_fn(|k| {
+                (-4.0 / 3.0 * h2[k] * to_light[k] / (d * d)).clamp(-0.5 * h[k], 0.5 * h[k])
+            });
+            let var: [f32; 2] =
+                std::array::from_fn(|k| (h2[k] / 3.0 - shift[k] * shift[k]).max(0.0));
+            let sc = [l[2] / d, 1.0 / d];
+            (
+                [
+                    sc[0] * (ax * shift[0] + ay * shift[1]),
+                    sc[1] * (ax * shift[1] - ay * shift[0]),
+                ],
+                [
+                    sc[0] * sc[0] * (ax * ax * var[0] + ay * ay * var[1]),
+                    sc[0] * sc[1] * ax * ay * (var[1] - var[0]),
+                    sc[1] * sc[1] * (ay * ay * var[0] + ax * ax * var[1]),
+                ],
+            )
+        } else {
+            let m = cap_moments((light.radius / d).min(1.0).asin(), r, l[2]);
+            ([m[0], 0.0], [m[1], 0.0, m[2]])
+        };
+        let second = [cov[0] + mean[0] * mean[0], cov[2] + mean[1] * mean[1]];
+        let half_pi = std::f32::consts::FRAC_PI_2;
+        let (centre, jac, bend) = match self.p.variant.uv {
+            UvMap::Hemispherical => {
+                let s = if r > 1e-6 { r.atan2(l[2]) / r } else { 1.0 };
+                let bend = if r > 1e-4 {
+                    (s - l[2]) / (2.0 * r)
+                } else {
+                    0.0
+                };
+                (
+                    [l[0] * (s / half_pi), l[1] * (s / half_pi)],
+                    [1.0 / half_pi, s / half_pi],
+                    bend * second[1] / half_pi,
+                )
+            }
+            UvMap::Projected => ([l[0], l[1]], [l[2], 1.0], 0.5 * r * (second[0] + second[1])),
+        };
+        let m = [jac[0] * mean[0] - bend, jac[1] * mean[1]];
+        let c = [
+            jac[0] * jac[0] * cov[0],
+            jac[0] * jac[1] * cov[1],
+            jac[1] * jac[1] * cov[2],
+        ];
+        let ab = ax * ay;
+        Footprint {
+            centre: [
+                centre[0] + m[0] * ax - m[1] * ay,
+                centre[1] + m[0] * ay + m[1] * ax,
+            ],
+            cov: [
+                c[0] * ax * ax - 2.0 * c[1] * ab + c[2] * ay * ay,
+                (c[0] - c[2]) * ab + c[1] * (ax * ax - ay * ay),
+                c[0] * ay * ay + 2.0 * c[1] * ab + c[2] * ax * ax,
+            ],
+        }
+    }
+
+    /// K averaged over the footprint `f` of a light in direction l (`ptm_k_area` in WGSL):
+    /// `ptm_k` for a point light; else, from the predictor's jet at the footprint's mean, its
+    /// mean m = p + ½·tr(H·C) and variance v = gᵀ·C·g, σ(m/√(1 + π·v/8)) (logistic) or m
+    /// (identity).
+    pub fn ptm_k_area(&self, c: &[f32], l: [f32; 3], f: &Footprint) -> f32 {
+        let cv = f.cov;
+        // Not above 0, NaN included (as WGSL's `!(x > 0.0)`).
+        if (cv[0] + cv[2]).partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return self.ptm_k(c, l);
+        }
+        let j = self.ptm_jet(c, f.centre);
+        let m = j.p + 0.5 * (j.h[0] * cv[0] + 2.0 * j.h[1] * cv[1] + j.h[2] * cv[2]);
+        let k = match self.p.variant.link {
+            Link::Logistic => {
+                let v = (j.g[0] * j.g[0] * cv[0]
+                    + 2.0 * j.g[0] * j.g[1] * cv[1]
+                    + j.g[1] * j.g[1] * cv[2])
+                    .max(0.0);
+                ptm_sigmoid(m / (1.0 + std::f32::consts::FRAC_PI_8 * v).sqrt())
+            }
+            Link::Identity => m,
+        };
+        k.clamp(0.0, 1.0)
     }
 
     /// K of the variant's link, (u, v) map and basis (the monomials, or the learned tables)
@@ -410,7 +648,7 @@ impl Twin<'_> {
             let l = to_light.map(|x| x / d);
             let mut visible = [1f32; 3];
             if let Some(c) = &c {
-                let k = self.ptm_k(c, l);
+                let k = self.ptm_k_area(c, l, &self.ptm_footprint(l, to_light, d, light));
                 visible = visible.map(|v| v * (1.0 - k));
             }
             if self.p.variant.caster.is_some() {
@@ -473,7 +711,8 @@ pub fn sphere_ellipse(
     let ax = a[0];
     let a2 = a[1] * cos_t + a[2] * sin_t;
     let an = -a[1] * sin_t + a[2] * cos_t;
-    if !(an * an > 1.0001 * sigma2) {
+    // (Not `<=`: a NaN must return here too.)
+    if (an * an).partial_cmp(&(1.0001 * sigma2)) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let m00 = a[1] * a[1] + a[2] * a[2] - sigma2;

@@ -37,6 +37,227 @@ fn mesh_clip(q: vec3<f32>) -> vec4<f32> {
     return vec4<f32>(x, y, z, w);
 }
 
+//#if SHADOW
+// The mesh's macro shadow: one depth map per light (layer i for light i), rendered from the
+// light's centre by vs_shadow before the shading pass, read by shadow_visibility (PCSS: a
+// blocker search, then percentage-closer filtering over the light's penumbra).
+@group(0) @binding(14) var shadow_maps: texture_depth_2d_array;
+// Nearest, clamped: shadow_taps gathers a 2×2 block of depths with it (no filtering).
+@group(0) @binding(15) var shadow_sampler: sampler;
+
+// The perspective view a light's shadow map is rendered with: from the light's centre towards
+// the centre of the box (frame.shadow_lo … shadow_hi) that bounds the mesh, the square frustum
+// through the box's outermost corner (right and up scaled by the tangent of its half-angle, as
+// the camera's are), near and far planes just around the box's nearest and farthest corners.
+// A light inside the box or beside it (a corner at or behind it, or more than
+// SHADOW_MAX_TAN off the axis) gets the widest frustum, SHADOW_MAX_TAN, and a near plane at
+// 1/1000 of the box's diagonal: what lies outside casts and receives no macro shadow. `ok` is
+// false only for a light at the box's centre.
+struct ShadowView {
+    right: vec3<f32>,
+    up: vec3<f32>,
+    forward: vec3<f32>,
+    near: f32,
+    far: f32,
+    ok: bool,
+}
+
+// tan 76°: the widest half-angle of a shadow map.
+const SHADOW_MAX_TAN: f32 = 4.0;
+
+fn shadow_view(lp: vec3<f32>) -> ShadowView {
+    var s: ShadowView;
+    let lo = frame.shadow_lo;
+    let hi = frame.shadow_hi;
+    let to_c = 0.5 * (lo + hi) - lp;
+    let d = length(to_c);
+    let diag = length(hi - lo);
+    s.ok = d > 1e-6 * diag;
+    if (!s.ok) {
+        return s;
+    }
+    let f = to_c / d;
+    var world_up = vec3<f32>(0.0, 0.0, 1.0);
+    if (abs(f.z) > 0.999) {
+        world_up = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let right = normalize(cross(f, world_up));
+    let up = cross(right, f);
+    var t = 0.0;
+    var near = 3.4e38;
+    var far = 0.0;
+    for (var k = 0u; k < 8u; k++) {
+        let q = select(lo, hi, vec3<bool>((k & 1u) != 0u, (k & 2u) != 0u, (k & 4u) != 0u));
+        let v = q - lp;
+        let w = dot(v, f);
+        near = min(near, w);
+        far = max(far, w);
+        t = max(t, max(abs(dot(v, right)), abs(dot(v, up))) / max(w, 1e-30));
+    }
+    let eps = 1e-3 * diag;
+    s.right = right * min(t, SHADOW_MAX_TAN);
+    s.up = up * min(t, SHADOW_MAX_TAN);
+    s.forward = f;
+    s.near = max(0.99 * near, eps);
+    s.far = max(1.01 * far, s.near + eps);
+    return s;
+}
+
+// Clip coordinates of world point q in the shadow view of the light at lp (mesh_clip's maths).
+fn shadow_clip(sv: ShadowView, lp: vec3<f32>, q: vec3<f32>) -> vec4<f32> {
+    let d = q - lp;
+    let w = dot(d, sv.forward);
+    let x = dot(d, sv.right) / dot(sv.right, sv.right);
+    let y = dot(d, sv.up) / dot(sv.up, sv.up);
+    let z = (w - sv.near) * sv.far / (sv.far - sv.near);
+    return vec4<f32>(x, y, z, w);
+}
+
+// The depth pass: the mesh seen from light `li` (the draw's instance), into layer li.
+@vertex
+fn vs_shadow(v: MeshIn, @builtin(instance_index) li: u32) -> @builtin(position) vec4<f32> {
+    let lp = lights[li].position;
+    let sv = shadow_view(lp);
+    if (!sv.ok) {
+        return vec4<f32>(0.0, 0.0, -1.0, 1.0); // clipped: the layer stays clear
+    }
+    return shadow_clip(sv, lp, v.position);
+}
+
+// Forward distance from the light of a stored depth (the inverse of shadow_clip's z/w; a clear
+// texel, 1, is the far plane: never a blocker).
+fn shadow_distance(sv: ShadowView, z: f32) -> f32 {
+    return sv.near * sv.far / (sv.far - z * (sv.far - sv.near));
+}
+
+// The stored depth z/w of forward distance w (shadow_clip's): taps compare depths, so only a
+// blocker's depth is turned back into a distance.
+fn shadow_depth(sv: ShadowView, w: f32) -> f32 {
+    return (w - sv.near) * sv.far / ((sv.far - sv.near) * w);
+}
+
+// The 2×2 texels of layer li around continuous texel coordinates t (texel centres at i + ½,
+// row 0 at the top of the light's view), bilinearly weighted: (weight of those nearer the light
+// than depth zr, weighted sum of their distances). Outside the map nothing is stored: no
+// blocker.
+fn shadow_taps(li: u32, sv: ShadowView, t: vec2<f32>, zr: f32) -> vec2<f32> {
+    let n = i32(frame.shadow_size);
+    let c = t - 0.5;
+    let c0 = floor(c);
+    let a = c - c0;
+    let i0 = vec2<i32>(c0);
+    // The block's shared corner, half a texel from every texel centre: the gather takes exactly
+    // texels i0 … i0 + 1 there (x: (x0, y1), y: (x1, y1), z: (x1, y0), w: (x0, y0)).
+    let g = textureGather(shadow_maps, shadow_sampler, (c0 + 1.0) / f32(n), i32(li));
+    var depths = array<f32, 4>(g.w, g.z, g.x, g.y);
+    var blocked = 0.0;
+    var dist = 0.0;
+    for (var k = 0; k < 4; k++) {
+        let o = vec2<i32>(k & 1, k >> 1u);
+        let q = i0 + o;
+        if (q.x < 0 || q.y < 0 || q.x >= n || q.y >= n) {
+            continue;
+        }
+        let wx = select(1.0 - a.x, a.x, o.x == 1);
+        let wy = select(1.0 - a.y, a.y, o.y == 1);
+        let z = depths[k];
+        if (z < zr) {
+            blocked += wx * wy;
+            dist += wx * wy * shadow_distance(sv, z);
+        }
+    }
+    return vec2<f32>(blocked, dist);
+}
+
+// The fixed sample pattern of both PCSS steps: a Vogel disc of 16 points in the unit disc
+// (radius √((k + ½)/16), angle k × the golden angle), the same f32 literals in the twin.
+const SHADOW_SAMPLES: u32 = 16u;
+const SHADOW_DISC: array<vec2<f32>, 16> = array<vec2<f32>, 16>(
+    vec2<f32>(0.17677669, 0.0),
+    vec2<f32>(-0.22577219, 0.20682582),
+    vec2<f32>(0.03455805, -0.39377117),
+    vec2<f32>(0.28457123, 0.37117276),
+    vec2<f32>(-0.5222232, -0.09237393),
+    vec2<f32>(0.4946954, -0.31468472),
+    vec2<f32>(-0.16546592, 0.615525),
+    vec2<f32>(-0.31556147, -0.60759443),
+    vec2<f32>(0.68464214, 0.25003022),
+    vec2<f32>(-0.7122561, 0.29400897),
+    vec2<f32>(0.3433545, -0.73372865),
+    vec2<f32>(0.25373024, 0.808932),
+    vec2<f32>(-0.7647459, -0.44318587),
+    vec2<f32>(0.897134, -0.1972324),
+    vec2<f32>(-0.5475069, 0.77877223),
+    vec2<f32>(-0.12648678, -0.9760897),
+);
+
+// Bias, in texel footprints at the receiver (a texel's width there, 2·tan(half-angle)·w/size):
+// the point looked up is moved this far off the surface towards the light, and a blocker must
+// be nearer the light than the moved point by SHADOW_BIAS footprints.
+const SHADOW_NORMAL_OFFSET: f32 = 1.0;
+const SHADOW_BIAS: f32 = 1.5;
+
+// Radius of the disc a light is filtered as: a sphere's radius, a rectangle's equal-area disc.
+fn shadow_light_radius(l: Light) -> f32 {
+    if (l.shape == 1u) {
+        return sqrt(4.0 * l.half.x * l.half.y / PI);
+    }
+    return l.radius;
+}
+
+// Fraction of light li's disc that the mesh leaves visible from surface point `world` of unit
+// normal n (turned to the light's side): percentage-closer soft shadows (Fernando 2005) with the
+// penumbra map's similar triangles. A lateral length ℓ at forward distance D spans
+// ℓ/(D·tan)·size/2 texels. Blockers are searched where the cone from the point to the light's
+// disc crosses the near plane; their mean distance wb gives the penumbra on the map,
+// R·(wr − wb)/(wr·wb) in the same units (the cone's radius at the blockers, seen from the
+// light), over which the depth comparisons are averaged (bilinear PCF at each sample; both radii
+// capped at size/16 texels). No search tap blocked: lit; every one: the umbra. A point light
+// (R = 0) gets a hard shadow, filtered over one texel.
+fn shadow_visibility(li: u32, world: vec3<f32>, n: vec3<f32>) -> f32 {
+    let light = lights[li];
+    let lp = light.position;
+    let sv = shadow_view(lp);
+    if (!sv.ok) {
+        return 1.0;
+    }
+    let size = f32(frame.shadow_size);
+    let tan_half = length(sv.right);
+    let footprint = 2.0 * tan_half * dot(world - lp, sv.forward) / size;
+    let clip = shadow_clip(sv, lp, world + n * (SHADOW_NORMAL_OFFSET * footprint));
+    let wr = clip.w - SHADOW_BIAS * footprint;
+    let zr = shadow_depth(sv, wr);
+    let t = vec2<f32>(clip.x / clip.w + 1.0, 1.0 - clip.y / clip.w) * (0.5 * size);
+    let scale = 0.5 * size / tan_half;
+    let cap = size / 16.0;
+    let radius = shadow_light_radius(light);
+    let search = min(radius * max(wr - sv.near, 0.0) / (wr * sv.near) * scale, cap);
+    // A local copy: indexed by a loop counter, the array needs an address.
+    var disc = SHADOW_DISC;
+    var blocked = 0.0;
+    var dist = 0.0;
+    for (var k = 0u; k < SHADOW_SAMPLES; k++) {
+        let b = shadow_taps(li, sv, t + disc[k] * search, zr);
+        blocked += b.x;
+        dist += b.y;
+    }
+    if (blocked <= 0.0) {
+        return 1.0;
+    }
+    // Every search tap blocked: the penumbra's disc (never wider than the search's) is too.
+    if (blocked > f32(SHADOW_SAMPLES) - 1e-3) {
+        return 0.0;
+    }
+    let wb = dist / blocked;
+    let penumbra = min(radius * max(wr - wb, 0.0) / (wr * wb) * scale, cap);
+    var occluded = 0.0;
+    for (var k = 0u; k < SHADOW_SAMPLES; k++) {
+        occluded += shadow_taps(li, sv, t + disc[k] * penumbra, zr).x;
+    }
+    return 1.0 - occluded / f32(SHADOW_SAMPLES);
+}
+//#endif
+
 @vertex
 fn vs_mesh(v: MeshIn) -> MeshOut {
     var o: MeshOut;
@@ -140,7 +361,8 @@ fn sheen_brdf(n: vec3<f32>, v: vec3<f32>, l: vec3<f32>) -> vec3<f32> {
 }
 
 // Linear radiance leaving a mesh point: for each light above the tangent plane,
-// (albedo + π f_sheen) · I · colour · max(0, n_s·l)/d² · (1 − K(l in T, B, N)), plus the fill
+// (albedo + π f_sheen) · I · colour · max(0, n_s·l)/d² · (1 − K(l in T, B, N)) · V (the macro
+// shadow's visibility, 1 without it), plus the fill
 // albedo · fill · (½ + ½ n_s.z) that K leaves alone; × coverage. n_s is the shading normal (the
 // normal map's), K sees the geometric frame. On the plane z = 0 with T, B, N = X, Y, Z, no
 // sheen and no fill this is shade() term for term.
@@ -179,7 +401,12 @@ fn shade_mesh(
         }
         var visible = vec3<f32>(1.0);
 //#if PTM
-        visible *= 1.0 - ptm_k(c, lt);
+        // K over the light's footprint as on the plane (a rectangle's sides taken along the
+        // tangent frame's axes).
+        visible *= 1.0 - ptm_k_area(c, lt, ptm_footprint(lt, lt * sqrt(d2), sqrt(d2), light));
+//#endif
+//#if SHADOW
+        visible *= shadow_visibility(i, world, tbn[2]);
 //#endif
         let cos_l = max(dot(ns, l), 0.0);
         radiance += (albedo + sheen_brdf(ns, v, l)) * light.color * (cos_l / d2) * visible;

@@ -2,7 +2,7 @@
 //! remove bindings, so what a scene lacks is cut out of the text), and naga validation.
 //!
 //! Directives are whole lines `//#if NAME`, `//#else`, `//#endif` (nestable); placeholders
-//! `{{NC}}`, `{{PTM_EVAL}}`, `{{GRID}}` (a learned basis's grid side), `{{BLUR}}` (the blur
+//! `{{NC}}`, `{{PTM_EVAL}}`, `{{PTM_JET}}` (its value and derivatives), `{{GRID}}` (a learned basis's grid side), `{{BLUR}}` (the blur
 //! method's file), `{{CHANNELS}}` (its image's channels). The PTM polynomial is generated from
 //! the format crate's monomial table, so the shader and `Basis::eval` cannot disagree on the
 //! order; a learned basis replaces it by the bilinear read of its table (`learned_eval`).
@@ -48,6 +48,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.mesh && v.normal_map {
         d.push("NORMAL_MAP");
     }
+    if v.mesh && v.shadow {
+        d.push("SHADOW");
+    }
     d
 }
 
@@ -73,6 +76,54 @@ pub fn ptm_eval_expr(basis: Basis) -> String {
         })
         .collect();
     terms.join(" + ")
+}
+
+/// The WGSL expression of the predictor's jet at (u, v) (`{{PTM_JET}}`, a `PtmJet` of p, its
+/// gradient and Hessian), each a sum over the basis's monomials differentiated term by term,
+/// e.g. ∂/∂u of c[0]·u³ is `c[0] * (3.0 * u * u)`; for a learned basis `learned_jet(c, uv)`.
+pub fn ptm_jet_expr(basis: Basis) -> String {
+    if basis.is_learned() {
+        return "learned_jet(c, uv)".into();
+    }
+    // The (i, j)-th derivative of the basis's polynomial in u and v.
+    let derivative = |i: u8, j: u8| {
+        let fall = |n: u8, k: u8| (0..k).map(|t| u32::from(n - t)).product::<u32>();
+        let terms: Vec<String> = basis
+            .monomials()
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.pu >= i && m.pv >= j)
+            .map(|(n, m)| {
+                let factor = fall(m.pu, i) * fall(m.pv, j);
+                let mut factors: Vec<String> = std::iter::repeat_n("u", (m.pu - i) as usize)
+                    .chain(std::iter::repeat_n("v", (m.pv - j) as usize))
+                    .map(String::from)
+                    .collect();
+                if factor != 1 {
+                    factors.insert(0, format!("{factor}.0"));
+                }
+                if factors.is_empty() {
+                    format!("c[{n}]")
+                } else {
+                    format!("c[{n}] * ({})", factors.join(" * "))
+                }
+            })
+            .collect();
+        if terms.is_empty() {
+            "0.0".to_string()
+        } else {
+            terms.join(" + ")
+        }
+    };
+    format!(
+        "PtmJet({}, vec2<f32>({}, {}), vec3<f32>({}, {}, {}))",
+        derivative(0, 0),
+        derivative(1, 0),
+        derivative(0, 1),
+        derivative(2, 0),
+        derivative(1, 1),
+        derivative(0, 2)
+    )
 }
 
 /// The mesh path's stages, included into `shade.wgsl` for mesh variants (`{{MESH}}`).
@@ -135,9 +186,11 @@ pub fn shade_source(v: &Variant) -> Result<String> {
         .replace("{{MESH}}", &mesh);
     let nc = v.basis.map_or(0, |b| b.len());
     let eval = v.basis.map(ptm_eval_expr).unwrap_or_default();
+    let jet = v.basis.map(ptm_jet_expr).unwrap_or_default();
     Ok(src
         .replace("{{NC}}", &nc.to_string())
         .replace("{{PTM_EVAL}}", &eval)
+        .replace("{{PTM_JET}}", &jet)
         .replace("{{GRID}}", &v.learned_grid.to_string())
         .replace("{{CHANNELS}}", &v.sat_channels().to_string()))
 }
@@ -169,8 +222,9 @@ mod tests {
         let all = Variant::all();
         // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
         // and without coverage, or learned6 or learned11 (logistic, hemispherical) × MIP chain
-        // × coverage; × albedo × (caster, or a mesh with or without a normal map).
-        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 2));
+        // × coverage; × albedo × (caster, or a mesh with or without a normal map and a macro
+        // shadow).
+        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4));
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -208,6 +262,7 @@ mod tests {
             uv: UvMap::Projected,
             mesh: false,
             normal_map: false,
+            shadow: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -227,6 +282,8 @@ mod tests {
             "ptm_coverage",
             "normal_tex",
             "vs_mesh",
+            "shadow_maps",
+            "shadow_sampler",
         ] {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }

@@ -38,6 +38,10 @@ struct Frame {
     normal_size: vec2<u32>,     // mesh: normal map texels nx, ny
     far: f32,                   // mesh: far plane (depth 1)
     pad5: f32,
+    shadow_lo: vec3<f32>,       // mesh: low corner of the box the shadow maps frame (the mesh's)
+    shadow_size: u32,           // mesh: shadow map side (texels; 0 without macro shadow)
+    shadow_hi: vec3<f32>,       // mesh: its high corner
+    pad6: f32,
 }
 
 struct Light {
@@ -96,10 +100,13 @@ struct PtmLevel {
 //#endif
 //#if PTM_LEARNED
 // A learned basis's NC tables B_k (`ptm_format::LearnedTable`, shared by every MIP level),
-// node-major in vec4s: the NC values of grid node (column i, row j) fill the LEARNED_QUADS vec4s
-// from (j·G + i)·LEARNED_QUADS, zero after the NC values (`scene::node_major`), so each
-// bilinear tap is ⌈NC/4⌉ vec4 loads rather than NC scalar ones (gathers on a CPU rasteriser).
-@group(0) @binding(13) var<storage, read> learned: array<vec4<f32>>;
+// node-major in vec4s: the NC values of grid node (column i, row j) fill the LEARNED_QUADS
+// texels (i·LEARNED_QUADS + q, j), q = 0, 1, …, zero after the NC values (`scene::node_major`),
+// so each bilinear tap is ⌈NC/4⌉ texel loads rather than NC scalar ones. A texture, not a
+// storage buffer: a CPU rasteriser (lavapipe) fetches texels in SIMD where it gathers storage
+// loads lane by lane. Its texels are the f32 bits as u32 (`learned_node`): an integer format
+// is never filterable, so it binds without FLOAT32_FILTERABLE, and the bits come back exactly.
+@group(0) @binding(13) var learned: texture_2d<u32>;
 //#endif
 
 //#if MESH
@@ -335,15 +342,21 @@ fn learned_bilinear(uv: vec2<f32>) -> Bilinear {
 // vec4s per grid node: NC rounded up to whole vec4s.
 const LEARNED_QUADS: u32 = (NC + 3u) / 4u;
 
+// Terms 4q … 4q + 3 of grid node `node` (= j·G + i): texel (i·LEARNED_QUADS + q, j).
+fn learned_node(node: u32, q: u32) -> vec4<f32> {
+    let x = (node % LEARNED_GRID) * LEARNED_QUADS + q;
+    return bitcast<vec4<f32>>(textureLoad(learned, vec2<u32>(x, node / LEARNED_GRID), 0));
+}
+
 // p = Σ_k c_k·B_k(u, v): each table read bilinearly at (u, v), dotted with the coefficients;
 // per term the same operations in the same order as the twin (`Twin::learned_eval`).
 fn learned_eval(c: array<f32, {{NC}}>, uv: vec2<f32>) -> f32 {
     let b = learned_bilinear(uv);
-    let i = b.index * LEARNED_QUADS;
+    let i = b.index;
     var p = 0.0;
     for (var q = 0u; q < LEARNED_QUADS; q++) {
-        let t = b.weight.x * learned[i.x + q] + b.weight.y * learned[i.y + q]
-            + b.weight.z * learned[i.z + q] + b.weight.w * learned[i.w + q];
+        let t = b.weight.x * learned_node(i.x, q) + b.weight.y * learned_node(i.y, q)
+            + b.weight.z * learned_node(i.z, q) + b.weight.w * learned_node(i.w, q);
         // Past the last term (k ≥ NC) the coefficient is 0 and the padding's table value is
         // 0: a padded term adds 0·0, and p keeps the CPU twin's value bit for bit.
         let k = vec4<u32>(4u * q) + vec4<u32>(0u, 1u, 2u, 3u);
@@ -355,6 +368,30 @@ fn learned_eval(c: array<f32, {{NC}}>, uv: vec2<f32>) -> f32 {
         p += ck.w * t.w;
     }
     return p;
+}
+
+// The predictor's jet at (u, v) for `ptm_k_area`: the same four nodes as `learned_eval`, each
+// dotted with the coefficients (d = node values of p), then p and its derivatives within the
+// cell: bilinear in the grid coordinates, (G − 1)/2 of them per unit of u or v.
+fn learned_jet(c: array<f32, {{NC}}>, uv: vec2<f32>) -> PtmJet {
+    let b = learned_bilinear(uv);
+    let i = b.index;
+    var d = vec4<f32>(0.0);
+    for (var q = 0u; q < LEARNED_QUADS; q++) {
+        let k = vec4<u32>(4u * q) + vec4<u32>(0u, 1u, 2u, 3u);
+        let m = min(k, vec4<u32>(NC - 1u));
+        let ck = select(vec4<f32>(0.0), vec4<f32>(c[m.x], c[m.y], c[m.z], c[m.w]), k < vec4<u32>(NC));
+        d += vec4<f32>(dot(ck, learned_node(i.x, q)), dot(ck, learned_node(i.y, q)),
+            dot(ck, learned_node(i.z, q)), dot(ck, learned_node(i.w, q)));
+    }
+    // The cell coordinates from the weights: a = (w1 + w3, w2 + w3).
+    let a = vec2<f32>(b.weight.y + b.weight.w, b.weight.z + b.weight.w);
+    let s = 0.5 * f32(LEARNED_GRID - 1u);
+    var j: PtmJet;
+    j.p = dot(b.weight, d);
+    j.g = s * vec2<f32>(mix(d.y - d.x, d.w - d.z, a.y), mix(d.z - d.x, d.w - d.y, a.x));
+    j.h = vec3<f32>(0.0, s * s * (d.x - d.y - d.z + d.w), 0.0);
+    return j;
 }
 //#endif
 
@@ -372,6 +409,149 @@ fn ptm_k(c: array<f32, {{NC}}>, l: vec3<f32>) -> f32 {
     let k = ptm_sigmoid({{PTM_EVAL}});
 //#else
     let k = {{PTM_EVAL}};
+//#endif
+    return clamp(k, 0.0, 1.0);
+}
+
+// ---- Area lights: K averaged over the light's footprint ----
+// Shading needs the mean of K over the directions to an area light, weighted as its irradiance
+// is (cos θ over the solid angle it subtends), not K at its centre; for the logistic link the
+// mean of σ is not σ at the mean. `ptm_footprint` gives those directions' weighted mean and
+// covariance C in the PTM's (u, v); `ptm_k_area` expands the predictor to second order about
+// that mean (its value p, gradient g and Hessian H: `ptm_jet`), so over the footprint it has
+// mean m = p + ½·tr(H·C) and variance v = gᵀ·C·g, and the mean of σ over it is taken as
+// σ(m/√(1 + π·v/8)) (MacKay's probit approximation of a logistic averaged over a Gaussian: one
+// σ, as a point light costs); the identity link's K is m itself. A point light has an empty
+// footprint and gets `ptm_k` itself, bit for bit. docs/model.md, "Area lights", has the
+// derivation and the errors against Monte Carlo.
+
+// The predictor's value p, gradient g = (∂p/∂u, ∂p/∂v) and Hessian h = (∂²p/∂u², ∂²p/∂u∂v,
+// ∂²p/∂v²) at one (u, v).
+struct PtmJet {
+    p: f32,
+    g: vec2<f32>,
+    h: vec3<f32>,
+}
+
+// Where a light's directions fall in (u, v), irradiance-weighted: their mean `centre` and
+// covariance `cov` (uu, uv, vv); cov = 0 for a point light.
+struct Footprint {
+    centre: vec2<f32>,
+    cov: vec3<f32>,
+}
+
+// The jet of the file's basis, generated from its monomials or its tables (shader/mod.rs,
+// `ptm_jet_expr`).
+fn ptm_jet(c: array<f32, {{NC}}>, uv: vec2<f32>) -> PtmJet {
+    let u = uv.x;
+    let v = uv.y;
+    return {{PTM_JET}};
+}
+
+// Irradiance-weighted moments of a spherical light's cap of angular radius rho, seen at
+// θ from the zenith (r = sin θ, z = cos θ): (mean, variance) of the radial angle t (away from
+// the zenith) and the variance of the tangential one, in radians. The cap is taken as the disc
+// |t| ≤ rho in its azimuthal-equidistant plane, the weight cos θ as linear across it,
+// z − r·t_radial, and clipped where that reaches 0 (the horizon, to first order): with
+// q = rho·r/z ≤ 1 the whole disc is above it, else the segment x < 1/q (units of rho) is kept,
+// whose moments are Iₙ = ∫ xⁿ √(1 − x²) dx from −1 to 1/q in closed form.
+fn cap_moments(rho: f32, r: f32, z: f32) -> vec3<f32> {
+    let q = rho * r / z;
+    // E[x], E[x²], E[y²] of the unit disc under the weight 1 − q·x.
+    var e = vec3<f32>(-0.25 * q, 0.25, 0.25);
+    if (q > 1.0) {
+        let h = 1.0 / q;
+        let s = sqrt(max(1.0 - h * h, 0.0));
+        let a = asin(h);
+        let s3 = s * s * s;
+        let i0 = 0.5 * (h * s + a) + 0.7853981633974483;
+        let i1 = -s3 / 3.0;
+        let i2 = (a - h * s * (1.0 - 2.0 * h * h)) / 8.0 + 0.19634954084936207;
+        let i3 = -s3 / 3.0 + s3 * s * s / 5.0;
+        let w = h * i0 - i1;
+        e = vec3<f32>((h * i1 - i2) / w, (h * i2 - i3) / w, (h * (i0 - i2) - (i1 - i3)) / (3.0 * w));
+    }
+    return vec3<f32>(rho * e.x, rho * rho * max(e.y - e.x * e.x, 0.0), rho * rho * e.z);
+}
+
+// The footprint of `light` seen from a cloth point in unit direction l at distance d. Both
+// shapes are first worked out as angles along the radial and tangential axes of l (away from
+// the zenith and around it), then scaled to (u, v) by the map's derivatives there and turned
+// to (u, v). Sphere: the cap of angular radius asin(min(R/d, 1)) (`cap_moments`). Rectangle
+// facing down (half-sides `half`): its points weigh cos·cos/r² = z²/r⁴, which moves their mean
+// by −(4/3)·half²·D/d² towards the point (first order in half/d; D = to_light.xy; at most
+// half/2), variance half²/3 less that shift²; a point (x, y) on it turns the direction by
+// (cos θ·x_radial, x_tangential)/d. To second order the map bends both: a tangential angle t
+// moves (u, v) towards the zenith by t²·(θ − sin θ cos θ)/(2 sin² θ)/(π/2) (hemispherical),
+// and any angle t by t²·sin θ/2 (projected, where the mean of l.xy is what (u, v) averages).
+fn ptm_footprint(l: vec3<f32>, to_light: vec3<f32>, d: f32, light: Light) -> Footprint {
+    var f: Footprint;
+    if (light.shape == 0u && !(light.radius > 0.0)) {
+        return f;
+    }
+    let r = length(l.xy);
+    let axis = select(vec2<f32>(1.0, 0.0), l.xy / r, r > 1e-6);
+    // Mean (radial, tangential) angle and covariance (rr, rt, tt), radians.
+    var mean = vec2<f32>(0.0);
+    var cov = vec3<f32>(0.0);
+    if (light.shape == 1u) {
+        let h2 = light.half * light.half;
+        let shift = clamp(-4.0 / 3.0 * h2 * to_light.xy / (d * d), -0.5 * light.half, 0.5 * light.half);
+        let var_xy = max(h2 / 3.0 - shift * shift, vec2<f32>(0.0));
+        let sc = vec2<f32>(l.z, 1.0) / d;
+        mean = sc * vec2<f32>(dot(axis, shift), axis.x * shift.y - axis.y * shift.x);
+        let ax2 = axis * axis;
+        cov = vec3<f32>(
+            sc.x * sc.x * (ax2.x * var_xy.x + ax2.y * var_xy.y),
+            sc.x * sc.y * axis.x * axis.y * (var_xy.y - var_xy.x),
+            sc.y * sc.y * (ax2.y * var_xy.x + ax2.x * var_xy.y),
+        );
+    } else {
+        let m = cap_moments(asin(min(light.radius / d, 1.0)), r, l.z);
+        mean = vec2<f32>(m.x, 0.0);
+        cov = vec3<f32>(m.y, 0.0, m.z);
+    }
+    // Second moments about the centre direction, radial and tangential.
+    let second = vec2<f32>(cov.x, cov.z) + mean * mean;
+//#if PTM_HEMISPHERICAL
+    // (u, v) = l.xy·(θ/r)/(π/2) as `ptm_hemispherical`: d(u, v)/dθ radially is 1/(π/2), and
+    // tangentially an angle δ moves (u, v) by δ·(θ/sin θ)/(π/2); with s = θ/r the bend is
+    // (s − cos θ)/(2r) (→ θ/3 at the zenith, where it is left out).
+    let s = select(1.0, atan2(r, l.z) / r, r > 1e-6);
+    let centre = l.xy * (s / 1.5707963267948966);
+    let jac = vec2<f32>(1.0, s) / 1.5707963267948966;
+    let bend = select(0.0, (s - l.z) / (2.0 * r), r > 1e-4) * second.y / 1.5707963267948966;
+//#else
+    // (u, v) = l.xy: radially d sin θ = cos θ dθ, tangentially 1.
+    let centre = l.xy;
+    let jac = vec2<f32>(l.z, 1.0);
+    let bend = 0.5 * r * (second.x + second.y);
+//#endif
+    let m = jac * mean - vec2<f32>(bend, 0.0);
+    let c = vec3<f32>(jac.x * jac.x * cov.x, jac.x * jac.y * cov.y, jac.y * jac.y * cov.z);
+    let t = vec2<f32>(-axis.y, axis.x);
+    let ab = axis.x * axis.y;
+    f.centre = centre + m.x * axis + m.y * t;
+    f.cov = vec3<f32>(
+        c.x * axis.x * axis.x - 2.0 * c.y * ab + c.z * axis.y * axis.y,
+        (c.x - c.z) * ab + c.y * (axis.x * axis.x - axis.y * axis.y),
+        c.x * axis.y * axis.y + 2.0 * c.y * ab + c.z * axis.x * axis.x,
+    );
+    return f;
+}
+
+// K averaged over the footprint `f` of a light in direction l (see above).
+fn ptm_k_area(c: array<f32, {{NC}}>, l: vec3<f32>, f: Footprint) -> f32 {
+    if (!(f.cov.x + f.cov.z > 0.0)) {
+        return ptm_k(c, l);
+    }
+    let j = ptm_jet(c, f.centre);
+    let m = j.p + 0.5 * (j.h.x * f.cov.x + 2.0 * j.h.y * f.cov.y + j.h.z * f.cov.z);
+//#if PTM_LOGISTIC
+    let v = max(j.g.x * j.g.x * f.cov.x + 2.0 * j.g.x * j.g.y * f.cov.y + j.g.y * j.g.y * f.cov.z, 0.0);
+    let k = ptm_sigmoid(m / sqrt(1.0 + 0.39269908169872414 * v));
+//#else
+    let k = m;
 //#endif
     return clamp(k, 0.0, 1.0);
 }
@@ -554,7 +734,7 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
         let l = to_light / sqrt(d2);
         var visible = vec3<f32>(1.0);
 //#if PTM
-        visible *= 1.0 - ptm_k(c, l);
+        visible *= 1.0 - ptm_k_area(c, l, ptm_footprint(l, to_light, sqrt(d2), light));
 //#endif
 //#if CASTER
         // Clamped: f32 texel coordinates make box weights sum to 1 ± ulp(t)/(2w).

@@ -28,3 +28,51 @@ pub fn light(position: [f32; 3], radius: f32, intensity: f32) -> Light {
         color: [1.0, 1.0, 1.0],
     }
 }
+
+/// K of a synthetic cloth: texel (x, y) of `n`² sees the sky above a horizon of elevation
+/// 0.3 + 0.25·cos(φ − 2πx/n) + 0.1·y/n rad with a soft edge, as a bake of `spp` = 8 samples
+/// counts it (multiples of 1/8).
+pub fn synthetic_k(n: usize, l: [f64; 3]) -> Vec<f32> {
+    let (el, az) = (l[2].asin(), l[1].atan2(l[0]));
+    (0..n * n)
+        .map(|t| {
+            let (x, y) = ((t % n) as f64 / n as f64, (t / n) as f64 / n as f64);
+            let horizon = 0.3 + 0.25 * (az - std::f64::consts::TAU * x).cos() + 0.1 * y;
+            let k = ((horizon - el) / 0.2 + 0.5).clamp(0.0, 1.0);
+            ((k * 8.0).round() / 8.0) as f32
+        })
+        .collect()
+}
+
+/// A PTM of `basis`, `link` and `map` fitted by ptm-fit from [`synthetic_k`] under a 64-light
+/// Fibonacci dome above 8° (with its MIP levels when `mips`).
+pub fn fitted(
+    basis: ptm_format::Basis,
+    link: ptm_format::Link,
+    uv: ptm_format::UvMap,
+    n: usize,
+    mips: bool,
+) -> ptm_format::Ptm {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    let floor = 8f64.to_radians().sin();
+    let lights = ptm_format::LightSet::from_dirs((0..64).map(|i| {
+        let z = floor + (1.0 - floor) * (i as f64 + 0.5) / 64.0;
+        let r = (1.0 - z * z).sqrt();
+        let a = golden * i as f64;
+        [r * a.cos(), r * a.sin(), z]
+    }));
+    let opts = ptm_fit::FitOptions {
+        link,
+        uv,
+        mips,
+        ..ptm_fit::FitOptions::new(basis)
+    };
+    let mut acc = ptm_fit::Accumulator::new(&lights, n, n, &opts).unwrap();
+    acc.set_spp(8).unwrap();
+    for (i, l) in lights.dirs.iter().enumerate() {
+        acc.add_light(i, &synthetic_k(n, *l)).unwrap();
+    }
+    let (ptm, _) = acc.finish([1.0, 1.0]).unwrap();
+    assert_eq!(ptm.basis, basis);
+    ptm
+}
