@@ -93,6 +93,7 @@ fn light(position: [f32; 3], radius: f32) -> Light {
         radius,
         rect: None,
         square_box: false,
+        gaussian: None,
         intensity: 4.0,
         color: [1.0; 3],
     }

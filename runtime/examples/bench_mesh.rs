@@ -94,6 +94,7 @@ fn main() {
         radius: 0.3,
         rect: None,
         square_box: false,
+        gaussian: None,
         intensity: 50.0,
         color: [1.0; 3],
     };

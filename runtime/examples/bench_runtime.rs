@@ -62,6 +62,7 @@ fn main() {
         radius: 0.3,
         rect: None,
         square_box: false,
+        gaussian: None,
         intensity: 8.0,
         color: [1.0; 3],
     }];

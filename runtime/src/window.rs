@@ -927,6 +927,7 @@ mod tests {
             radius: 0.1,
             rect: None,
             square_box: false,
+            gaussian: None,
             intensity: 4.0,
             color: [1.0, 1.0, 1.0],
         }];

@@ -266,6 +266,7 @@ fn gpu_matches_twin_under_large_and_grazing_area_lights() {
                 radius: 0.0,
                 rect: Some([1.5, 0.4]),
                 square_box: false,
+                gaussian: None,
                 intensity: 3.0,
                 color: [1.0, 0.9, 0.8],
             },

@@ -135,6 +135,16 @@ fn golden_ptm6_sat_oblique_sphere_ellipse_and_square_box() {
 }
 
 #[test]
+fn golden_ptm6_sat_under_gaussian_lights() {
+    // A round Gaussian and one four times longer along X than along Y: the product of two
+    // sums of three boxes each, from the table.
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.lights[0].gaussian = Some([0.4, 0.4]);
+    s.lights[1].gaussian = Some([0.6, 0.15]);
+    check_golden("ptm6_sat_gaussian", &s);
+}
+
+#[test]
 fn golden_learned11_sat() {
     // A learned basis's tables read at every pixel's (u, v), under the same lights and caster.
     let mut s = scene(Basis::Ptm11, Blur::Sat, false);

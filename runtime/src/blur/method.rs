@@ -56,7 +56,8 @@ pub struct Plane {
 
 /// The shape of the kernel a method averages the image over (half-extents `wt` along the
 /// image's axes, in texels). A sphere light asks for [`Kernel::Disc`], a rectangular light for
-/// [`Kernel::Box`] (`KERNEL_DISC`, `KERNEL_BOX` in WGSL).
+/// [`Kernel::Box`], a Gaussian light for [`Kernel::Gauss`] (`KERNEL_DISC`, `KERNEL_BOX`,
+/// `KERNEL_GAUSS` in WGSL).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Kernel {
     /// The sheared ellipse ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 (a sphere light's kernel: the
@@ -69,6 +70,11 @@ pub enum Kernel {
     /// A [`Kernel::Disc`] ellipse as MIP samples along its major axis (elliptical weighted
     /// averaging: the minor axis picks the level, major/minor the number of samples).
     Ewa,
+    /// The Gaussian of standard deviations wt (shear 0), exactly.
+    Gauss,
+    /// A [`Kernel::Gauss`] as the product of two sums of three boxes
+    /// (`blur::sat::GAUSS_HALF`, `GAUSS_WEIGHT`): nine box lookups.
+    GaussBoxes,
 }
 
 /// What a method prepares on the CPU in `Scene::prepare` (a MIP chain, a separable plan):

@@ -183,6 +183,16 @@ impl Method for Mip {
         if kernel == Kernel::Disc {
             return blur_mip_ellipse(&chain.texels, &chain.levels, t, wt, shear);
         }
+        if kernel == Kernel::Gauss {
+            // The ellipse of the Gaussian's variance (a disc of radius r has r²/4 per axis).
+            return blur_mip_ellipse(
+                &chain.texels,
+                &chain.levels,
+                t,
+                [2.0 * wt[0], 2.0 * wt[1]],
+                0.0,
+            );
+        }
         blur_mip(&chain.texels, &chain.levels, t, wt)
     }
 }

@@ -91,10 +91,17 @@ fn blur_mip_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec3<f32> {
 }
 
 // The method's entry point, called by `light_opacity` (see blur/explicit.wgsl): a box as one
-// trilinear lookup, an ellipse by EWA.
+// trilinear lookup, an ellipse by EWA, and a Gaussian of standard deviations wt as the ellipse
+// of the same variance (radii 2·wt: a disc of radius r has variance r²/4 per axis), so its
+// unequal axes give a non-proportionally scaled lookup.
 fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec3<f32> {
     if (kernel == KERNEL_DISC) {
         return blur_mip_ellipse(t, wt, shear);
     }
+//#if GAUSSIAN
+    if (kernel == KERNEL_GAUSS) {
+        return blur_mip_ellipse(t, 2.0 * wt, 0.0);
+    }
+//#endif
     return blur_mip(t, wt);
 }

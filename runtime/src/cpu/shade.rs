@@ -406,14 +406,19 @@ impl Twin<'_> {
         };
         let (ax, ay) = (axis[0], axis[1]);
         // Mean (radial, tangential) angle and covariance (rr, rt, tt), radians.
-        let (mean, cov) = if light.shape == 1 {
+        // A rectangle (variance half²/3 per axis) or a Gaussian (σ²), weighted by z²/r⁴.
+        let planar = light.shape == LightGpu::RECT || light.shape == LightGpu::GAUSSIAN;
+        let (mean, cov) = if planar {
             let h = light.half;
-            let h2 = [h[0] * h[0], h[1] * h[1]];
+            let v0: [f32; 2] = if light.shape == LightGpu::GAUSSIAN {
+                [h[0] * h[0], h[1] * h[1]]
+            } else {
+                [h[0] * h[0] / 3.0, h[1] * h[1] / 3.0]
+            };
             let shift: [f32; 2] = std::array::from_fn(|k| {
-                (-4.0 / 3.0 * h2[k] * to_light[k] / (d * d)).clamp(-0.5 * h[k], 0.5 * h[k])
+                (-4.0 * v0[k] * to_light[k] / (d * d)).clamp(-0.5 * h[k], 0.5 * h[k])
             });
-            let var: [f32; 2] =
-                std::array::from_fn(|k| (h2[k] / 3.0 - shift[k] * shift[k]).max(0.0));
+            let var: [f32; 2] = std::array::from_fn(|k| (v0[k] - shift[k] * shift[k]).max(0.0));
             let sc = [l[2] / d, 1.0 / d];
             (
                 [
@@ -604,6 +609,21 @@ impl Twin<'_> {
                 (h[1] * s * stretch / texel[1]).max(RECT_MIN),
             ];
             (tr, wr, 0.0, Kernel::Box)
+        } else if l.shape == LightGpu::GAUSSIAN {
+            // A Gaussian facing down (σ = half): itself scaled by s, moved by −4·σ²·d/r² on the
+            // light (see `light_opacity` in WGSL).
+            let h = l.half;
+            let k = -4.0 / dot(ray, ray);
+            let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
+            let tr = [
+                t[0] + shift[0] / texel[0],
+                t[1] + -shift[1] * stretch / texel[1],
+            ];
+            let wr = [
+                (h[0] * s / texel[0]).max(RECT_MIN),
+                (h[1] * s * stretch / texel[1]).max(RECT_MIN),
+            ];
+            (tr, wr, 0.0, Kernel::Gauss)
         } else {
             let w = l.radius * s;
             let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];

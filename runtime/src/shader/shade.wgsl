@@ -48,8 +48,8 @@ struct Light {
     position: vec3<f32>, // centre
     radius: f32,         // sphere radius R
     color: vec3<f32>,    // colour × intensity
-    shape: u32,          // 0 sphere, 1 rectangle facing down
-    half: vec2<f32>,     // rectangle: half-sides along X, Y
+    shape: u32,          // 0 sphere, 1 rectangle facing down, 2 sphere as a box, 3 Gaussian
+    half: vec2<f32>,     // rectangle: half-sides along X, Y; Gaussian: σ along X, Y
     pad: vec2<f32>,
 }
 
@@ -478,9 +478,10 @@ fn cap_moments(rho: f32, r: f32, z: f32) -> vec3<f32> {
 // shapes are first worked out as angles along the radial and tangential axes of l (away from
 // the zenith and around it), then scaled to (u, v) by the map's derivatives there and turned
 // to (u, v). Sphere: the cap of angular radius asin(min(R/d, 1)) (`cap_moments`). Rectangle
-// facing down (half-sides `half`): its points weigh cos·cos/r² = z²/r⁴, which moves their mean
-// by −(4/3)·half²·D/d² towards the point (first order in half/d; D = to_light.xy; at most
-// half/2), variance half²/3 less that shift²; a point (x, y) on it turns the direction by
+// facing down (half-sides `half`, variance v = half²/3 per axis) or Gaussian (σ = `half`,
+// v = σ²): its points weigh cos·cos/r² = z²/r⁴, which moves their mean by −4·v·D/d² towards
+// the point (first order in half/d; D = to_light.xy; at most half/2), variance v less that
+// shift²; a point (x, y) on it turns the direction by
 // (cos θ·x_radial, x_tangential)/d. To second order the map bends both: a tangential angle t
 // moves (u, v) towards the zenith by t²·(θ − sin θ cos θ)/(2 sin² θ)/(π/2) (hemispherical),
 // and any angle t by t²·sin θ/2 (projected, where the mean of l.xy is what (u, v) averages).
@@ -494,10 +495,17 @@ fn ptm_footprint(l: vec3<f32>, to_light: vec3<f32>, d: f32, light: Light) -> Foo
     // Mean (radial, tangential) angle and covariance (rr, rt, tt), radians.
     var mean = vec2<f32>(0.0);
     var cov = vec3<f32>(0.0);
-    if (light.shape == 1u) {
-        let h2 = light.half * light.half;
-        let shift = clamp(-4.0 / 3.0 * h2 * to_light.xy / (d * d), -0.5 * light.half, 0.5 * light.half);
-        let var_xy = max(h2 / 3.0 - shift * shift, vec2<f32>(0.0));
+    var planar = light.shape == 1u;
+    var v0 = light.half * light.half / 3.0;
+//#if GAUSSIAN
+    if (light.shape == 3u) {
+        planar = true;
+        v0 = light.half * light.half;
+    }
+//#endif
+    if (planar) {
+        let shift = clamp(-4.0 * v0 * to_light.xy / (d * d), -0.5 * light.half, 0.5 * light.half);
+        let var_xy = max(v0 - shift * shift, vec2<f32>(0.0));
         let sc = vec2<f32>(l.z, 1.0) / d;
         mean = sc * vec2<f32>(dot(axis, shift), axis.x * shift.y - axis.y * shift.x);
         let ax2 = axis * axis;
@@ -621,6 +629,18 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
         let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
         return blur_lookup(li, tr, wr, 0.0, KERNEL_BOX);
     }
+//#if GAUSSIAN
+    if (l.shape == 3u) {
+        // A Gaussian facing down (σ = half): as a rectangle, its image on the plane is itself
+        // scaled by s, a Gaussian of σ·s, moved to the centroid of the z²/r⁴ weights, −4·σ²·d/r²
+        // on the light to first order (a rectangle's −(4/3)·half² is −4 × its variance).
+        let d = ray.xy;
+        let shift = -4.0 / dot(ray, ray) * l.half * l.half * d * s;
+        let tr = t + vec2<f32>(shift.x, -shift.y * stretch) / texel;
+        let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
+        return blur_lookup(li, tr, wr, 0.0, KERNEL_GAUSS);
+    }
+//#endif
     let w = l.radius * s;
     let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
     if (l.shape == 0u) {
@@ -702,11 +722,14 @@ fn sphere_ellipse(ray: vec3<f32>, s: f32, radius: f32, texel: vec2<f32>) -> Elli
 }
 
 // The kernel `blur_lookup` is asked for (`blur::Kernel` as a number): the sheared ellipse of
-// radii wt ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 (a sphere's), or the box of half-sides wt (a
-// rectangle's, shear 0). A method approximates what it cannot apply exactly
-// (`blur::Method::kernels`).
+// radii wt ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 (a sphere's), the box of half-sides wt (a
+// rectangle's, shear 0), or the Gaussian of standard deviations wt (a Gaussian light's, shear
+// 0). A method approximates what it cannot apply exactly (`blur::Method::kernels`).
 const KERNEL_DISC: u32 = 0u;
 const KERNEL_BOX: u32 = 1u;
+//#if GAUSSIAN
+const KERNEL_GAUSS: u32 = 2u;
+//#endif
 
 // The least half-side of a rectangle's box, in texels (`cpu::shade::RECT_MIN`).
 const RECT_MIN: f32 = 0.00390625;
