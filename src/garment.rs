@@ -260,6 +260,8 @@ pub fn build(
                 position,
                 radius: nth(view.light_radius, i).unwrap_or(0.25 * r),
                 rect: None,
+                square_box: false,
+                gaussian: None,
                 // Irradiance 1 at the mesh's centre, facing the light.
                 intensity: nth(view.intensity, i).unwrap_or(d2),
                 color: view

@@ -44,6 +44,13 @@ pub struct Args {
     /// sat and explicit; mip blurs it as a square of the longer side).
     #[arg(long, value_name = "A,B", value_parser = parse_pair::<f32>)]
     pub light_rect: Vec<(f32, f32)>,
+    /// Make the lights Gaussians facing straight down: intensity falling off from the light's
+    /// position with standard deviations SX along X and SY along Y in swatch units (the last
+    /// value repeats for further lights), instead of spheres of --light-radius. The penumbra is
+    /// that Gaussian (sat: three boxes per axis from the table; explicit: exactly; mip: the
+    /// ellipse of the same variance; separable: the box of the same variance).
+    #[arg(long, value_name = "SX,SY", value_parser = parse_pair::<f32>)]
+    pub light_gaussian: Vec<(f32, f32)>,
     /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen
     /// so the first light gives irradiance 0.8 at the view's centre (headroom below white).
     #[arg(long)]
@@ -272,6 +279,10 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                 radius: nth(&args.light_radius, i, 0.05 * extent),
                 rect: (!args.light_rect.is_empty())
                     .then(|| nth(&args.light_rect, i, (0.0, 0.0)))
+                    .map(|(a, b)| [a, b]),
+                square_box: false,
+                gaussian: (!args.light_gaussian.is_empty())
+                    .then(|| nth(&args.light_gaussian, i, (0.0, 0.0)))
                     .map(|(a, b)| [a, b]),
                 intensity: nth(&args.intensity, i, 0.8 * d2 / cos),
                 color: nth(&args.color, i, [1.0, 1.0, 1.0]),
@@ -547,6 +558,17 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
         if !(a.is_finite() && b.is_finite() && a > 0.0 && b > 0.0) {
             bail!("--light-rect {a},{b}: both sides must be finite and > 0 (swatch units)");
         }
+    }
+    for &(a, b) in &args.light_gaussian {
+        if !(a.is_finite() && b.is_finite() && a > 0.0 && b > 0.0) {
+            bail!(
+                "--light-gaussian {a},{b}: both standard deviations must be finite and > 0 \
+                 (swatch units; a point light is --light-radius 0)"
+            );
+        }
+    }
+    if !args.light_gaussian.is_empty() && !args.light_rect.is_empty() {
+        bail!("--light-gaussian and --light-rect both give the lights' shape: choose one");
     }
     if args.mc_samples == 0 || args.mc_samples > MAX_MC_SAMPLES {
         bail!(

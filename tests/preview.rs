@@ -226,6 +226,72 @@ fn rectangular_lights_render_and_compare_against_monte_carlo() {
 }
 
 #[test]
+fn gaussian_lights_render_and_compare_against_monte_carlo() {
+    // A Gaussian light 4:1: the SAT's three-box kernel against the reference that draws from
+    // the Gaussian (within 1 % of the lit radiance in tests/gaussian.rs of the runtime).
+    let dir = tempfile::tempdir().unwrap();
+    let caster = write_caster(dir.path());
+    let png = dir.path().join("g.png");
+    let j = run_json(&[
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "48,48",
+        "--caster",
+        caster.to_str().unwrap(),
+        "--caster-height",
+        "0.5",
+        "--light-gaussian",
+        "0.2,0.05",
+        "--compare-blur",
+        "--mc-samples",
+        "256",
+    ]);
+    assert!(png.exists());
+    let rows = j["compare_blur"].as_array().unwrap();
+    let sat = rows.iter().find(|r| r["method"] == "sat").unwrap();
+    let e = sat["mean_abs_error"].as_f64().unwrap();
+    assert!(e.is_finite() && e < 0.01, "{sat}");
+    // Refused: σ ≤ 0 or not finite, and both shapes at once.
+    for (bad, says) in [
+        (
+            "--light-gaussian=0,0.1",
+            "--light-gaussian 0,0.1: both standard deviations",
+        ),
+        (
+            "--light-gaussian=0.1,-1",
+            "--light-gaussian 0.1,-1: both standard deviations",
+        ),
+        (
+            "--light-gaussian=nan,0.1",
+            "--light-gaussian NaN,0.1: both standard deviations",
+        ),
+    ] {
+        let out = ptm(["preview", bad, "-o", p(&png)], dir.path());
+        assert!(
+            !out.ok && out.stderr.contains(says),
+            "{bad}: {}",
+            out.stderr
+        );
+    }
+    let out = ptm(
+        [
+            "preview",
+            "--light-gaussian=0.1,0.1",
+            "--light-rect=0.1,0.1",
+            "-o",
+            p(&png),
+        ],
+        dir.path(),
+    );
+    assert!(
+        !out.ok && out.stderr.contains("choose one"),
+        "{}",
+        out.stderr
+    );
+}
+
+#[test]
 fn preview_errors_name_the_problem() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("x.png");

@@ -215,6 +215,31 @@ fn check_runtime(report: &Report) {
         );
         assert!(of("sat") < of("mip"), "rect {rect:?}");
     }
+    // Gaussians: the SAT's three boxes per axis and the explicit grid beat MIP's ellipse of the
+    // same variance and the separable box of it.
+    for g in [[0.2f32, 0.2], [0.4, 0.1]] {
+        let rows: Vec<_> = blur
+            .iter()
+            .filter(|r| r.light_gaussian == Some(g))
+            .collect();
+        let of = |m: &str| {
+            rows.iter()
+                .find(|r| r.measured.method == m)
+                .unwrap()
+                .measured
+                .mean_abs_error
+        };
+        assert_eq!(
+            rows.len(),
+            ptm_runtime::Blur::ALL.len(),
+            "σ {g:?}: {blur:?}"
+        );
+        for exact in ["sat", "explicit"] {
+            for other in ["mip", "separable"] {
+                assert!(of(exact) < of(other), "σ {g:?}: {exact} vs {other}");
+            }
+        }
+    }
 }
 
 /// The CSV files of a report on `swatches`, with their header lines, in the order

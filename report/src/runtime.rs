@@ -35,12 +35,16 @@ impl Runtime {
 /// One blur method's soft shadow against the Monte Carlo ground truth.
 #[derive(Clone, Debug)]
 pub struct BlurRow {
-    /// The spherical light's radius (a rectangle's longer half-side).
+    /// The spherical light's radius (a rectangle's longer half-side, a Gaussian's larger σ).
     pub light_radius: f32,
     /// A rectangular light's sides (None: a sphere); it asks the methods for the box kernel,
     /// a sphere for the disc.
     pub light_rect: Option<[f32; 2]>,
-    /// The penumbra radius on the caster, texels (a rectangle's longer half-side).
+    /// A Gaussian light's standard deviations (None: a sphere or a rectangle); it asks for the
+    /// Gaussian kernel.
+    pub light_gaussian: Option<[f32; 2]>,
+    /// The penumbra radius on the caster, texels (a rectangle's longer half-side, a
+    /// Gaussian's larger σ).
     pub penumbra_texels: f64,
     /// The method's errors against the ground truth and its pass times.
     pub measured: compare::BlurRow,
@@ -92,24 +96,30 @@ fn light(position: [f32; 3], radius: f32) -> Light {
         position,
         radius,
         rect: None,
+        square_box: false,
+        gaussian: None,
         intensity: 4.0,
         color: [1.0; 3],
     }
 }
 
 /// Every blur method against the Monte Carlo soft shadow, for a small and a large sphere
-/// (the disc kernel) and two rectangles (the box kernel, aspects 4:1 and 1000:1).
+/// (the disc kernel), two rectangles (the box kernel, aspects 4:1 and 1000:1) and two
+/// Gaussians (the Gaussian kernel, round and 4:1).
 pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
     let (side, mc) = if quick { (96, 96) } else { (384, 512) };
     let mut rows = Vec::new();
     let caster_texels = 512;
     let spheres = [0.1f32, 0.5].map(|r| (r, None));
-    let rects = [[0.8f32, 0.2], [1.0, 0.001]].map(|r| (0.5 * r[0].max(r[1]), Some(r)));
-    for (reach, rect) in spheres.into_iter().chain(rects) {
+    let spheres = spheres.map(|(r, rect)| (r, rect, None));
+    let rects = [[0.8f32, 0.2], [1.0, 0.001]].map(|r| (0.5 * r[0].max(r[1]), Some(r), None));
+    let gaussians = [[0.2f32, 0.2], [0.4, 0.1]].map(|g| (g[0].max(g[1]), None, Some(g)));
+    for (reach, rect, gaussian) in spheres.into_iter().chain(rects).chain(gaussians) {
         let mut s = Scene::over_ptm(cloth(32), 4, [side, side]);
         s.view = [-1.0, -1.0, 1.0, 1.0];
         let mut l = light([0.3, 0.2, 2.0], reach);
         l.rect = rect;
+        l.gaussian = gaussian;
         s.lights = vec![l];
         s.caster = Some(leaves(caster_texels, [-1.5, -1.5, 1.5, 1.5], 0.6));
         let w = caster_radius(reach as f64, 2.0 - 0.6, 0.6) * caster_texels as f64 / 3.0;
@@ -117,6 +127,7 @@ pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
             rows.push(BlurRow {
                 light_radius: reach,
                 light_rect: rect,
+                light_gaussian: gaussian,
                 penumbra_texels: w,
                 measured,
             });
@@ -234,7 +245,12 @@ pub fn extremes(g: &Gpu) -> Result<Vec<ExtremeRow>> {
         },
     ];
     let mut rows = Vec::new();
-    for c in cases {
+    for mut c in cases {
+        // The SAT's cases keep the square box of half-side w (`Light::square_box`), whose
+        // profile across the half-plane is the analytic ramp below; a sphere's own kernel, the
+        // ellipse its cone cuts from the caster plane, is held to Monte Carlo instead
+        // (`blur_methods`, runtime/tests/kernels.rs).
+        c.light.square_box = c.blur != Blur::Explicit;
         let mut s = strip(c.light, c.blur);
         let free = gpu::render(g, &s.prepare()?)?.0;
         s.caster = Some(half_plane(c.caster.0, c.caster.0, c.caster.1));

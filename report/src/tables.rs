@@ -451,14 +451,15 @@ fn blur(rows: &[BlurRow]) -> Table {
     for r in rows {
         let m = &r.measured;
         t.push(vec![
-            match r.light_rect {
-                Some([a, b]) => format!("rect {}×{}", g3(a as f64), g3(b as f64)),
-                None => format!("sphere R {}", g3(r.light_radius as f64)),
+            match (r.light_rect, r.light_gaussian) {
+                (Some([a, b]), _) => format!("rect {}×{}", g3(a as f64), g3(b as f64)),
+                (None, Some([a, b])) => format!("gaussian σ {}×{}", g3(a as f64), g3(b as f64)),
+                (None, None) => format!("sphere R {}", g3(r.light_radius as f64)),
             },
-            if r.light_rect.is_some() {
-                "box"
-            } else {
-                "disc"
+            match (r.light_rect, r.light_gaussian) {
+                (Some(_), _) => "box",
+                (None, Some(_)) => "gaussian",
+                (None, None) => "disc",
             }
             .into(),
             g3(r.penumbra_texels),

@@ -114,6 +114,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         position: p,
         radius,
         rect: None,
+        square_box: false,
+        gaussian: None,
         intensity: 8.0,
         color: [1.0; 3],
     };

@@ -93,6 +93,8 @@ fn main() {
         position: [-3.0, -4.0, 5.0],
         radius: 0.3,
         rect: None,
+        square_box: false,
+        gaussian: None,
         intensity: 50.0,
         color: [1.0; 3],
     };

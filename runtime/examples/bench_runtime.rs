@@ -1,7 +1,9 @@
 //! Benchmark of the runtime: time per pass at 1920×1080 (ptm11, 1024² caster, every blur
 //! method), and the shade time of `sat` against `explicit` as the penumbra radius grows from 1
-//! to 64 caster texels. Run: `cargo run --release -p ptm-runtime --example bench_runtime`
-//! (`-- --quick` for fewer frames; `-- --sweep-size N` for the radius sweep's image side).
+//! to 64 caster texels, and of `sat` under a Gaussian light (nine box lookups) as its σ does.
+//! Run: `cargo run --release -p ptm-runtime --example bench_runtime` (`-- --quick` for fewer
+//! frames; `-- --sweep-size N` for the radius sweep's image side; `-- --sweep-only` without
+//! the 1080p table).
 //!
 //! Times are wall clock around submit + blocking wait (median of the frames after a warm-up);
 //! on lavapipe the "GPU" is the CPU, so the absolute numbers say little about a real GPU, but
@@ -47,6 +49,7 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .and_then(|s| s.parse().ok())
         .unwrap_or(256);
+    let sweep_only = args.iter().any(|a| a == "--sweep-only");
     let frames = if quick { 3 } else { 7 };
     let gpu = Gpu::new().expect("a wgpu adapter");
     println!("adapter: {}", gpu.describe());
@@ -61,9 +64,19 @@ fn main() {
         position: [1.0, 3.0, 2.5],
         radius: 0.3,
         rect: None,
+        square_box: false,
+        gaussian: None,
         intensity: 8.0,
         color: [1.0; 3],
     }];
+    if !sweep_only {
+        table_1080p(&gpu, &base, &c, quick, frames);
+    }
+    sweeps(&gpu, &base, &c, sweep_size, frames);
+}
+
+/// Time per pass at 1080p, every blur method.
+fn table_1080p(gpu: &Gpu, base: &Scene, c: &ptm_runtime::Caster, quick: bool, frames: usize) {
     println!("\n1920×1080, ptm11 (64² texels, 4×4 tiles), 1 light, caster 1024² (w ≈ 20 texels)");
     println!(
         "{:<22} {:>10} {:>10} {:>10} {:>12} {:>10}",
@@ -85,7 +98,7 @@ fn main() {
             println!("{name:<22} (skipped with --quick)");
             continue;
         }
-        let r = Renderer::new(&gpu, &p).unwrap();
+        let r = Renderer::new(gpu, &p).unwrap();
         // One cold frame for explicit at 1080p (tens of seconds on lavapipe).
         let shade = if s.blur == Blur::Explicit {
             r.frame().unwrap()
@@ -110,7 +123,10 @@ fn main() {
             shade / plain_shade
         );
     }
+}
 
+/// Shade time as the penumbra grows: sat flat, explicit ∝ r²; sat under a Gaussian light.
+fn sweeps(gpu: &Gpu, base: &Scene, c: &ptm_runtime::Caster, sweep_size: u32, frames: usize) {
     // --- radius sweep: sat flat, explicit grows ---
     let n = sweep_size;
     println!(
@@ -133,7 +149,7 @@ fn main() {
         let mut times = [0.0; 2];
         for (k, blur) in [Blur::Sat, Blur::Explicit].into_iter().enumerate() {
             s.blur = blur;
-            let r = Renderer::new(&gpu, &s.prepare().unwrap()).unwrap();
+            let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
             let f = if blur == Blur::Sat {
                 3 * frames
             } else {
@@ -151,5 +167,25 @@ fn main() {
             times[0] / sat1,
             times[1] / expl1
         );
+    }
+
+    // --- Gaussian sweep: sat's nine boxes stay flat too ---
+    println!("\nGaussian light at {n}×{n}, sat (nine box lookups), σ on the caster in texels");
+    println!("{:>10} {:>12} {:>12}", "σ texels", "sat ms", "sat/sat(1)");
+    let mut g1 = 0.0;
+    for s_tex in [1.0f32, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0] {
+        let mut s = base.clone();
+        s.size = [n, n];
+        s.view = [0.0, 0.0, 4.0, 4.0];
+        s.caster = Some(c.clone());
+        s.blur = Blur::Sat;
+        // σ·h/lz = σ/5 on the caster (h = 0.5, lz = 2.5), texels of 3/1024 units.
+        s.lights[0].gaussian = Some([5.0 * s_tex * 3.0 / 1024.0; 2]);
+        let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
+        let t = shade_min(&r, 3 * frames);
+        if s_tex == 1.0 {
+            g1 = t;
+        }
+        println!("{s_tex:>10} {:>12.2} {:>10.2}", 1e3 * t, t / g1);
     }
 }

@@ -23,6 +23,8 @@ pub struct Renderer {
     /// The light buffer (`COPY_DST`: rewritten by `set_lights`) and its light count.
     lights: wgpu::Buffer,
     light_count: usize,
+    /// Its shader has the Gaussian light's code (`Variant::gaussian`).
+    gaussian: bool,
     /// The uniform block, and with a caster the blur method with what it prepared (asked
     /// whether moved lights keep it valid).
     frame: Frame,
@@ -355,6 +357,7 @@ impl Renderer {
             pipeline,
             lights,
             light_count: p.lights.len(),
+            gaussian: v.gaussian,
             frame: p.frame,
             blur: v
                 .caster
@@ -433,6 +436,13 @@ impl Renderer {
         let kept = self.blur.as_ref().is_none_or(|(m, prepared, uniform)| {
             m.keeps(prepared.as_ref(), &self.frame, uniform, lights)
         });
+        if !self.gaussian && lights.iter().any(|l| l.shape == LightGpu::GAUSSIAN) {
+            return Err(Error::Scene(
+                "a Gaussian light needs the shader variant with its code, which this renderer \
+                 was built without: rebuild the renderer"
+                    .into(),
+            ));
+        }
         if lights.len() != self.light_count || !kept {
             return Err(Error::Scene(format!(
                 "moving {} lights in place needs the same number of lights ({} here) and, for \

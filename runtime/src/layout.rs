@@ -117,12 +117,24 @@ pub struct LightGpu {
     pub radius: f32,
     /// Colour × intensity (linear rgb).
     pub color: [f32; 3],
-    /// 0: a sphere of `radius`; 1: a rectangle of half-sides `half`, facing down.
+    /// [`LightGpu::SPHERE`], [`LightGpu::RECT`], [`LightGpu::SPHERE_SQUARE_BOX`] or
+    /// [`LightGpu::GAUSSIAN`].
     pub shape: u32,
-    /// A rectangle's half-sides along X and Y (0 for a sphere).
+    /// A rectangle's half-sides along X and Y, a Gaussian's σ (0 for a sphere).
     pub half: [f32; 2],
     /// Padding to 16 bytes, as the WGSL struct.
     pub pad: [f32; 2],
+}
+
+impl LightGpu {
+    /// A sphere of `radius`, its kernel the ellipse its cone cuts from the caster plane.
+    pub const SPHERE: u32 = 0;
+    /// A rectangle of half-sides `half`, facing down.
+    pub const RECT: u32 = 1;
+    /// A sphere whose kernel is the square box of half-side R·s (the runtime before the ellipse).
+    pub const SPHERE_SQUARE_BOX: u32 = 2;
+    /// A Gaussian of standard deviations `half`, facing down.
+    pub const GAUSSIAN: u32 = 3;
 }
 
 /// One level of the PTM's MIP chain: `struct PtmLevel` in `shader/shade.wgsl`.

@@ -825,6 +825,8 @@ mod tests {
             position: [1.0, 1.0, 3.0],
             radius: 0.1,
             rect: None,
+            square_box: false,
+            gaussian: None,
             intensity: 1.0,
             color: [1.0; 3],
         }];

@@ -41,7 +41,7 @@ pub fn mc_opacity(
     samples: u32,
     key: u64,
 ) -> [f32; 3] {
-    if light.shape == 1 {
+    if light.shape == LightGpu::RECT || light.shape == LightGpu::GAUSSIAN {
         return mc_opacity_rect(frame, plane, p, light, samples, key, true);
     }
     let h = frame.caster_height as f64;
@@ -108,7 +108,8 @@ pub fn mc_opacity(
 }
 
 /// As [`mc_opacity`] for a uniform rectangle facing down (half-sides `light.half` along X and
-/// Y): `samples` stratified points uniform in area, each weighted by cos θ at p · cos θ at the
+/// Y) or a Gaussian one (σ = `light.half`, points drawn from it: [`planar_offset`]):
+/// `samples` stratified points uniform in area, each weighted by cos θ at p · cos θ at the
 /// light / r² (the irradiance each patch gives; with `irradiance` false every point weighs the
 /// same, the kernel alone: the mean over the rectangle's image on the caster), the ray to each
 /// intersected exactly with the caster plane. A sample of a rectangle 1000 times longer than wide still falls in its own
@@ -134,8 +135,13 @@ pub fn mc_opacity_rect(
     let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]), h];
     let (normal, along) = ([0.0, -sin_t, cos_t], [0.0, cos_t, sin_t]);
     let below = [centre[0] - p[0] as f64, centre[1] - p[1] as f64, h];
-    // Strata in proportion to the sides (at least one each), about `samples` in all.
-    let aspect = (half[0] / half[1].max(1e-30)).clamp(1.0 / samples as f64, samples as f64);
+    // Strata in proportion to the sides (at least one each), about `samples` in all; square
+    // (radius × angle) for a Gaussian.
+    let aspect = if light.shape == LightGpu::GAUSSIAN {
+        1.0
+    } else {
+        (half[0] / half[1].max(1e-30)).clamp(1.0 / samples as f64, samples as f64)
+    };
     let nx = ((samples as f64 * aspect).sqrt().round() as u32).clamp(1, samples);
     let ny = (samples / nx).max(1);
     let mut sum_w = 0.0;
@@ -145,11 +151,8 @@ pub fn mc_opacity_rect(
         let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
         let u1 = (si as f64 + unit(hs)) / nx as f64;
         let u2 = (sj as f64 + unit(hash(hs))) / ny as f64;
-        let q = [
-            lx + (2.0 * u1 - 1.0) * half[0],
-            ly + (2.0 * u2 - 1.0) * half[1],
-            lz,
-        ];
+        let o = planar_offset(light.shape, half, u1, u2);
+        let q = [lx + o[0], ly + o[1], lz];
         let dir = [q[0] - p[0] as f64, q[1] - p[1] as f64, lz];
         let r2 = dot(dir, dir);
         // cos at p = cos at the light = lz / r; the patch's solid angle ∝ cos_l / r².
@@ -174,6 +177,19 @@ pub fn mc_opacity_rect(
         return [0.0; 3];
     }
     sum_o.map(|x| (x / sum_w) as f32)
+}
+
+/// A point of a planar light as an offset from its centre, from two uniform numbers in [0, 1):
+/// uniform over a rectangle of half-sides `half`, or for a Gaussian ([`LightGpu::GAUSSIAN`], σ =
+/// `half`) drawn from it by Box–Muller (u1 the radius's quantile, u2 the angle), so stratified
+/// (u1, u2) stay stratified.
+pub fn planar_offset(shape: u32, half: [f64; 2], u1: f64, u2: f64) -> [f64; 2] {
+    if shape == LightGpu::GAUSSIAN {
+        let r = (-2.0 * (1.0 - u1).max(1e-300).ln()).sqrt();
+        let phi = 2.0 * PI * u2;
+        return [half[0] * r * phi.cos(), half[1] * r * phi.sin()];
+    }
+    [(2.0 * u1 - 1.0) * half[0], (2.0 * u2 - 1.0) * half[1]]
 }
 
 /// Ground truth for K under an area light: the mean of [`Ptm::eval_dir`] at texel `texel`
@@ -208,8 +224,8 @@ pub fn mc_k(
         return k(axis) as f32;
     }
     let half = light.half.map(|x| x as f64);
-    // Strata: square for a sphere, in proportion to the sides for a rectangle.
-    let (nx, ny) = if light.shape == 1 {
+    // Strata: square for a sphere or a Gaussian, in proportion to the sides for a rectangle.
+    let (nx, ny) = if light.shape == LightGpu::RECT {
         let aspect = (half[0] / half[1].max(1e-30)).clamp(1.0 / samples as f64, samples as f64);
         let nx = ((samples as f64 * aspect).sqrt().round() as u32).clamp(1, samples);
         (nx, (samples / nx).max(1))
@@ -224,12 +240,9 @@ pub fn mc_k(
         let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
         let u1 = (si as f64 + unit(hs)) / nx as f64;
         let u2 = (sj as f64 + unit(hash(hs))) / ny as f64;
-        let (dir, weight) = if light.shape == 1 {
-            let q = [
-                c[0] + (2.0 * u1 - 1.0) * half[0],
-                c[1] + (2.0 * u2 - 1.0) * half[1],
-                c[2],
-            ];
+        let (dir, weight) = if light.shape == LightGpu::RECT || light.shape == LightGpu::GAUSSIAN {
+            let o = planar_offset(light.shape, half, u1, u2);
+            let q = [c[0] + o[0], c[1] + o[1], c[2]];
             let r2 = dot(q, q);
             (q.map(|x| x / r2.sqrt()), c[2] * c[2] / (r2 * r2))
         } else {

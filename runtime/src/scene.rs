@@ -34,19 +34,46 @@ pub struct Light {
     /// caster's fraction of the way to the light: a box of any aspect ratio, exact with the
     /// summed-area table.
     pub rect: Option<[f32; 2]>,
+    /// A sphere's penumbra kernel: `false` (the default) the ellipse where the cone from the
+    /// shaded point to the sphere cuts the caster plane (longer along the direction away from
+    /// the light, more so the more oblique the light); `true` the square box of half-side R·s
+    /// everywhere that the runtime used before the ellipse, kept for comparisons.
+    pub square_box: bool,
+    /// `Some([σx, σy])`: a light facing straight down whose radiance falls off from `position`
+    /// as a Gaussian of standard deviations σx along X and σy along Y, instead of a sphere (its
+    /// total power as a point light's of `intensity`). Its penumbra kernel on a caster parallel
+    /// to the cloth is that Gaussian scaled by the caster's fraction of the way to the light.
+    pub gaussian: Option<[f32; 2]>,
     /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
     pub intensity: f32,
     /// Linear RGB colour.
     pub color: [f32; 3],
 }
 
+impl Default for Light {
+    /// A white point light of intensity 1 one unit above the origin.
+    fn default() -> Light {
+        Light {
+            position: [0.0, 0.0, 1.0],
+            radius: 0.0,
+            rect: None,
+            square_box: false,
+            gaussian: None,
+            intensity: 1.0,
+            color: [1.0; 3],
+        }
+    }
+}
+
 impl Light {
     /// The light's largest distance from its centre in the plane of the cloth: the sphere's
     /// radius, or half the rectangle's diagonal (how far a penumbra can spread).
     pub fn extent(&self) -> f32 {
-        match self.rect {
-            Some([a, b]) => 0.5 * (a * a + b * b).sqrt(),
-            None => self.radius,
+        match (self.rect, self.gaussian) {
+            (Some([a, b]), _) => 0.5 * (a * a + b * b).sqrt(),
+            // Three standard deviations hold all but 1 % of it.
+            (None, Some([a, b])) => 3.0 * (a * a + b * b).sqrt(),
+            (None, None) => self.radius,
         }
     }
 }
@@ -159,8 +186,17 @@ impl Scene {
                 position: l.position,
                 radius: l.radius.max(0.0),
                 color: l.color.map(|c| c * l.intensity),
-                shape: u32::from(l.rect.is_some()),
-                half: l.rect.map_or([0.0; 2], |r| r.map(|x| 0.5 * x)),
+                shape: match (l.rect, l.gaussian, l.square_box) {
+                    (Some(_), _, _) => LightGpu::RECT,
+                    (None, Some(_), _) => LightGpu::GAUSSIAN,
+                    (None, None, false) => LightGpu::SPHERE,
+                    (None, None, true) => LightGpu::SPHERE_SQUARE_BOX,
+                },
+                half: match (l.rect, l.gaussian) {
+                    (Some(r), _) => r.map(|x| 0.5 * x),
+                    (None, Some(sigma)) => sigma,
+                    (None, None) => [0.0; 2],
+                },
                 pad: [0.0; 2],
             })
             .collect()
@@ -200,6 +236,20 @@ impl Scene {
                     return Err(Error::Scene(format!(
                         "light {i} is a rectangle of sides {} × {}: both must be finite and > 0",
                         r[0], r[1]
+                    )));
+                }
+            }
+            if let Some(sigma) = l.gaussian {
+                if !sigma.iter().all(|x| x.is_finite() && *x > 0.0) {
+                    return Err(Error::Scene(format!(
+                        "light {i} is a Gaussian of σ {} × {}: both must be finite and > 0 (a \
+                         point light is radius 0)",
+                        sigma[0], sigma[1]
+                    )));
+                }
+                if l.rect.is_some() {
+                    return Err(Error::Scene(format!(
+                        "light {i} is both a rectangle and a Gaussian: give it one shape"
                     )));
                 }
             }
@@ -380,6 +430,10 @@ impl Scene {
             mesh: false,
             normal_map: false,
             shadow: false,
+            gaussian: self
+                .lights
+                .iter()
+                .any(|l| l.rect.is_none() && l.gaussian.is_some()),
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
@@ -622,6 +676,9 @@ pub struct Variant {
     pub normal_map: bool,
     /// Mesh path: the mesh's macro shadow (a depth pass per light, `shadow_visibility`).
     pub shadow: bool,
+    /// Some light is a Gaussian ([`Light::gaussian`]): only then is its code compiled (its
+    /// kernel, `KERNEL_GAUSS`, and its footprint).
+    pub gaussian: bool,
 }
 
 impl Variant {
@@ -679,6 +736,7 @@ impl Variant {
                                 mesh: false,
                                 normal_map: false,
                                 shadow: false,
+                                gaussian: false,
                             });
                         }
                     }
@@ -701,11 +759,23 @@ impl Variant {
                             mesh: true,
                             normal_map,
                             shadow,
+                            gaussian: false,
                         });
                     }
                 }
             }
         }
+        // A Gaussian light's code with every blur method, channel count, link, map and mesh
+        // option (albedo, the PTM's MIP chain and coverage do not meet it).
+        let gaussian: Vec<Variant> = out
+            .iter()
+            .filter(|v| !v.albedo_texture && !v.ptm_mip && !v.coverage)
+            .map(|v| Variant {
+                gaussian: true,
+                ..*v
+            })
+            .collect();
+        out.extend(gaussian);
         out
     }
 
@@ -744,6 +814,9 @@ impl Variant {
         }
         if self.shadow {
             parts.push("shadow".into());
+        }
+        if self.gaussian {
+            parts.push("gaussian".into());
         }
         parts.join("+")
     }

@@ -910,6 +910,8 @@ mod tests {
             position: [1.0, 0.75, 2.0],
             radius: 0.1,
             rect: None,
+            square_box: false,
+            gaussian: None,
             intensity: 4.0,
             color: [1.0, 1.0, 1.0],
         }];

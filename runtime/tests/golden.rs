@@ -122,6 +122,29 @@ fn golden_ptm6_sat_under_rectangular_lights() {
 }
 
 #[test]
+fn golden_ptm6_sat_oblique_sphere_ellipse_and_square_box() {
+    // One sphere low in the sky (about 70° off the vertical over the view): its kernel is the
+    // ellipse its cone cuts from the caster plane, drawn out away from the light; beside it the
+    // square box `Light::square_box` keeps, for comparison.
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.lights = vec![light([-3.5, 1.0, 1.2], 0.5, 14.0)];
+    s.caster = Some(random_caster(24, 24, [0.6, 0.4, 1.8, 1.6], 0.3, 5));
+    check_golden("ptm6_sat_oblique", &s);
+    s.lights[0].square_box = true;
+    check_golden("ptm6_sat_oblique_square_box", &s);
+}
+
+#[test]
+fn golden_ptm6_sat_under_gaussian_lights() {
+    // A round Gaussian and one four times longer along X than along Y: the product of two
+    // sums of three boxes each, from the table.
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.lights[0].gaussian = Some([0.4, 0.4]);
+    s.lights[1].gaussian = Some([0.6, 0.15]);
+    check_golden("ptm6_sat_gaussian", &s);
+}
+
+#[test]
 fn golden_learned11_sat() {
     // A learned basis's tables read at every pixel's (u, v), under the same lights and caster.
     let mut s = scene(Basis::Ptm11, Blur::Sat, false);

@@ -91,6 +91,46 @@ fn gpu_matches_twin_under_rectangular_lights_for_every_blur() {
 }
 
 #[test]
+fn gpu_matches_twin_under_gaussian_lights_for_every_blur() {
+    let mut s = scene(Some(Basis::Ptm6), [48, 40]);
+    s.caster = Some(random_caster(40, 30, [0.3, 0.2, 2.6, 2.4], 0.6, 3));
+    // Round, 4:1 and a σ far below a texel, beside a sphere.
+    for (l, sigma) in s
+        .lights
+        .iter_mut()
+        .zip([[0.5, 0.5], [0.8, 0.2], [1e-4, 1e-4]])
+    {
+        l.gaussian = Some(sigma);
+    }
+    for colored in [false, true] {
+        s.colored_shadow = colored;
+        for blur in Blur::ALL {
+            s.blur = blur;
+            check(
+                &s,
+                &format!("Gaussian lights, {}, colored {colored}", blur.name()),
+            );
+        }
+    }
+}
+
+#[test]
+fn a_renderer_without_the_gaussian_code_refuses_gaussian_lights() {
+    // Moving lights in place keeps the shader: one compiled without the Gaussian's code (no
+    // Gaussian light when it was built) must not be handed one; a window then rebuilds.
+    let g = gpu();
+    let mut s = scene(Some(Basis::Ptm6), [16, 16]);
+    s.caster = Some(random_caster(16, 16, [0.3, 0.2, 2.6, 2.4], 0.6, 3));
+    let r = gpu::Renderer::new(&g, &s.prepare().unwrap()).unwrap();
+    assert!(r.set_lights(&s.gpu_lights()).is_ok());
+    s.lights[0].gaussian = Some([0.2, 0.3]);
+    let e = r.set_lights(&s.gpu_lights()).unwrap_err().to_string();
+    assert!(e.contains("Gaussian") && e.contains("rebuild"), "{e}");
+    let r = gpu::Renderer::new(&g, &s.prepare().unwrap()).unwrap();
+    assert!(r.set_lights(&s.gpu_lights()).is_ok());
+}
+
+#[test]
 fn gpu_sat_equals_cpu_sat_bit_for_bit() {
     let g = gpu();
     let (w, h) = (301usize, 97usize);

@@ -147,8 +147,19 @@ fn sphere_scene(basis: Basis, normal_map: bool) -> MeshScene {
 #[test]
 fn gpu_matches_the_cpu_twin_on_the_mesh_path() {
     let g = gpu();
-    for (basis, normal_map) in [(Basis::Ptm6, false), (Basis::Ptm11, true)] {
-        let (p, _) = sphere_scene(basis, normal_map).prepare().unwrap();
+    // The third: Gaussian lights (K over their footprint, the GAUSSIAN variant).
+    for (basis, normal_map, gaussian) in [
+        (Basis::Ptm6, false, false),
+        (Basis::Ptm11, true, false),
+        (Basis::Ptm6, false, true),
+    ] {
+        let mut m = sphere_scene(basis, normal_map);
+        if gaussian {
+            m.scene.lights[0].gaussian = Some([0.3, 0.1]);
+            m.scene.lights[1].gaussian = Some([0.05, 0.2]);
+        }
+        let (p, _) = m.prepare().unwrap();
+        assert_eq!(p.variant.gaussian, gaussian);
         let (gi, _) = gpu::render(&g, &p).unwrap();
         let ci = cpu::render(&p);
         let (worst, one, both) = covered_diff(&gi, &ci);
@@ -360,6 +371,28 @@ fn the_macro_shadow_of_a_floating_square_is_dark_in_its_umbra_and_lit_outside() 
     assert!(worst_lit < 1e-4, "shadow outside the penumbra: {worst_lit}");
     assert!(worst_mid < 0.15, "penumbra's middle at {worst_mid} from ½");
     twin_with_shadow(&r, &p, &gi, &ci, "floating square");
+}
+
+#[test]
+fn a_gaussian_lights_macro_shadow_is_that_of_the_disc_of_its_variance() {
+    // The macro shadow filters a light as a disc: a Gaussian of σx × σy as the disc of its
+    // variance, radius 2·√(σx·σy). Without a PTM nothing else sees the light's shape, so σ
+    // 0.1 × 0.225 renders as the 0.3 sphere does; and the GPU matches the twin.
+    let g = gpu();
+    let (sphere, _) = floating_square_scene(512).prepare().unwrap();
+    let mut m = floating_square_scene(512);
+    m.scene.lights[0].gaussian = Some([0.1, 0.225]);
+    // A Gaussian's radius is unused: 0 here, so a Gaussian read as a sphere would be a point.
+    m.scene.lights[0].radius = 0.0;
+    let (p, _) = m.prepare().unwrap();
+    assert!(p.variant.gaussian && p.variant.shadow);
+    let r = gpu::Renderer::new(&g, &p).unwrap();
+    r.frame().unwrap();
+    let gi = r.readback().unwrap();
+    let ci = cpu::render(&p);
+    let d = ci.max_abs_diff(&cpu::render(&sphere)).unwrap();
+    assert!(d < 1e-5, "Gaussian vs its variance's sphere: {d}");
+    twin_with_shadow(&r, &p, &gi, &ci, "floating square, Gaussian light");
 }
 
 /// The macro shadow on the GPU against the twin, in two parts: the depth maps (rasterised by

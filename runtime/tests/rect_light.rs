@@ -72,6 +72,7 @@ fn errors(lz: f32, irradiance: bool) -> Vec<([f32; 2], f32, f32, f32, f32)> {
             let err = mean_abs_diff(&cpu::render(&p), &fine);
             let mut sphere = s.clone();
             sphere.lights[0].rect = None;
+            sphere.lights[0].square_box = true;
             sphere.lights[0].radius = (rect[0] * rect[1] / std::f32::consts::PI).sqrt();
             let square = mean_abs_diff(&cpu::render(&sphere.prepare().unwrap()), &fine);
             let lit = lit(&s);

@@ -28,14 +28,15 @@ pub fn opacity_raw(opacity: &[u32], size: [u32; 2], t: [f32; 2]) -> [u32; 3] {
     [o & 255, (o >> 8) & 255, (o >> 16) & 255]
 }
 
-/// Reference blur: mean over an n×n grid of samples inside the ellipse of radii wt (texels)
-/// around t, or the whole grid for [`Kernel::Box`], n = clamp(⌈4·max(wt)⌉, 16, `samples`);
-/// integer sums divided once.
+/// Reference blur: mean over an n×n grid of samples inside the sheared ellipse of radii wt
+/// (texels) around t ([`Kernel::Disc`]), or the whole grid for [`Kernel::Box`],
+/// n = clamp(⌈4·max(wt)⌉, 16, `samples`); integer sums divided once.
 pub fn blur_explicit(
     plane: &Plane,
     samples: u32,
     t: [f32; 2],
     wt: [f32; 2],
+    shear: f32,
     kernel: Kernel,
 ) -> [f32; 3] {
     let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, samples);
@@ -51,7 +52,10 @@ pub fn blur_explicit(
                 let v = opacity_raw(
                     &plane.texels,
                     plane.size,
-                    [t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]],
+                    [
+                        t[0] + (o[0] * wt[0] + shear * o[1] * wt[1]),
+                        t[1] + o[1] * wt[1],
+                    ],
                 );
                 for c in 0..3 {
                     sum[c] += v[c];
@@ -63,13 +67,43 @@ pub fn blur_explicit(
     sum.map(|s| s as f32 / (count as f32 * 255.0))
 }
 
+/// How far the Gaussian's grid reaches, in σ (`GAUSS_REACH`).
+pub const GAUSS_REACH: f32 = 3.5;
+
+/// Reference blur of [`Kernel::Gauss`]: an n×n grid over ±[`GAUSS_REACH`]·wt around t, each
+/// sample weighted by exp(−½|o|²), n = clamp(⌈4·GAUSS_REACH·max(wt)⌉, 16, `samples`).
+pub fn blur_explicit_gauss(plane: &Plane, samples: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    let n = ((4.0 * GAUSS_REACH * wt[0].max(wt[1])).ceil() as u32).clamp(16, samples);
+    let mut sum = [0f32; 3];
+    let mut total = 0f32;
+    for j in 0..n {
+        for i in 0..n {
+            let o = [
+                ((i as f32 + 0.5) / n as f32 * 2.0 - 1.0) * GAUSS_REACH,
+                ((j as f32 + 0.5) / n as f32 * 2.0 - 1.0) * GAUSS_REACH,
+            ];
+            let w = (-0.5 * (o[0] * o[0] + o[1] * o[1])).exp();
+            let v = opacity_raw(
+                &plane.texels,
+                plane.size,
+                [t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]],
+            );
+            for c in 0..3 {
+                sum[c] += w * v[c] as f32;
+            }
+            total += w;
+        }
+    }
+    sum.map(|s| s / (total * 255.0))
+}
+
 impl Method for Explicit {
     fn blur(&self) -> Blur {
         Blur::Explicit
     }
 
     fn kernels(&self) -> &'static [Kernel] {
-        &[Kernel::Disc, Kernel::Box]
+        &[Kernel::Disc, Kernel::Box, Kernel::Gauss]
     }
 
     fn wgsl(&self) -> &'static str {
@@ -97,8 +131,12 @@ impl Method for Explicit {
         _li: usize,
         t: [f32; 2],
         wt: [f32; 2],
+        shear: f32,
         kernel: Kernel,
     ) -> [f32; 3] {
-        blur_explicit(b.plane, b.uniform.samples, t, wt, kernel)
+        if kernel == Kernel::Gauss {
+            return blur_explicit_gauss(b.plane, b.uniform.samples, t, wt);
+        }
+        blur_explicit(b.plane, b.uniform.samples, t, wt, shear, kernel)
     }
 }

@@ -56,15 +56,25 @@ pub struct Plane {
 
 /// The shape of the kernel a method averages the image over (half-extents `wt` along the
 /// image's axes, in texels). A sphere light asks for [`Kernel::Disc`], a rectangular light for
-/// [`Kernel::Box`] (`KERNEL_DISC`, `KERNEL_BOX` in WGSL).
+/// [`Kernel::Box`], a Gaussian light for [`Kernel::Gauss`] (`KERNEL_DISC`, `KERNEL_BOX`,
+/// `KERNEL_GAUSS` in WGSL).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Kernel {
-    /// The ellipse of radii wt (a disc light's kernel).
+    /// The sheared ellipse ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 (a sphere light's kernel: the
+    /// ellipse its cone cuts from the caster plane, `cpu::shade::sphere_ellipse`).
     Disc,
     /// The rectangle of half-sides wt, exact.
     Box,
     /// A box approximated by a blend of the two nearest power-of-two boxes on a fixed grid.
     MipBox,
+    /// A [`Kernel::Disc`] ellipse as MIP samples along its major axis (elliptical weighted
+    /// averaging: the minor axis picks the level, major/minor the number of samples).
+    Ewa,
+    /// The Gaussian of standard deviations wt (shear 0), exactly.
+    Gauss,
+    /// A [`Kernel::Gauss`] as the product of two sums of three boxes
+    /// (`blur::sat::GAUSS_HALF`, `GAUSS_WEIGHT`): nine box lookups.
+    GaussBoxes,
 }
 
 /// What a method prepares on the CPU in `Scene::prepare` (a MIP chain, a separable plan):
@@ -98,7 +108,8 @@ pub trait Method: Sync {
     fn kernels(&self) -> &'static [Kernel];
 
     /// Its WGSL, included into `shade.wgsl` where a scene has a caster: its bindings and
-    /// `fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>) -> vec3<f32>`. `{{CHANNELS}}` is
+    /// `fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) ->
+    /// vec3<f32>`. `{{CHANNELS}}` is
     /// replaced by the image's channel count.
     fn wgsl(&self) -> &'static str;
 
@@ -138,14 +149,15 @@ pub trait Method: Sync {
     }
 
     /// Twin of the WGSL `blur_lookup`: mean image value over the kernel of radii `wt` (texels)
-    /// around texel coordinate t, for light `li`: `kernel` exactly where [`Method::kernels`]
-    /// lists it, else the method's own kernel of that size.
+    /// and `shear` ([`Kernel::Disc`]) around texel coordinate t, for light `li`: `kernel`
+    /// exactly where [`Method::kernels`] lists it, else the method's own kernel of that size.
     fn blur_lookup(
         &self,
         b: &Bound<'_>,
         li: usize,
         t: [f32; 2],
         wt: [f32; 2],
+        shear: f32,
         kernel: Kernel,
     ) -> [f32; 3];
 

@@ -60,9 +60,10 @@ pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 
 }
 
 /// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
-pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+/// Trilinear at level `lod` (log2 of a box side in texels), blended between the two nearest.
+pub fn mip_trilinear(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], lod: f32) -> [f32; 3] {
     let top = levels.len() as u32 - 1;
-    let lod = (2.0 * wt[0].max(wt[1])).log2().clamp(0.0, top as f32);
+    let lod = lod.clamp(0.0, top as f32);
     let l0 = lod as u32;
     let l1 = (l0 + 1).min(top);
     mix3(
@@ -72,13 +73,71 @@ pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]
     )
 }
 
+/// Trilinear at level log2(2·max(wt)) (the box's side in texels).
+pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+    mip_trilinear(mip, levels, t, (2.0 * wt[0].max(wt[1])).log2())
+}
+
+/// Most samples [`blur_mip_ellipse`] takes along the major axis (`MIP_EWA_MAX`).
+pub const MIP_EWA_MAX: u32 = 16;
+
+/// Area of the unit disc below η = e, less π/4 (`ewa_area` in WGSL).
+pub fn ewa_area(e: f32) -> f32 {
+    let c = e.clamp(-1.0, 1.0);
+    0.5 * (c * (1.0 - c * c).max(0.0).sqrt() + c.asin())
+}
+
+/// Elliptical weighted average from the chain: the minor semi-axis picks the level, major/minor
+/// the number of samples along the major axis (see `blur_mip_ellipse` in WGSL).
+pub fn blur_mip_ellipse(
+    mip: &[[f32; 4]],
+    levels: &[MipLevel],
+    t: [f32; 2],
+    wt: [f32; 2],
+    shear: f32,
+) -> [f32; 3] {
+    let p = wt[0] * wt[0] + shear * shear * wt[1] * wt[1];
+    let q = shear * wt[1] * wt[1];
+    let r = wt[1] * wt[1];
+    let m = 0.5 * (p + r);
+    let d = (0.25 * (p - r) * (p - r) + q * q).sqrt();
+    let major = (m + d).sqrt();
+    let minor = (m - d).max(1e-12).sqrt();
+    let mut axis = [1.0, 0.0];
+    if d > 1e-6 * m {
+        let a = if p >= r {
+            [m + d - r, q]
+        } else {
+            [q, m + d - p]
+        };
+        let len = (a[0] * a[0] + a[1] * a[1]).sqrt();
+        axis = [a[0] / len, a[1] / len];
+    }
+    let n = ((major / minor - 1e-3).ceil() as u32).min(MIP_EWA_MAX);
+    let lod = minor.log2();
+    let mut sum = [0f32; 3];
+    let mut total = 0f32;
+    for i in 0..n {
+        let e0 = -1.0 + 2.0 * i as f32 / n as f32;
+        let e1 = -1.0 + 2.0 * (i + 1) as f32 / n as f32;
+        let w = ewa_area(e1) - ewa_area(e0);
+        let c = 0.5 * (e0 + e1) * major;
+        let v = mip_trilinear(mip, levels, [t[0] + c * axis[0], t[1] + c * axis[1]], lod);
+        for k in 0..3 {
+            sum[k] += w * v[k];
+        }
+        total += w;
+    }
+    sum.map(|x| x / total)
+}
+
 impl Method for Mip {
     fn blur(&self) -> Blur {
         Blur::Mip
     }
 
     fn kernels(&self) -> &'static [Kernel] {
-        &[Kernel::MipBox]
+        &[Kernel::MipBox, Kernel::Ewa]
     }
 
     fn wgsl(&self) -> &'static str {
@@ -117,9 +176,23 @@ impl Method for Mip {
         _li: usize,
         t: [f32; 2],
         wt: [f32; 2],
-        _kernel: Kernel,
+        shear: f32,
+        kernel: Kernel,
     ) -> [f32; 3] {
         let chain: &Chain = own(b.prepared, "mip");
+        if kernel == Kernel::Disc {
+            return blur_mip_ellipse(&chain.texels, &chain.levels, t, wt, shear);
+        }
+        if kernel == Kernel::Gauss {
+            // The ellipse of the Gaussian's variance (a disc of radius r has r²/4 per axis).
+            return blur_mip_ellipse(
+                &chain.texels,
+                &chain.levels,
+                t,
+                [2.0 * wt[0], 2.0 * wt[1]],
+                0.0,
+            );
+        }
         blur_mip(&chain.texels, &chain.levels, t, wt)
     }
 }

@@ -35,16 +35,73 @@ fn mip_bilinear(level: u32, t: vec2<f32>) -> vec3<f32> {
     );
 }
 
-// Trilinear: level log2(2·max(wt)) (box side in texels), blended between the two nearest.
-fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+// Trilinear at level `lod` (log2 of a box side in texels), blended between the two nearest.
+fn mip_trilinear(t: vec2<f32>, lod_in: f32) -> vec3<f32> {
     let top = arrayLength(&mip_levels) - 1u;
-    let lod = clamp(log2(2.0 * max(wt.x, wt.y)), 0.0, f32(top));
+    let lod = clamp(lod_in, 0.0, f32(top));
     let l0 = u32(lod);
     let l1 = min(l0 + 1u, top);
     return mix(mip_bilinear(l0, t), mip_bilinear(l1, t), lod - f32(l0));
 }
 
-// The method's entry point, called by `light_opacity` (see blur/explicit.wgsl).
-fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, kernel: u32) -> vec3<f32> {
+// Trilinear: level log2(2·max(wt)) (the box's side in texels).
+fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+    return mip_trilinear(t, log2(2.0 * max(wt.x, wt.y)));
+}
+
+// Elliptical weighted average from the MIP chain: the sheared ellipse ((x − shear·y)/wt.x)² +
+// (y/wt.y)² ≤ 1 is the unit disc under L = [[wt.x, shear·wt.y], [0, wt.y]]; its semi-axes are
+// L's singular values. The minor one picks the level: level l's bilinear texels spread a point
+// with variance (2^l)²/4 per axis, the disc of radius r's own (r²/4), so l = log2(minor);
+// major/minor picks the number of samples n (≤ MIP_EWA_MAX) spaced evenly along the major axis,
+// each weighted by the ellipse's area in its band (∫√(1 − η²)dη, as the SAT's slabs).
+const MIP_EWA_MAX: u32 = 16u;
+
+fn ewa_area(e: f32) -> f32 {
+    let c = clamp(e, -1.0, 1.0);
+    return 0.5 * (c * sqrt(max(1.0 - c * c, 0.0)) + asin(c));
+}
+
+fn blur_mip_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec3<f32> {
+    // L·Lᵀ = [[p, q], [q, r]]; its eigenvalues are the squared semi-axes.
+    let p = wt.x * wt.x + shear * shear * wt.y * wt.y;
+    let q = shear * wt.y * wt.y;
+    let r = wt.y * wt.y;
+    let m = 0.5 * (p + r);
+    let d = sqrt(0.25 * (p - r) * (p - r) + q * q);
+    let major = sqrt(m + d);
+    let minor = sqrt(max(m - d, 1e-12));
+    var axis = vec2<f32>(1.0, 0.0);
+    if (d > 1e-6 * m) {
+        axis = select(vec2<f32>(q, m + d - p), vec2<f32>(m + d - r, q), p >= r);
+        axis = axis / length(axis);
+    }
+    let n = min(u32(ceil(major / minor - 1e-3)), MIP_EWA_MAX);
+    let lod = log2(minor);
+    var sum = vec3<f32>(0.0);
+    var total = 0.0;
+    for (var i = 0u; i < n; i++) {
+        let e0 = -1.0 + 2.0 * f32(i) / f32(n);
+        let e1 = -1.0 + 2.0 * f32(i + 1u) / f32(n);
+        let w = ewa_area(e1) - ewa_area(e0);
+        sum += w * mip_trilinear(t + 0.5 * (e0 + e1) * major * axis, lod);
+        total += w;
+    }
+    return sum / total;
+}
+
+// The method's entry point, called by `light_opacity` (see blur/explicit.wgsl): a box as one
+// trilinear lookup, an ellipse by EWA, and a Gaussian of standard deviations wt as the ellipse
+// of the same variance (radii 2·wt: a disc of radius r has variance r²/4 per axis), so its
+// unequal axes give a non-proportionally scaled lookup.
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec3<f32> {
+    if (kernel == KERNEL_DISC) {
+        return blur_mip_ellipse(t, wt, shear);
+    }
+//#if GAUSSIAN
+    if (kernel == KERNEL_GAUSS) {
+        return blur_mip_ellipse(t, 2.0 * wt, 0.0);
+    }
+//#endif
     return blur_mip(t, wt);
 }

@@ -3,8 +3,8 @@
 //! point for new kernels and methods: each method is one module here that owns its WGSL (the
 //! lookup included into the shading pass, and any passes run before it), its CPU twin, the
 //! resources it prepares and uploads, and the kernels it supports ([`Method`]). Nothing outside
-//! this folder names a method's buffers; the shading pass calls `blur_lookup(li, t, wt)` (image
-//! texel coordinate t, kernel radii wt in texels, light li) and the twin calls
+//! this folder names a method's buffers; the shading pass calls `blur_lookup(li, t, wt, shear, kernel)`
+//! (image texel coordinate t, kernel radii wt in texels and shear, light li, `Kernel`) and the twin calls
 //! [`Method::blur_lookup`].
 //!
 //! Adding a method: a [`crate::Blur`] value, a module implementing [`Method`], its arm in

@@ -69,12 +69,18 @@ pub fn plan(f: &Frame, size: [u32; 2], lights: &[LightGpu]) -> Plan {
             let (lz, r) = (l.position[2], l.radius);
             let hgt = f.caster_height;
             let active = lz > hgt;
-            if l.shape == 1 {
-                // A rectangle: a box of half-sides s·half (s = d_ca/d_lc).
+            if l.shape == LightGpu::RECT || l.shape == LightGpu::GAUSSIAN {
+                // A rectangle: a box of half-sides s·half (s = d_ca/d_lc); a Gaussian of σ =
+                // half: the box of its variance (half-sides √3·σ·s).
                 let s = if active { hgt / lz } else { 0.0 };
+                let k = if l.shape == LightGpu::RECT {
+                    1.0
+                } else {
+                    3f32.sqrt()
+                };
                 return [
-                    (l.half[0] * s / texel[0]).max(0.5),
-                    (l.half[1] * s / texel[1]).max(0.5),
+                    (k * l.half[0] * s / texel[0]).max(0.5),
+                    (k * l.half[1] * s / texel[1]).max(0.5),
                 ];
             }
             let wl = if active { r * hgt / lz } else { 0.0 };
@@ -301,6 +307,7 @@ impl Method for Separable {
         li: usize,
         t: [f32; 2],
         _wt: [f32; 2],
+        _shear: f32,
         _kernel: Kernel,
     ) -> [f32; 3] {
         let map: &Vec<f32> = own(b.built, "separable");

@@ -34,7 +34,7 @@ fn blur_separable(li: u32, t: vec2<f32>) -> vec3<f32> {
 }
 
 // The method's entry point, called by `light_opacity` (see blur/explicit.wgsl); the map of
-// light li was blurred with that light's radii, so `wt` is not read.
-fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, kernel: u32) -> vec3<f32> {
+// light li was blurred with that light's radii (a box), so `wt` and `shear` are not read.
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec3<f32> {
     return blur_separable(li, t);
 }

@@ -412,6 +412,9 @@ pub fn shadow_light_radius(l: &LightGpu) -> f32 {
     if l.shape == 1 {
         return (4.0 * l.half[0] * l.half[1] / PI).sqrt();
     }
+    if l.shape == LightGpu::GAUSSIAN {
+        return 2.0 * (l.half[0] * l.half[1]).sqrt();
+    }
     l.radius
 }
 

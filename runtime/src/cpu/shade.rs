@@ -406,14 +406,19 @@ impl Twin<'_> {
         };
         let (ax, ay) = (axis[0], axis[1]);
         // Mean (radial, tangential) angle and covariance (rr, rt, tt), radians.
-        let (mean, cov) = if light.shape == 1 {
+        // A rectangle (variance half²/3 per axis) or a Gaussian (σ²), weighted by z²/r⁴.
+        let planar = light.shape == LightGpu::RECT || light.shape == LightGpu::GAUSSIAN;
+        let (mean, cov) = if planar {
             let h = light.half;
-            let h2 = [h[0] * h[0], h[1] * h[1]];
+            let v0: [f32; 2] = if light.shape == LightGpu::GAUSSIAN {
+                [h[0] * h[0], h[1] * h[1]]
+            } else {
+                [h[0] * h[0] / 3.0, h[1] * h[1] / 3.0]
+            };
             let shift: [f32; 2] = std::array::from_fn(|k| {
-                (-4.0 / 3.0 * h2[k] * to_light[k] / (d * d)).clamp(-0.5 * h[k], 0.5 * h[k])
+                (-4.0 * v0[k] * to_light[k] / (d * d)).clamp(-0.5 * h[k], 0.5 * h[k])
             });
-            let var: [f32; 2] =
-                std::array::from_fn(|k| (h2[k] / 3.0 - shift[k] * shift[k]).max(0.0));
+            let var: [f32; 2] = std::array::from_fn(|k| (v0[k] - shift[k] * shift[k]).max(0.0));
             let sc = [l[2] / d, 1.0 / d];
             (
                 [
@@ -589,7 +594,7 @@ impl Twin<'_> {
             (r[3] - r[1]) / size[1] as f32,
         ];
         let t = caster_texel_coords(f, &self.p.plane_gpu, q);
-        let (t, wt, kernel) = if l.shape == 1 {
+        let (t, wt, shear, kernel) = if l.shape == LightGpu::RECT {
             // A rectangle facing down: a box of half-sides s·half, moved to the centroid of
             // its patches' z²/r⁴ weights (see `light_opacity` in WGSL).
             let h = l.half;
@@ -603,11 +608,34 @@ impl Twin<'_> {
                 (h[0] * s / texel[0]).max(RECT_MIN),
                 (h[1] * s * stretch / texel[1]).max(RECT_MIN),
             ];
-            (tr, wr, Kernel::Box)
+            (tr, wr, 0.0, Kernel::Box)
+        } else if l.shape == LightGpu::GAUSSIAN {
+            // A Gaussian facing down (σ = half): itself scaled by s, moved by −4·σ²·d/r² on the
+            // light (see `light_opacity` in WGSL).
+            let h = l.half;
+            let k = -4.0 / dot(ray, ray);
+            let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
+            let tr = [
+                t[0] + shift[0] / texel[0],
+                t[1] + -shift[1] * stretch / texel[1],
+            ];
+            let wr = [
+                (h[0] * s / texel[0]).max(RECT_MIN),
+                (h[1] * s * stretch / texel[1]).max(RECT_MIN),
+            ];
+            (tr, wr, 0.0, Kernel::Gauss)
         } else {
             let w = l.radius * s;
             let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
-            (t, wt, Kernel::Disc)
+            match sphere_ellipse(f, ray, s, l.radius, texel) {
+                Some(e) if l.shape == LightGpu::SPHERE => (
+                    [t[0] + e.centre[0], t[1] + e.centre[1]],
+                    e.radii,
+                    e.shear,
+                    Kernel::Disc,
+                ),
+                _ => (t, wt, 0.0, Kernel::Box),
+            }
         };
         let (method, built) = self.blur.expect("light_opacity without a blur method");
         let bound = Bound {
@@ -616,7 +644,7 @@ impl Twin<'_> {
             prepared: self.p.prepared.as_ref(),
             built,
         };
-        method.blur_lookup(&bound, li, t, wt, kernel)
+        method.blur_lookup(&bound, li, t, wt, shear, kernel)
     }
 
     /// Linear radiance leaving acceptor point p:
@@ -670,6 +698,90 @@ impl Twin<'_> {
         let r = self.shade(p, ptm_lod(f, frag));
         [r[0], r[1], r[2], 1.0]
     }
+}
+
+/// `Ellipse` of `shade.wgsl`: a sphere's kernel on the caster plane in caster texels (centre
+/// offset from the axis's hit point, radii, shear; see [`sphere_ellipse`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ellipse {
+    /// Offset of the ellipse's centre from where the ray to the light's centre meets the plane.
+    pub centre: [f32; 2],
+    /// Half-width of the chord through the centre along the rows, half-height (≥ ½ texel).
+    pub radii: [f32; 2],
+    /// Columns the chords' midpoints move per row down.
+    pub shear: f32,
+}
+
+/// `sphere_ellipse` of `shade.wgsl`: the ellipse the cone from the shaded point to a sphere of
+/// `radius` (towards `ray`, its axis meeting the caster plane at fraction s) cuts from the
+/// (tilted) caster plane, in texels of size `texel`; `None` when the cone does not meet the
+/// plane in a closed curve. Derivation in the WGSL.
+pub fn sphere_ellipse(
+    f: &Frame,
+    ray: [f32; 3],
+    s: f32,
+    radius: f32,
+    texel: [f32; 2],
+) -> Option<Ellipse> {
+    let (sin_t, cos_t) = (f.caster_sin_tilt, f.caster_cos_tilt);
+    let d2 = ray[0] * ray[0] + ray[1] * ray[1] + ray[2] * ray[2];
+    let d = d2.sqrt();
+    let a = ray.map(|x| x / d);
+    let sigma2 = radius * radius / d2;
+    let ax = a[0];
+    let a2 = a[1] * cos_t + a[2] * sin_t;
+    let an = -a[1] * sin_t + a[2] * cos_t;
+    // (Not `<=`: a NaN must return here too.)
+    if (an * an).partial_cmp(&(1.0001 * sigma2)) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let m00 = a[1] * a[1] + a[2] * a[2] - sigma2;
+    let m01 = -ax * a2;
+    let m11 = ax * ax + an * an - sigma2;
+    let det = m00 * m11 - m01 * m01;
+    let b = [
+        sigma2 * s * ray[0],
+        sigma2 * s * (ray[1] * cos_t + ray[2] * sin_t),
+    ];
+    let x0 = [
+        (m11 * b[0] - m01 * b[1]) / det,
+        (m00 * b[1] - m01 * b[0]) / det,
+    ];
+    let g = sigma2 * s * s * d2 + (b[0] * x0[0] + b[1] * x0[1]);
+    if !(g > 0.0 && det > 0.0) {
+        return None;
+    }
+    let radii = [
+        (g / m00).sqrt() / texel[0],
+        (m00 * g / det).sqrt() / texel[1],
+    ];
+    let shear = m01 * texel[1] / (m00 * texel[0]);
+    // Moved to the centroid of the light's weight over the plane (see the WGSL).
+    let e2 = [0.0, cos_t, sin_t];
+    let y: [f32; 3] = std::array::from_fn(|k| s * ray[k] + x0[1] * e2[k]);
+    let y = [y[0] + x0[0], y[1], y[2]];
+    let yy = y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
+    let ye2 = y[0] * e2[0] + y[1] * e2[1] + y[2] * e2[2];
+    let grad = [
+        -4.0 * y[0] / yy * texel[0],
+        -(e2[2] / y[2] - 4.0 * ye2 / yy) * texel[1],
+    ];
+    let [rx, ry] = radii;
+    let sxx = 0.25 * (rx * rx + shear * shear * ry * ry);
+    let sxy = 0.25 * shear * ry * ry;
+    let syy = 0.25 * ry * ry;
+    let shift = [sxx * grad[0] + sxy * grad[1], sxy * grad[0] + syy * grad[1]];
+    let v = shift[1] / ry;
+    let u = (shift[0] - shear * shift[1]) / rx;
+    let k = (0.5 / (u * u + v * v).sqrt().max(1e-20)).min(1.0);
+    Some(Ellipse {
+        centre: [
+            x0[0] / texel[0] + k * shift[0],
+            -x0[1] / texel[1] + k * shift[1],
+        ],
+        radii: radii.map(|r| r.max(0.5)),
+        shear,
+    })
 }
 
 #[cfg(test)]

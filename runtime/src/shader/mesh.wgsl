@@ -197,11 +197,17 @@ const SHADOW_DISC: array<vec2<f32>, 16> = array<vec2<f32>, 16>(
 const SHADOW_NORMAL_OFFSET: f32 = 1.0;
 const SHADOW_BIAS: f32 = 1.5;
 
-// Radius of the disc a light is filtered as: a sphere's radius, a rectangle's equal-area disc.
+// Radius of the disc a light is filtered as: a sphere's radius, a rectangle's equal-area disc,
+// a Gaussian's disc of the same variance (r²/4 = σx·σy).
 fn shadow_light_radius(l: Light) -> f32 {
     if (l.shape == 1u) {
         return sqrt(4.0 * l.half.x * l.half.y / PI);
     }
+//#if GAUSSIAN
+    if (l.shape == 3u) {
+        return 2.0 * sqrt(l.half.x * l.half.y);
+    }
+//#endif
     return l.radius;
 }
 

@@ -51,6 +51,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.mesh && v.shadow {
         d.push("SHADOW");
     }
+    if v.gaussian {
+        d.push("GAUSSIAN");
+    }
     d
 }
 
@@ -223,8 +226,11 @@ mod tests {
         // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
         // and without coverage, or learned6 or learned11 (logistic, hemispherical) × MIP chain
         // × coverage; × albedo × (caster, or a mesh with or without a normal map and a macro
-        // shadow).
-        assert_eq!(all.len(), (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4));
+        // shadow); and with a Gaussian light, without albedo, MIP chain or coverage.
+        assert_eq!(
+            all.len(),
+            (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4) + (1 + 2 * 2 * 2 + 2) * (9 + 4)
+        );
         for v in all {
             let src = shade_source(&v).unwrap();
             assert!(!src.contains("{{"), "{}: unfilled placeholder", v.name());
@@ -263,6 +269,7 @@ mod tests {
             mesh: false,
             normal_map: false,
             shadow: false,
+            gaussian: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -302,8 +309,10 @@ mod tests {
             let src = shade_source(&v).unwrap();
             let ptm = v.basis.is_some();
             for name in logistic {
-                // The mesh path's sheen visibility has its own exp().
-                if v.mesh && name == "exp(" {
+                // The mesh path's sheen visibility and the explicit grid's Gaussian weights have
+                // their own exp().
+                let gauss_grid = v.gaussian && v.caster == Some(crate::scene::Blur::Explicit);
+                if (v.mesh || gauss_grid) && name == "exp(" {
                     continue;
                 }
                 let want = ptm && v.link == Link::Logistic;

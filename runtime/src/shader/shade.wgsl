@@ -48,8 +48,8 @@ struct Light {
     position: vec3<f32>, // centre
     radius: f32,         // sphere radius R
     color: vec3<f32>,    // colour × intensity
-    shape: u32,          // 0 sphere, 1 rectangle facing down
-    half: vec2<f32>,     // rectangle: half-sides along X, Y
+    shape: u32,          // 0 sphere, 1 rectangle facing down, 2 sphere as a box, 3 Gaussian
+    half: vec2<f32>,     // rectangle: half-sides along X, Y; Gaussian: σ along X, Y
     pad: vec2<f32>,
 }
 
@@ -478,9 +478,10 @@ fn cap_moments(rho: f32, r: f32, z: f32) -> vec3<f32> {
 // shapes are first worked out as angles along the radial and tangential axes of l (away from
 // the zenith and around it), then scaled to (u, v) by the map's derivatives there and turned
 // to (u, v). Sphere: the cap of angular radius asin(min(R/d, 1)) (`cap_moments`). Rectangle
-// facing down (half-sides `half`): its points weigh cos·cos/r² = z²/r⁴, which moves their mean
-// by −(4/3)·half²·D/d² towards the point (first order in half/d; D = to_light.xy; at most
-// half/2), variance half²/3 less that shift²; a point (x, y) on it turns the direction by
+// facing down (half-sides `half`, variance v = half²/3 per axis) or Gaussian (σ = `half`,
+// v = σ²): its points weigh cos·cos/r² = z²/r⁴, which moves their mean by −4·v·D/d² towards
+// the point (first order in half/d; D = to_light.xy; at most half/2), variance v less that
+// shift²; a point (x, y) on it turns the direction by
 // (cos θ·x_radial, x_tangential)/d. To second order the map bends both: a tangential angle t
 // moves (u, v) towards the zenith by t²·(θ − sin θ cos θ)/(2 sin² θ)/(π/2) (hemispherical),
 // and any angle t by t²·sin θ/2 (projected, where the mean of l.xy is what (u, v) averages).
@@ -494,10 +495,17 @@ fn ptm_footprint(l: vec3<f32>, to_light: vec3<f32>, d: f32, light: Light) -> Foo
     // Mean (radial, tangential) angle and covariance (rr, rt, tt), radians.
     var mean = vec2<f32>(0.0);
     var cov = vec3<f32>(0.0);
-    if (light.shape == 1u) {
-        let h2 = light.half * light.half;
-        let shift = clamp(-4.0 / 3.0 * h2 * to_light.xy / (d * d), -0.5 * light.half, 0.5 * light.half);
-        let var_xy = max(h2 / 3.0 - shift * shift, vec2<f32>(0.0));
+    var planar = light.shape == 1u;
+    var v0 = light.half * light.half / 3.0;
+//#if GAUSSIAN
+    if (light.shape == 3u) {
+        planar = true;
+        v0 = light.half * light.half;
+    }
+//#endif
+    if (planar) {
+        let shift = clamp(-4.0 * v0 * to_light.xy / (d * d), -0.5 * light.half, 0.5 * light.half);
+        let var_xy = max(v0 - shift * shift, vec2<f32>(0.0));
         let sc = vec2<f32>(l.z, 1.0) / d;
         mean = sc * vec2<f32>(dot(axis, shift), axis.x * shift.y - axis.y * shift.x);
         let ax2 = axis * axis;
@@ -583,8 +591,10 @@ fn caster_texel_coords(q: vec2<f32>) -> vec2<f32> {
 // to the light centre meets it at x = p + s·(light − p); the light's cone from p has radius
 // w = R·s there (similar triangles: R·d_ca/(d_lc + d_ca) for a parallel caster), and the disk of
 // radius w around x, projected along the ray onto the plane, has radii w along X and
-// w·|cos θ + (d·e2) sin θ/(n·d)| along e2; each at least half a caster texel. A light that is not
-// beyond the caster plane as seen from p (s outside [0, 1)) casts no caster shadow.
+// w·|cos θ + (d·e2) sin θ/(n·d)| along e2; each at least half a caster texel (the square box of
+// `Light` shape 2, and a sphere's fallback). A sphere's kernel is the ellipse its cone cuts from
+// the plane (`sphere_ellipse`). A light that is not beyond the caster plane as seen from p (s
+// outside [0, 1)) casts no caster shadow.
 fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
     let r = frame.caster_rect;
     let centre = vec3<f32>(0.5 * (r.xy + r.zw), frame.caster_height);
@@ -617,18 +627,109 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
         // Floored at 1/256 texel, not ½ as a sphere's: a thin light's kernel is a line, which
         // sees the texel it crosses, not the mean of two (the box stays exact down to there).
         let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
-        return blur_lookup(li, tr, wr, KERNEL_BOX);
+        return blur_lookup(li, tr, wr, 0.0, KERNEL_BOX);
     }
+//#if GAUSSIAN
+    if (l.shape == 3u) {
+        // A Gaussian facing down (σ = half): as a rectangle, its image on the plane is itself
+        // scaled by s, a Gaussian of σ·s, moved to the centroid of the z²/r⁴ weights, −4·σ²·d/r²
+        // on the light to first order (a rectangle's −(4/3)·half² is −4 × its variance).
+        let d = ray.xy;
+        let shift = -4.0 / dot(ray, ray) * l.half * l.half * d * s;
+        let tr = t + vec2<f32>(shift.x, -shift.y * stretch) / texel;
+        let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
+        return blur_lookup(li, tr, wr, 0.0, KERNEL_GAUSS);
+    }
+//#endif
     let w = l.radius * s;
     let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
-    return blur_lookup(li, t, wt, KERNEL_DISC);
+    if (l.shape == 0u) {
+        let e = sphere_ellipse(ray, s, l.radius, texel);
+        if (e.ok) {
+            return blur_lookup(li, t + e.centre, e.radii, e.shear, KERNEL_DISC);
+        }
+    }
+    return blur_lookup(li, t, wt, 0.0, KERNEL_BOX);
 }
 
-// The kernel `blur_lookup` is asked for (`blur::Kernel` as a number): the ellipse of radii wt
-// (a sphere's), or the box of half-sides wt (a rectangle's). A method approximates what it
-// cannot apply exactly (`blur::Method::kernels`).
+// The ellipse a sphere's cone cuts from the caster plane, in caster texels: centre offset from
+// the axis's hit point t, radii (half-width of the chord through the centre along the rows,
+// half-height) and shear (the chords' midpoints move `shear` texels across per texel down):
+// ((x − shear·y)/radii.x)² + (y/radii.y)² ≤ 1, each radius at least ½ texel.
+// Derivation: apex p, axis a = ray/D, sin²α = σ² = R²/D². With the in-plane axes X and e2 and
+// origin at the axis's hit s·ray, a plane point x = u·X + v·e2 is in the cone when
+// |x⊥|² ≤ σ²|s·ray + x|² (⊥: across a), i.e. xᵀMx − 2bᵀx ≤ k with M = G − σ²I,
+// G = I − (a·X, a·e2)(a·X, a·e2)ᵀ, b = σ²·s·(ray·X, ray·e2), k = σ²s²D²: centre x0 = M⁻¹b,
+// (x − x0)ᵀM(x − x0) ≤ g = k + b·x0. M is positive definite while (a·n)² > σ² (the cone
+// meets the plane in a closed curve); `ok` is false otherwise. Everything is a sum of
+// positive terms or of σ²-sized ones, so f32 keeps small lights accurate.
+struct Ellipse {
+    centre: vec2<f32>,
+    radii: vec2<f32>,
+    shear: f32,
+    ok: bool,
+}
+
+fn sphere_ellipse(ray: vec3<f32>, s: f32, radius: f32, texel: vec2<f32>) -> Ellipse {
+    var e: Ellipse;
+    e.ok = false;
+    let d2 = dot(ray, ray);
+    let a = ray / sqrt(d2);
+    let sigma2 = radius * radius / d2;
+    let ax = a.x;
+    let a2 = a.y * frame.caster_cos_tilt + a.z * frame.caster_sin_tilt;
+    let an = -a.y * frame.caster_sin_tilt + a.z * frame.caster_cos_tilt;
+    if (!(an * an > 1.0001 * sigma2)) {
+        return e;
+    }
+    // 1 − (a·X)² and 1 − (a·e2)², as sums of squares.
+    let m00 = a.y * a.y + a.z * a.z - sigma2;
+    let m01 = -ax * a2;
+    let m11 = ax * ax + an * an - sigma2;
+    let det = m00 * m11 - m01 * m01;
+    let b = sigma2 * s * vec2<f32>(ray.x, ray.y * frame.caster_cos_tilt + ray.z * frame.caster_sin_tilt);
+    let x0 = vec2<f32>(m11 * b.x - m01 * b.y, m00 * b.y - m01 * b.x) / det;
+    let g = sigma2 * s * s * d2 + dot(b, x0);
+    if (!(g > 0.0 && det > 0.0)) {
+        return e;
+    }
+    // Texel axes: u/texel.x across, −v/texel.y down.
+    let radii = vec2<f32>(sqrt(g / m00) / texel.x, sqrt(m00 * g / det) / texel.y);
+    e.shear = m01 * texel.y / (m00 * texel.x);
+    // The light's directions are not spread evenly over the ellipse: per unit of plane area they
+    // weigh (cos at p)·(solid angle) = (y.z/|y|)·|n·y|/|y|³ at y = plane point − p, more on
+    // the near side. Moving the ellipse to that weight's centroid, to first order
+    // Σ·∇ln(weight) with Σ = L·Lᵀ/4 its covariance (L = [[rx, shear·ry], [0, ry]]), matches
+    // the weighted mean; ∇ln(weight) along an in-plane unit e is e.z/y.z − 4(y·e)/|y|². The
+    // move is capped at half the radii (before the ½-texel floor).
+    let e2 = vec3<f32>(0.0, frame.caster_cos_tilt, frame.caster_sin_tilt);
+    let y = s * ray + vec3<f32>(x0.x, 0.0, 0.0) + x0.y * e2;
+    let yy = dot(y, y);
+    let grad = vec2<f32>(-4.0 * y.x / yy * texel.x, -(e2.z / y.z - 4.0 * dot(y, e2) / yy) * texel.y);
+    let rx = radii.x;
+    let ry = radii.y;
+    let sxx = 0.25 * (rx * rx + e.shear * e.shear * ry * ry);
+    let sxy = 0.25 * e.shear * ry * ry;
+    let syy = 0.25 * ry * ry;
+    let shift = vec2<f32>(sxx * grad.x + sxy * grad.y, sxy * grad.x + syy * grad.y);
+    let v = shift.y / ry;
+    let u = (shift.x - e.shear * shift.y) / rx;
+    let k = min(1.0, 0.5 / max(sqrt(u * u + v * v), 1e-20));
+    e.centre = vec2<f32>(x0.x / texel.x, -x0.y / texel.y) + k * shift;
+    e.radii = max(radii, vec2<f32>(0.5));
+    e.ok = true;
+    return e;
+}
+
+// The kernel `blur_lookup` is asked for (`blur::Kernel` as a number): the sheared ellipse of
+// radii wt ((x − shear·y)/wt.x)² + (y/wt.y)² ≤ 1 (a sphere's), the box of half-sides wt (a
+// rectangle's, shear 0), or the Gaussian of standard deviations wt (a Gaussian light's, shear
+// 0). A method approximates what it cannot apply exactly (`blur::Method::kernels`).
 const KERNEL_DISC: u32 = 0u;
 const KERNEL_BOX: u32 = 1u;
+//#if GAUSSIAN
+const KERNEL_GAUSS: u32 = 2u;
+//#endif
 
 // The least half-side of a rectangle's box, in texels (`cpu::shade::RECT_MIN`).
 const RECT_MIN: f32 = 0.00390625;

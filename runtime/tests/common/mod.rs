@@ -23,6 +23,8 @@ pub fn light(position: [f32; 3], radius: f32, intensity: f32) -> Light {
         position,
         radius,
         rect: None,
+        square_box: false,
+        gaussian: None,
         intensity,
         color: [1.0, 1.0, 1.0],
     }
