@@ -40,7 +40,7 @@ pub mod window;
 
 pub use gpu::{Gpu, Timings};
 pub use output::Image;
-pub use scene::{Blur, Caster, Light, Scene, SceneBuffers, Warning};
+pub use scene::{Blur, Caster, Glossy, Light, Scene, SceneBuffers, Warning};
 
 /// Errors of the runtime crate. Messages name the input and, where there is something to do, what.
 #[derive(Debug, thiserror::Error)]

@@ -266,6 +266,107 @@ pub fn mc_k(
     (sum_k / sum_w) as f32
 }
 
+/// [`mc_reflection`] at every pixel of a glossy scene (the twin of
+/// [`crate::cpu::render_reflection`]), row-major; `rgba` the caster's texels as laid out
+/// (`p.plane.size`).
+pub fn render_reflection_reference(
+    p: &SceneBuffers,
+    rgba: &[[u8; 4]],
+    samples: u32,
+) -> Vec<[f32; 3]> {
+    let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
+    assert_eq!(
+        rgba.len(),
+        (p.plane.size[0] * p.plane.size[1]) as usize,
+        "the caster's texels as laid out"
+    );
+    let twin = crate::cpu::shade::Twin {
+        p,
+        blur: None,
+        opacity: None,
+    };
+    use rayon::prelude::*;
+    (0..w * h)
+        .into_par_iter()
+        .map(|t| {
+            let frag = [(t % w) as f32 + 0.5, (t / w) as f32 + 0.5];
+            let Some(q) = crate::cpu::shade::pixel_world(&p.frame, frag) else {
+                return [0.0; 3];
+            };
+            let dir = twin.view_direction(frag);
+            mc_reflection(&p.frame, p.plane.size, rgba, q, dir, samples, t as u64)
+        })
+        .collect()
+}
+
+/// Ground truth for a glossy receiver ([`crate::scene::Glossy`]): the radiance reflected at
+/// cloth point p seen along the unit view direction `dir`, ray-traced over its lobe: `samples`
+/// stratified directions uniform in solid angle within the cone of half-angle asin(`frame.glossy_sin`)
+/// around the mirror direction, each intersected exactly with the (tilted) caster plane; a ray
+/// that hits the caster takes its texel (nearest, as the methods see them) composited over the
+/// background, α·colour + (1 − α)·background with the texel's own linear colour (sRGB decoded,
+/// not the kernel's mean tint); a ray that misses it takes the background. `rgba` is the caster's
+/// image as the scene laid it out (`plane.size` texels). Deterministic: the random numbers hash
+/// (`key`, sample).
+pub fn mc_reflection(
+    frame: &Frame,
+    size: [u32; 2],
+    rgba: &[[u8; 4]],
+    p: [f32; 2],
+    dir: [f32; 3],
+    samples: u32,
+    key: u64,
+) -> [f32; 3] {
+    let back = frame.glossy_background.map(|x| x as f64);
+    let d = [dir[0] as f64, dir[1] as f64, dir[2] as f64];
+    let axis = normalize([d[0], d[1], -d[2]]);
+    let sin_a = frame.glossy_sin as f64;
+    let (e1, e2, cos_max) = cone_frame(axis, sin_a, 1.0);
+    let h = frame.caster_height as f64;
+    let [w, ht] = size;
+    let rect = frame.caster_rect.map(|x| x as f64);
+    let (sin_t, cos_t) = (frame.caster_sin_tilt as f64, frame.caster_cos_tilt as f64);
+    let centre = [0.5 * (rect[0] + rect[2]), 0.5 * (rect[1] + rect[3]), h];
+    let (normal, along) = ([0.0, -sin_t, cos_t], [0.0, cos_t, sin_t]);
+    let below = [centre[0] - p[0] as f64, centre[1] - p[1] as f64, h];
+    let strata = (samples.max(1) as f64).sqrt().ceil() as u32;
+    let mut sum = [0.0f64; 3];
+    for s in 0..strata * strata {
+        let (si, sj) = (s % strata, s / strata);
+        let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
+        let u1 = (si as f64 + unit(hs)) / strata as f64;
+        let u2 = (sj as f64 + unit(hash(hs))) / strata as f64;
+        let cos_s = 1.0 - u1 * (1.0 - cos_max);
+        let sin_s = (1.0 - cos_s * cos_s).max(0.0).sqrt();
+        let phi = 2.0 * PI * u2;
+        let ray: [f64; 3] = std::array::from_fn(|k| {
+            axis[k] * cos_s + (e1[k] * phi.cos() + e2[k] * phi.sin()) * sin_s
+        });
+        let mut c = back;
+        let t_caster = dot(normal, below) / dot(normal, ray);
+        if t_caster > 0.0 && t_caster.is_finite() {
+            let off: [f64; 3] = std::array::from_fn(|k| t_caster * ray[k] - below[k]);
+            let hit = [centre[0] + off[0], centre[1] + dot(off, along)];
+            let tc = [
+                (hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64,
+                (rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64,
+            ];
+            if tc[0] >= 0.0 && tc[1] >= 0.0 && tc[0] < w as f64 && tc[1] < ht as f64 {
+                let px = rgba[tc[1] as usize * w as usize + tc[0] as usize];
+                let a = px[3] as f64 / 255.0;
+                c = std::array::from_fn(|k| {
+                    let lin = crate::output::srgb_decode(px[k] as f32 / 255.0) as f64;
+                    a * lin + (1.0 - a) * back[k]
+                });
+            }
+        }
+        for k in 0..3 {
+            sum[k] += c[k];
+        }
+    }
+    sum.map(|x| (x / (strata * strata) as f64) as f32)
+}
+
 /// An orthonormal frame (e1, e2) around the unit `axis` towards a sphere of radius `r` at
 /// distance `d`, and the cosine of the cone the sphere subtends (−1 from inside it).
 fn cone_frame(axis: [f64; 3], r: f64, d: f64) -> ([f64; 3], [f64; 3], f64) {

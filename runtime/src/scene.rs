@@ -89,6 +89,33 @@ pub struct Perspective {
     pub fov_y_deg: f32,
 }
 
+/// A glossy receiver: the cloth also reflects the planar caster (seen from below) over a
+/// background, blurred by a lobe that is a uniform cone of half-angle
+/// [`Glossy::cone_half_angle`] around the mirror direction. Its kernel on the caster is the
+/// ellipse that cone cuts from the caster plane, which grows linearly with the distance from
+/// the reflection point to the plane: the blur method averages the caster's opacity over it as
+/// for a spherical "imaginary light" on the mirror ray whose cone is the lobe's. Where the
+/// kernel runs off the caster, the background is reflected. The pixel is
+/// (1 − F)·diffuse + F·(tint·ᾱ + (1 − ᾱ)·background), F Schlick's Fresnel of F0 at the view
+/// angle, ᾱ the mean opacity over the kernel and tint the caster's α-weighted mean linear
+/// colour (one colour: per-texel colour would need a fourth image channel).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Glossy {
+    /// 0 (a mirror) ..= 1 (a cone of half-angle 45°): the half-angle is roughness × 45°.
+    pub roughness: f32,
+    /// Linear RGB radiance reflected where the lobe misses the caster (finite, ≥ 0).
+    pub background: [f32; 3],
+    /// Reflectance at normal incidence F0, in [0, 1].
+    pub f0: f32,
+}
+
+impl Glossy {
+    /// The lobe's cone half-angle in radians: roughness × π/4.
+    pub fn cone_half_angle(&self) -> f32 {
+        self.roughness * std::f32::consts::FRAC_PI_4
+    }
+}
+
 /// Everything one frame shows.
 #[derive(Clone, Debug)]
 pub struct Scene {
@@ -115,6 +142,8 @@ pub struct Scene {
     /// Perspective camera; `None` = orthographic top view of `view`. Pixels whose ray misses
     /// the cloth plane are black.
     pub perspective: Option<Perspective>,
+    /// A glossy receiver reflecting the caster ([`Glossy`]); needs a caster.
+    pub glossy: Option<Glossy>,
 }
 
 impl Scene {
@@ -157,6 +186,7 @@ impl Scene {
             colored_shadow: false,
             blur: Blur::Sat,
             perspective: None,
+            glossy: None,
         }
     }
 
@@ -252,6 +282,45 @@ impl Scene {
                         "light {i} is both a rectangle and a Gaussian: give it one shape"
                     )));
                 }
+            }
+        }
+        if let Some(g) = &self.glossy {
+            if !(0.0..=1.0).contains(&g.roughness) {
+                return Err(Error::Scene(format!(
+                    "glossy roughness {} must lie in [0, 1] (0 a mirror, 1 a 45° cone)",
+                    g.roughness
+                )));
+            }
+            if !g.background.iter().all(|x| x.is_finite() && *x >= 0.0) {
+                return Err(Error::Scene(format!(
+                    "glossy background {:?} must be finite and ≥ 0 (linear RGB)",
+                    g.background
+                )));
+            }
+            if !(0.0..=1.0).contains(&g.f0) {
+                return Err(Error::Scene(format!(
+                    "glossy reflectance F0 {} must lie in [0, 1]",
+                    g.f0
+                )));
+            }
+            if self.caster.is_none() {
+                return Err(Error::Scene(
+                    "a glossy receiver reflects the caster: give it a caster".into(),
+                ));
+            }
+            if self.blur == Blur::Separable {
+                return Err(Error::Scene(
+                    "a glossy receiver needs a kernel per pixel; the separable blur has one per \
+                     light: use sat, mip or explicit"
+                        .into(),
+                ));
+            }
+            if self.colored_shadow {
+                return Err(Error::Scene(
+                    "a glossy receiver reflects a grey-opacity caster; coloured shadows use the \
+                     image's three channels"
+                        .into(),
+                ));
             }
         }
         let [x0, y0, x1, y1] = self.view;
@@ -408,6 +477,12 @@ impl Scene {
                 channels: if self.colored_shadow { 3 } else { 1 },
                 texels: crate::caster::opacity_texels(&texels, self.colored_shadow),
             };
+            if let Some(g) = &self.glossy {
+                frame.glossy_background = g.background;
+                frame.glossy_sin = g.cone_half_angle().sin();
+                frame.glossy_tint = reflected_tint(&texels);
+                frame.glossy_f0 = g.f0;
+            }
             frame.caster_rect = c.rect;
             frame.caster_height = c.elevation;
             frame.caster_sin_tilt = tilt.sin();
@@ -434,6 +509,7 @@ impl Scene {
                 .lights
                 .iter()
                 .any(|l| l.rect.is_none() && l.gaussian.is_some()),
+            glossy: self.glossy.is_some(),
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
@@ -679,6 +755,9 @@ pub struct Variant {
     /// Some light is a Gaussian ([`Light::gaussian`]): only then is its code compiled (its
     /// kernel, `KERNEL_GAUSS`, and its footprint).
     pub gaussian: bool,
+    /// A glossy receiver reflects the caster ([`Glossy`]): only then is `glossy_reflection`
+    /// compiled.
+    pub glossy: bool,
 }
 
 impl Variant {
@@ -737,6 +816,7 @@ impl Variant {
                                 normal_map: false,
                                 shadow: false,
                                 gaussian: false,
+                                glossy: false,
                             });
                         }
                     }
@@ -760,6 +840,7 @@ impl Variant {
                             normal_map,
                             shadow,
                             gaussian: false,
+                            glossy: false,
                         });
                     }
                 }
@@ -776,6 +857,20 @@ impl Variant {
             })
             .collect();
         out.extend(gaussian);
+        // A glossy receiver with every method that has a kernel per pixel, over a grey caster.
+        let glossy: Vec<Variant> = out
+            .iter()
+            .filter(|v| {
+                v.caster.is_some_and(|b| b != Blur::Separable)
+                    && !v.colored
+                    && !v.albedo_texture
+                    && !v.ptm_mip
+                    && !v.coverage
+                    && !v.gaussian
+            })
+            .map(|v| Variant { glossy: true, ..*v })
+            .collect();
+        out.extend(glossy);
         out
     }
 
@@ -818,6 +913,9 @@ impl Variant {
         if self.gaussian {
             parts.push("gaussian".into());
         }
+        if self.glossy {
+            parts.push("glossy".into());
+        }
         parts.join("+")
     }
 
@@ -829,6 +927,24 @@ impl Variant {
             1
         }
     }
+}
+
+/// The caster's colour as a glossy receiver reflects it: the α-weighted mean of its texels'
+/// linear colour (sRGB decoded); black for a wholly transparent caster.
+pub fn reflected_tint(rgba: &[[u8; 4]]) -> [f32; 3] {
+    let mut sum = [0f64; 3];
+    let mut weight = 0f64;
+    for p in rgba {
+        let a = p[3] as f64 / 255.0;
+        for c in 0..3 {
+            sum[c] += a * crate::output::srgb_decode(p[c] as f32 / 255.0) as f64;
+        }
+        weight += a;
+    }
+    if weight <= 0.0 {
+        return [0.0; 3];
+    }
+    sum.map(|x| (x / weight) as f32)
 }
 
 /// Right, up (scaled to the image's half-extent at unit distance) and forward unit vectors.

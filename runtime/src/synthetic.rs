@@ -215,6 +215,7 @@ pub fn strip(light: Light) -> Scene {
         colored_shadow: false,
         blur: Blur::Sat,
         perspective: None,
+        glossy: None,
     }
 }
 

@@ -33,6 +33,7 @@ fn scene(sigma: [f32; 2], blur: Blur) -> Scene {
         colored_shadow: false,
         blur,
         perspective: None,
+        glossy: None,
     }
 }
 

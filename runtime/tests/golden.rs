@@ -151,3 +151,24 @@ fn golden_learned11_sat() {
     s.ptm = Some(ptm_runtime::synthetic::learned_ptm(11, 17, 12, 10, 11));
     check_golden("learned11_sat", &s);
 }
+
+#[test]
+fn golden_sat_shadow_and_glossy_reflection() {
+    // A leafy caster tilted 50° (its far edge highest) over plain glossy cloth, from above: its
+    // soft shadow thrown towards −x by the light, and under the caster its green reflection,
+    // sharp along the low near edge and blurring towards the high far edge, the background
+    // where the lobe misses the leaves.
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.ptm = None;
+    s.albedo = [0.8; 3];
+    s.lights = vec![light([3.0, 1.0, 2.5], 0.3, 9.0)];
+    let mut c = ptm_runtime::synthetic::leaves(48, [0.3, 0.3, 1.3, 1.7], 0.7);
+    c.tilt_deg = 50.0;
+    s.caster = Some(c);
+    s.glossy = Some(ptm_runtime::Glossy {
+        roughness: 0.15,
+        background: [0.15, 0.2, 0.35],
+        f0: 0.5,
+    });
+    check_golden("sat_glossy", &s);
+}

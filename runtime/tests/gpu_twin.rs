@@ -115,6 +115,40 @@ fn gpu_matches_twin_under_gaussian_lights_for_every_blur() {
 }
 
 #[test]
+fn gpu_matches_twin_with_a_glossy_receiver() {
+    // The caster tilted 30° (the blur grows across the view), seen from above and in
+    // perspective, through every method with a kernel per pixel.
+    let mut s = scene(Some(Basis::Ptm6), [48, 40]);
+    let mut c = random_caster(40, 30, [0.3, 0.2, 2.6, 2.4], 1.2, 3);
+    c.tilt_deg = 30.0;
+    s.caster = Some(c);
+    s.glossy = Some(ptm_runtime::Glossy {
+        roughness: 0.3,
+        background: [0.2, 0.3, 0.5],
+        f0: 0.4,
+    });
+    let oblique = ptm_runtime::scene::Perspective {
+        eye: [1.5, -2.0, 2.5],
+        target: [1.5, 1.5, 0.0],
+        fov_y_deg: 60.0,
+    };
+    for perspective in [None, Some(oblique)] {
+        s.perspective = perspective;
+        for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
+            s.blur = blur;
+            check(
+                &s,
+                &format!(
+                    "glossy, {}, perspective {}",
+                    blur.name(),
+                    perspective.is_some()
+                ),
+            );
+        }
+    }
+}
+
+#[test]
 fn a_renderer_without_the_gaussian_code_refuses_gaussian_lights() {
     // Moving lights in place keeps the shader: one compiled without the Gaussian's code (no
     // Gaussian light when it was built) must not be handed one; a window then rebuilds.

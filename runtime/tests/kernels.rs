@@ -29,6 +29,7 @@ fn oblique(deg: f32, blur: Blur) -> Scene {
         colored_shadow: false,
         blur,
         perspective: None,
+        glossy: None,
     }
 }
 

@@ -31,6 +31,7 @@ fn scene_at(rect: [f32; 2], lz: f32) -> Scene {
         colored_shadow: false,
         blur: Blur::Sat,
         perspective: None,
+        glossy: None,
     }
 }
 

@@ -54,6 +54,31 @@ pub fn render_with(p: &SceneBuffers, opacity: Option<&OpacityFn<'_>>) -> Image {
     }
 }
 
+/// The radiance a glossy receiver reflects at every pixel (`glossy_reflection`, before the
+/// Fresnel blend), row-major; 0 where a perspective ray misses the cloth. `None` unless the
+/// scene has a glossy receiver.
+pub fn render_reflection(p: &SceneBuffers) -> Option<Vec<[f32; 3]>> {
+    let b = p.variant.caster.filter(|_| p.variant.glossy)?;
+    let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
+    let m = crate::blur::method(b);
+    let built = m.build_twin(&p.plane, p.prepared.as_ref());
+    let twin = Twin {
+        p,
+        blur: Some((m, built.as_ref())),
+        opacity: None,
+    };
+    let mut out = vec![[0f32; 3]; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(j, row)| {
+        for (i, px) in row.iter_mut().enumerate() {
+            let frag = [i as f32 + 0.5, j as f32 + 0.5];
+            if let Some(q) = pixel_world(&p.frame, frag) {
+                *px = twin.glossy_reflection(q, twin.view_direction(frag));
+            }
+        }
+    });
+    Some(out)
+}
+
 /// How far the unclamped K strays from [0, 1] over the rendered pixels and lights: a property
 /// of the fit (overshoot at grazing angles), reported beside the image.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -145,6 +170,7 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             shade::Twin::ptm_k_area, shade::Twin::coverage_level,
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
             shade::caster_texel_coords, shade::Twin::light_opacity, shade::sphere_ellipse,
+            shade::Twin::glossy_reflection, shade::Twin::glossy_fresnel,
             shade::Twin::shade,
             shade::Twin::fs_main;
         "blur/explicit.wgsl" => explicit::opacity_raw, explicit::blur_explicit,

@@ -567,6 +567,11 @@ impl Twin<'_> {
         if let Some(reference) = self.opacity {
             return reference(p, l);
         }
+        self.kernel_opacity(p, l, li)
+    }
+
+    /// [`Twin::light_opacity`] by the blur method alone (never the reference's).
+    pub fn kernel_opacity(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 3] {
         let f = self.f();
         let [lx, ly, lz] = l.position;
         let r = f.caster_rect;
@@ -689,6 +694,57 @@ impl Twin<'_> {
         radiance
     }
 
+    /// `glossy_reflection` of `shade.wgsl`: the radiance a glossy receiver reflects at p seen
+    /// along the unit view direction `dir`: the caster blurred through the imaginary light on
+    /// the mirror ray (derivation in the WGSL), composited over the background.
+    pub fn glossy_reflection(&self, p: [f32; 2], dir: [f32; 3]) -> [f32; 3] {
+        let f = self.f();
+        let back = f.glossy_background;
+        let r = [dir[0], dir[1], -dir[2]];
+        let c = f.caster_rect;
+        let centre = [0.5 * (c[0] + c[2]), 0.5 * (c[1] + c[3]), f.caster_height];
+        let n = [0.0, -f.caster_sin_tilt, f.caster_cos_tilt];
+        let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        let pp = [p[0], p[1], 0.0];
+        let denom = dot(n, r);
+        // Written as `!(x > 0)` in WGSL: NaN also reflects the background.
+        if denom.is_nan() || denom <= 0.0 {
+            return back;
+        }
+        let h = dot(n, [centre[0] - pp[0], centre[1] - pp[1], centre[2]]) / denom;
+        if h.is_nan() || h <= 0.0 {
+            return back;
+        }
+        let l = LightGpu {
+            position: std::array::from_fn(|k| pp[k] + 2.0 * h * r[k]),
+            radius: 2.0 * h * f.glossy_sin,
+            color: [0.0; 3],
+            shape: LightGpu::SPHERE,
+            half: [0.0; 2],
+            pad: [0.0; 2],
+        };
+        let a = self.kernel_opacity(p, &l, 0)[0].clamp(0.0, 1.0);
+        std::array::from_fn(|k| f.glossy_tint[k] * a + back[k] * (1.0 - a))
+    }
+
+    /// `glossy_fresnel` of `shade.wgsl`: Schlick's Fresnel at the view direction's angle to +Z.
+    pub fn glossy_fresnel(&self, dir: [f32; 3]) -> f32 {
+        let f0 = self.f().glossy_f0;
+        let m = 1.0 - (-dir[2]).clamp(0.0, 1.0);
+        f0 + (1.0 - f0) * m * m * m * m * m
+    }
+
+    /// The unit view direction through `frag` (straight down for the orthographic camera).
+    pub fn view_direction(&self, frag: [f32; 2]) -> [f32; 3] {
+        let f = self.f();
+        if f.perspective == 0 {
+            return [0.0, 0.0, -1.0];
+        }
+        let d = view_dir(f, frag);
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        d.map(|x| x / len)
+    }
+
     /// The pixel at `frag` (pixel index + 0.5): black where a perspective ray misses the cloth.
     pub fn fs_main(&self, frag: [f32; 2]) -> [f32; 4] {
         let f = self.f();
@@ -696,6 +752,13 @@ impl Twin<'_> {
             return [0.0, 0.0, 0.0, 1.0];
         };
         let r = self.shade(p, ptm_lod(f, frag));
+        if self.p.variant.glossy && self.p.variant.caster.is_some() {
+            let dir = self.view_direction(frag);
+            let fresnel = self.glossy_fresnel(dir);
+            let g = self.glossy_reflection(p, dir);
+            let m = |k: usize| (1.0 - fresnel) * r[k] + fresnel * g[k];
+            return [m(0), m(1), m(2), 1.0];
+        }
         [r[0], r[1], r[2], 1.0]
     }
 }

@@ -54,6 +54,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.gaussian {
         d.push("GAUSSIAN");
     }
+    if v.glossy && v.caster.is_some() {
+        d.push("GLOSSY");
+    }
     d
 }
 
@@ -226,10 +229,13 @@ mod tests {
         // No PTM, or ptm6 or ptm11 × link × (u, v) map × with and without a MIP chain × with
         // and without coverage, or learned6 or learned11 (logistic, hemispherical) × MIP chain
         // × coverage; × albedo × (caster, or a mesh with or without a normal map and a macro
-        // shadow); and with a Gaussian light, without albedo, MIP chain or coverage.
+        // shadow); and with a Gaussian light, without albedo, MIP chain or coverage; and with a
+        // glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3).
         assert_eq!(
             all.len(),
-            (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4) + (1 + 2 * 2 * 2 + 2) * (9 + 4)
+            (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4)
+                + (1 + 2 * 2 * 2 + 2) * (9 + 4)
+                + (1 + 2 * 2 * 2 + 2) * 3
         );
         for v in all {
             let src = shade_source(&v).unwrap();
@@ -270,6 +276,7 @@ mod tests {
             normal_map: false,
             shadow: false,
             gaussian: false,
+            glossy: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -295,6 +302,18 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");
+    }
+
+    #[test]
+    fn only_glossy_variants_have_the_reflection() {
+        let all = Variant::all();
+        assert!(all.iter().any(|v| v.glossy));
+        for v in all {
+            let src = shade_source(&v).unwrap();
+            for name in ["glossy_reflection", "glossy_fresnel"] {
+                assert_eq!(src.contains(name), v.glossy, "{}: {name}", v.name());
+            }
+        }
     }
 
     #[test]

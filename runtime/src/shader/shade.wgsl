@@ -42,6 +42,10 @@ struct Frame {
     shadow_size: u32,           // mesh: shadow map side (texels; 0 without macro shadow)
     shadow_hi: vec3<f32>,       // mesh: its high corner
     pad6: f32,
+    glossy_background: vec3<f32>, // glossy receiver: background radiance (linear)
+    glossy_sin: f32,            // glossy receiver: sin of the lobe's cone half-angle
+    glossy_tint: vec3<f32>,     // glossy receiver: the caster's reflected colour (linear)
+    glossy_f0: f32,             // glossy receiver: Schlick's F0
 }
 
 struct Light {
@@ -738,6 +742,48 @@ const RECT_MIN: f32 = 0.00390625;
 {{BLUR}}
 //#endif
 
+//#if GLOSSY
+// Glossy receiver (`scene::Glossy`): the radiance reflected at cloth point p seen along the unit
+// view direction `dir` (towards the cloth). The lobe is a cone of half-angle α around the mirror
+// direction r; it meets the (tilted) caster plane at distance h along r. The "imaginary light"
+// is the sphere on r at 2h whose radius 2h·sin α subtends that cone from p, so the caster is
+// blurred exactly as for its shadow (`light_opacity`: the cone's ellipse on the plane, half-way
+// to the light), by an amount growing linearly with h. Where the kernel runs off the caster its
+// texels count as transparent and the background shows: tint·ᾱ + (1 − ᾱ)·background. A lobe
+// that never meets the plane reflects the background alone.
+fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
+    let back = frame.glossy_background;
+    let r = vec3<f32>(dir.xy, -dir.z);
+    let c = frame.caster_rect;
+    let centre = vec3<f32>(0.5 * (c.xy + c.zw), frame.caster_height);
+    let n = vec3<f32>(0.0, -frame.caster_sin_tilt, frame.caster_cos_tilt);
+    let pp = vec3<f32>(p, 0.0);
+    let denom = dot(n, r);
+    if (!(denom > 0.0)) {
+        return back;
+    }
+    let h = dot(n, centre - pp) / denom;
+    if (!(h > 0.0)) {
+        return back;
+    }
+    var l: Light;
+    l.position = pp + 2.0 * h * r;
+    l.radius = 2.0 * h * frame.glossy_sin;
+    l.color = vec3<f32>(0.0);
+    l.shape = 0u;
+    l.half = vec2<f32>(0.0);
+    l.pad = vec2<f32>(0.0);
+    let a = clamp(light_opacity(p, l, 0u).x, 0.0, 1.0);
+    return frame.glossy_tint * a + back * (1.0 - a);
+}
+
+// Schlick's Fresnel at the view direction's angle to the normal +Z.
+fn glossy_fresnel(dir: vec3<f32>) -> f32 {
+    let m = 1.0 - clamp(-dir.z, 0.0, 1.0);
+    return frame.glossy_f0 + (1.0 - frame.glossy_f0) * m * m * m * m * m;
+}
+//#endif
+
 // Linear radiance leaving acceptor point p (normal +Z):
 // Σ albedo · I · colour · max(0, n·l)/d² · (1 − opacity) · (1 − K), × coverage with one.
 // `lod`: the PTM's level of detail at this pixel (0 without a MIP chain).
@@ -785,6 +831,16 @@ fn fs_main(@builtin(position) frag: vec4<f32>) -> @location(0) vec4<f32> {
 //#if PTM_MIP
     lod = ptm_lod(frag.xy);
 //#endif
+//#if GLOSSY
+    var dir = vec3<f32>(0.0, 0.0, -1.0);
+    if (frame.perspective != 0u) {
+        dir = normalize(view_dir(frag.xy));
+    }
+    let fresnel = glossy_fresnel(dir);
+    let glossy = glossy_reflection(p.xy, dir);
+    return vec4<f32>((1.0 - fresnel) * shade(p.xy, lod) + fresnel * glossy, 1.0);
+//#else
     return vec4<f32>(shade(p.xy, lod), 1.0);
+//#endif
 }
 //#endif
