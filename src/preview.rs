@@ -91,6 +91,19 @@ pub struct Args {
     /// How the caster opacity is averaged over the penumbra kernel.
     #[arg(long, value_parser = choice::<Blur>(), default_value = "sat")]
     pub blur: Blur,
+    /// Make the cloth glossy: it also reflects the caster (its opacity, and its α-weighted
+    /// mean colour) over --background, blurred by a lobe that is a cone of half-angle
+    /// ROUGHNESS × 45° around the mirror direction (0 a mirror, at most 1), so the reflection
+    /// blurs with the distance to the caster. The pixel is (1 − F)·diffuse + F·reflection with
+    /// Schlick's F of --reflectance. Needs --caster; --blur sat, mip or explicit.
+    #[arg(long, value_name = "ROUGHNESS")]
+    pub glossy: Option<f32>,
+    /// Linear RGB radiance a --glossy cloth reflects where its lobe misses the caster.
+    #[arg(long, value_name = "R,G,B", value_parser = parse_triple, default_value = "0.2,0.25,0.35")]
+    pub background: [f32; 3],
+    /// Reflectance F0 of a --glossy cloth at normal incidence (Schlick's Fresnel), 0 to 1.
+    #[arg(long, value_name = "F0", default_value_t = 0.3)]
+    pub reflectance: f32,
     /// Exposure of the PNG in stops (linear × 2^E before sRGB encoding).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub exposure: f32,
@@ -314,6 +327,11 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     }
     scene.colored_shadow = args.colored_shadow;
     scene.blur = args.blur;
+    scene.glossy = args.glossy.map(|roughness| ptm_runtime::Glossy {
+        roughness,
+        background: args.background,
+        f0: args.reflectance,
+    });
     if let Some(eye) = args.camera.filter(|_| args.garment.mesh.is_none()) {
         if !(eye.iter().all(|c| c.is_finite()) && eye[2] > 0.0) {
             bail!(
@@ -569,6 +587,40 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
     }
     if !args.light_gaussian.is_empty() && !args.light_rect.is_empty() {
         bail!("--light-gaussian and --light-rect both give the lights' shape: choose one");
+    }
+    if let Some(r) = args.glossy {
+        if !(0.0..=1.0).contains(&r) {
+            bail!("--glossy {r}: the roughness must lie in [0, 1] (0 a mirror, 1 a 45° cone)");
+        }
+        let b = args.background;
+        if !b.iter().all(|x| x.is_finite() && *x >= 0.0) {
+            bail!(
+                "--background {},{},{}: must be finite and ≥ 0 (linear RGB radiance)",
+                b[0],
+                b[1],
+                b[2]
+            );
+        }
+        if !(0.0..=1.0).contains(&args.reflectance) {
+            bail!("--reflectance {}: F0 must lie in [0, 1]", args.reflectance);
+        }
+        if args.caster.is_none() {
+            bail!("--glossy reflects the caster: give it a --caster");
+        }
+        if args.blur == Blur::Separable {
+            bail!(
+                "--glossy needs a kernel per pixel; --blur separable has one per light: use \
+                 sat, mip or explicit"
+            );
+        }
+        if args.colored_shadow {
+            bail!("--glossy reflects a grey-opacity caster: not with --colored-shadow");
+        }
+        if args.compare_blur || args.window || args.garment.mesh.is_some() {
+            bail!(
+                "--glossy renders a plane to a file: not with --compare-blur, --window or --mesh"
+            );
+        }
     }
     if args.mc_samples == 0 || args.mc_samples > MAX_MC_SAMPLES {
         bail!(

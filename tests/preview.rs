@@ -691,3 +691,87 @@ fn a_mesh_without_uvs_is_refused_by_name_or_projected() {
     ]);
     assert_eq!(j["mesh"]["triangles"], 2, "{j}");
 }
+
+#[test]
+fn a_glossy_cloth_reflects_the_caster_over_the_background() {
+    // From straight above, Schlick's F is F0: with --reflectance 1 the pixel is the reflection
+    // alone, the red disc's colour under its middle and the background where the lobe misses
+    // the caster; with --reflectance 0 it is the matte render, byte for byte.
+    let dir = tempfile::tempdir().unwrap();
+    let caster = write_caster(dir.path());
+    let render = |name: &str, extra: &[&str]| {
+        let png = dir.path().join(name);
+        let mut args = vec!["-o", p(&png), "--size", "32,32", "--caster", p(&caster)];
+        args.extend_from_slice(extra);
+        run_json(&args);
+        ptm_runtime::output::read_rgba8(&png).unwrap().2
+    };
+    let matte = render("matte.png", &[]);
+    let none = render("f0.png", &["--glossy", "0", "--reflectance", "0"]);
+    assert_eq!(matte, none);
+    let mirror = render(
+        "mirror.png",
+        &[
+            "--glossy",
+            "0.2",
+            "--reflectance",
+            "1",
+            "--background",
+            "0.2,0.3,0.5",
+        ],
+    );
+    let encode = |x: f32| {
+        let s = if x <= 0.0031308 {
+            12.92 * x
+        } else {
+            1.055 * x.powf(1.0 / 2.4) - 0.055
+        };
+        (s * 255.0).round() as i32
+    };
+    let near = |got: [u8; 4], want: [i32; 3], what: &str| {
+        for k in 0..3 {
+            assert!(
+                (got[k] as i32 - want[k]).abs() <= 2,
+                "{what}: {got:?} vs {want:?}"
+            );
+        }
+    };
+    near(mirror[0], [0.2, 0.3, 0.5].map(encode), "corner");
+    near(mirror[16 * 32 + 16], [220, 40, 40], "under the disc");
+    assert_ne!(mirror, matte);
+    // Refused before any GPU work, naming the flag.
+    for (bad, says) in [
+        (&["--glossy", "1.5"][..], "--glossy 1.5"),
+        (&["--glossy=-0.1"][..], "--glossy -0.1"),
+        (&["--glossy", "nan"][..], "--glossy NaN"),
+        (
+            &["--glossy", "0.2", "--background", "1,-1,0"][..],
+            "--background 1,-1,0",
+        ),
+        (
+            &["--glossy", "0.2", "--reflectance", "2"][..],
+            "--reflectance 2",
+        ),
+        (
+            &["--glossy", "0.2", "--blur", "separable"][..],
+            "--blur separable",
+        ),
+    ] {
+        let png = dir.path().join("bad.png");
+        let mut args = vec!["preview", "-o", p(&png), "--caster", p(&caster)];
+        args.extend_from_slice(bad);
+        let out = ptm(args, dir.path());
+        assert!(
+            !out.ok && out.stderr.contains(says),
+            "{bad:?}: {}",
+            out.stderr
+        );
+    }
+    let png = dir.path().join("bad.png");
+    let out = ptm(["preview", "-o", p(&png), "--glossy", "0.2"], dir.path());
+    assert!(
+        !out.ok && out.stderr.contains("--glossy reflects the caster"),
+        "{}",
+        out.stderr
+    );
+}
