@@ -150,3 +150,66 @@ fn bad_glossy_input_is_refused_naming_it() {
         assert!(e.contains(want), "{want}: {e}");
     }
 }
+
+#[test]
+fn extremes_grazing_views_a_touching_caster_and_a_45_degree_lobe_stay_finite_and_close() {
+    // A camera 0.3 above the cloth (mirror rays within a few degrees of grazing), the tilted
+    // caster's low edge touching the cloth (h → 0 there: a sharp reflection), and roughness 1
+    // (a 45° cone): every reflected value is finite and between the caster's colour and the
+    // background, and the mean error against the ray-traced lobe is printed and bounded (MIP
+    // printed only).
+    let caster = leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4);
+    let tint = [40.0f32, 160.0, 60.0].map(|c| ptm_runtime::output::srgb_decode(c / 255.0));
+    let back = [0.2f32, 0.3, 0.5];
+    let mut grazing = scene(0.25, Blur::Sat, true);
+    grazing.perspective = Some(Perspective {
+        eye: [0.0, -3.0, 0.3],
+        target: [0.0, 0.0, 0.0],
+        fov_y_deg: 50.0,
+    });
+    let mut touching = scene(0.25, Blur::Sat, false);
+    let c = touching.caster.as_mut().unwrap();
+    c.elevation = 0.8 * 40f32.to_radians().sin() + 1e-5;
+    let wide = scene(1.0, Blur::Sat, false);
+    for (what, s, bound) in [
+        // Measured 2.1 %, 0.5 % and 9.9 % for sat, alike for every method: what grows at a
+        // grazing or a 45° lobe is the kernel's shape (the ellipse is uniform in area on the
+        // plane, the lobe in solid angle), not the method; the bounds keep that in check.
+        ("grazing", grazing, 0.025),
+        ("touching", touching, 0.02),
+        ("roughness 1", wide, 0.12),
+    ] {
+        let p = s.prepare().unwrap();
+        let fine = render_reflection_reference(&p, &caster.rgba, 4096);
+        let level = mean(&fine);
+        for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
+            let mut e = s.clone();
+            e.blur = blur;
+            let got = cpu::render_reflection(&e.prepare().unwrap()).unwrap();
+            for (x, f) in got.iter().zip(&fine) {
+                for k in 0..3 {
+                    // Pixels whose ray misses the cloth are 0 in both.
+                    if *f == [0.0; 3] {
+                        assert_eq!(x[k], 0.0);
+                        continue;
+                    }
+                    let (lo, hi) = (tint[k].min(back[k]), tint[k].max(back[k]));
+                    assert!(
+                        x[k].is_finite() && x[k] >= lo - 1e-5 && x[k] <= hi + 1e-5,
+                        "{what}, {}: {x:?}",
+                        blur.name()
+                    );
+                }
+            }
+            let err = mean_abs(&got, &fine);
+            eprintln!(
+                "{what}, {}: mean |error| {err:.2e} ({:.2} % of the reflected {level:.3})",
+                blur.name(),
+                100.0 * err / level
+            );
+            if blur != Blur::Mip {
+                assert!(err <= bound * level, "{what}, {}: {err:.2e}", blur.name());
+            }
+        }
+    }
+}
