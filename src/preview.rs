@@ -91,8 +91,8 @@ pub struct Args {
     /// How the caster opacity is averaged over the penumbra kernel.
     #[arg(long, value_parser = choice::<Blur>(), default_value = "sat")]
     pub blur: Blur,
-    /// Make the cloth glossy: it also reflects the caster (its opacity, and its α-weighted
-    /// mean colour) over --background, blurred by a lobe that is a cone of half-angle
+    /// Make the cloth glossy: it also reflects the caster (each texel's colour and opacity)
+    /// over --background, blurred by a lobe that is a cone of half-angle
     /// ROUGHNESS × 45° around the mirror direction (0 a mirror, at most 1), so the reflection
     /// blurs with the distance to the caster. The pixel is (1 − F)·diffuse + F·reflection with
     /// Schlick's F of --reflectance. Needs --caster; --blur sat, mip or explicit.
