@@ -91,8 +91,8 @@ pub struct Args {
     /// How the caster opacity is averaged over the penumbra kernel.
     #[arg(long, value_parser = choice::<Blur>(), default_value = "sat")]
     pub blur: Blur,
-    /// Make the cloth glossy: it also reflects the caster (its opacity, and its α-weighted
-    /// mean colour) over --background, blurred by a lobe that is a cone of half-angle
+    /// Make the cloth glossy: it also reflects the caster (each texel's colour and opacity)
+    /// over --background, blurred by a lobe that is a cone of half-angle
     /// ROUGHNESS × 45° around the mirror direction (0 a mirror, at most 1), so the reflection
     /// blurs with the distance to the caster. The pixel is (1 − F)·diffuse + F·reflection with
     /// Schlick's F of --reflectance. Needs --caster; --blur sat, mip or explicit.
@@ -122,7 +122,8 @@ pub struct Args {
     #[arg(long, value_name = "N")]
     pub turntable: Option<u32>,
     /// Render with every blur method and the CPU Monte Carlo ground truth; print the error and
-    /// GPU time of each method (needs --caster).
+    /// GPU time of each method (needs --caster). With --glossy: the reflected radiance of sat,
+    /// mip and explicit against a ray-traced lobe (--mc-samples rays per pixel).
     #[arg(long)]
     pub compare_blur: bool,
     /// Monte Carlo samples per pixel and light for --compare-blur.
@@ -616,10 +617,8 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
         if args.colored_shadow {
             bail!("--glossy reflects a grey-opacity caster: not with --colored-shadow");
         }
-        if args.compare_blur || args.window || args.garment.mesh.is_some() {
-            bail!(
-                "--glossy renders a plane to a file: not with --compare-blur, --window or --mesh"
-            );
+        if args.window || args.garment.mesh.is_some() {
+            bail!("--glossy renders a plane to a file: not with --window or --mesh");
         }
     }
     if args.mc_samples == 0 || args.mc_samples > MAX_MC_SAMPLES {
@@ -760,7 +759,8 @@ fn lookdev_sheet(
     Ok(Image::contact_sheet(&[with_k, without_k, close_up], 3).expect("frames share one size"))
 }
 
-/// `--compare-blur`: every blur method against the Monte Carlo soft shadow, as a table on
+/// `--compare-blur`: every blur method against the Monte Carlo soft shadow (with `--glossy`,
+/// every per-pixel method's reflected radiance against the ray-traced lobe), as a table on
 /// stderr and rows in `report`.
 fn compare_blur(
     args: &Args,
@@ -771,7 +771,12 @@ fn compare_blur(
     if scene.caster.is_none() {
         bail!("--compare-blur needs a caster (--caster image.png)");
     }
-    let rows = compare::compare_blur(gpu, scene, args.mc_samples)?;
+    let rows = if scene.glossy.is_some() {
+        eprintln!("reflected radiance against the ray-traced glossy lobe:");
+        compare::compare_reflection(gpu, scene, args.mc_samples)?
+    } else {
+        compare::compare_blur(gpu, scene, args.mc_samples)?
+    };
     eprintln!("{}", compare::table(&rows));
     report.compare_blur = Some(rows.iter().map(Into::into).collect());
     Ok(())

@@ -240,6 +240,22 @@ fn check_runtime(report: &Report) {
             }
         }
     }
+    // Glossy reflections: explicit, sat and mip at three roughnesses; sat and explicit within
+    // 2 % of the mean reflected radiance of the ray-traced lobe.
+    let glossy: Vec<_> = blur.iter().filter(|r| r.glossy.is_some()).collect();
+    assert_eq!(glossy.len(), 3 * 3, "{glossy:?}");
+    for r in glossy {
+        let (roughness, level) = r.glossy.unwrap();
+        assert!(level > 0.0 && r.measured.mean_abs_error.is_finite());
+        if matches!(r.measured.method, "sat" | "explicit") {
+            assert!(
+                (r.measured.mean_abs_error as f64) <= 0.02 * level,
+                "roughness {roughness}, {}: {} vs {level}",
+                r.measured.method,
+                r.measured.mean_abs_error
+            );
+        }
+    }
 }
 
 /// The CSV files of a report on `swatches`, with their header lines, in the order

@@ -46,6 +46,11 @@ pub struct BlurRow {
     /// The penumbra radius on the caster, texels (a rectangle's longer half-side, a
     /// Gaussian's larger σ).
     pub penumbra_texels: f64,
+    /// A glossy receiver's reflection row (roughness, and the mean reflected radiance of the
+    /// ray-traced reference): `measured` is then the reflected radiance's error against the
+    /// ray-traced lobe (`compare::compare_reflection`), the light and penumbra fields unused
+    /// (0).
+    pub glossy: Option<(f32, f64)>,
     /// The method's errors against the ground truth and its pass times.
     pub measured: compare::BlurRow,
 }
@@ -129,6 +134,47 @@ pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
                 light_rect: rect,
                 light_gaussian: gaussian,
                 penumbra_texels: w,
+                glossy: None,
+                measured,
+            });
+        }
+    }
+    rows.extend(reflections(g, quick)?);
+    Ok(rows)
+}
+
+/// A glossy cloth's reflection of a leafy caster 0.4 above it, seen in perspective from the
+/// front and above, at roughness 0.1, 0.25 and 0.5: each per-pixel method's reflected radiance
+/// against the ray-traced lobe (48² and 1024 rays per pixel when `quick`, else 96² and 4096).
+pub fn reflections(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
+    let (side, mc) = if quick { (48, 1024) } else { (96, 4096) };
+    let mut rows = Vec::new();
+    for roughness in [0.1f32, 0.25, 0.5] {
+        let mut s = Scene::over_ptm(cloth(32), 4, [side, side]);
+        s.view = [-1.0, -1.0, 1.0, 1.0];
+        s.lights = vec![light([0.3, -0.2, 3.0], 0.2)];
+        s.caster = Some(leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4));
+        s.perspective = Some(ptm_runtime::scene::Perspective {
+            eye: [0.0, -2.5, 2.0],
+            target: [0.0, 0.0, 0.0],
+            fov_y_deg: 50.0,
+        });
+        s.glossy = Some(ptm_runtime::Glossy {
+            roughness,
+            background: [0.2, 0.3, 0.5],
+            f0: 0.3,
+        });
+        let p = s.prepare()?;
+        let c = s.caster.as_ref().expect("set above");
+        let fine = ptm_runtime::reference::render_reflection_reference(&p, &c.rgba, mc);
+        let level = fine.iter().flatten().map(|&x| x as f64).sum::<f64>() / (3 * fine.len()) as f64;
+        for measured in compare::compare_reflection(g, &s, mc)? {
+            rows.push(BlurRow {
+                light_radius: 0.0,
+                light_rect: None,
+                light_gaussian: None,
+                penumbra_texels: 0.0,
+                glossy: Some((roughness, level)),
                 measured,
             });
         }

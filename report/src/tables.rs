@@ -450,6 +450,23 @@ fn blur(rows: &[BlurRow]) -> Table {
     );
     for r in rows {
         let m = &r.measured;
+        if let Some((roughness, level)) = r.glossy {
+            t.push(vec![
+                format!(
+                    "glossy reflection, roughness {} (mean reflected {})",
+                    g3(roughness as f64),
+                    g3(level)
+                ),
+                "glossy lobe (imaginary light)".into(),
+                "-".into(),
+                m.method.into(),
+                g3(m.max_abs_error as f64),
+                g3(m.mean_abs_error as f64),
+                g3(1e3 * m.shade_s),
+                g3(1e3 * m.setup_s),
+            ]);
+            continue;
+        }
         t.push(vec![
             match (r.light_rect, r.light_gaussian) {
                 (Some([a, b]), _) => format!("rect {}×{}", g3(a as f64), g3(b as f64)),

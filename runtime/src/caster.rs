@@ -112,6 +112,23 @@ pub fn opacity_texels(rgba: &[[u8; 4]], colored: bool) -> Vec<u32> {
         .collect()
 }
 
+/// A glossy scene's caster image: premultiplied linear colour and opacity per texel,
+/// `α·rgb | α << 24` (rgb sRGB-decoded, each channel rounded to the nearest 1/255), so the
+/// blur's mean over a kernel is mean(α·rgb) and mean α (`glossy_reflection`), and α alone
+/// casts the shadows.
+pub fn reflection_texels(rgba: &[[u8; 4]]) -> Vec<u32> {
+    rgba.iter()
+        .map(|p| {
+            let a = p[3] as f32 / 255.0;
+            let c = [0, 1, 2].map(|k| {
+                let lin = crate::output::srgb_decode(p[k] as f32 / 255.0);
+                (a * lin * 255.0).round().clamp(0.0, 255.0) as u32
+            });
+            c[0] | (c[1] << 8) | (c[2] << 16) | ((p[3] as u32) << 24)
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

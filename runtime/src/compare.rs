@@ -59,6 +59,61 @@ pub fn compare_blur(g: &Gpu, scene: &Scene, mc_samples: u32) -> Result<Vec<BlurR
     Ok(rows)
 }
 
+/// Renders glossy `scene` (it must have a caster and [`Scene::glossy`]) with each method that
+/// has a kernel per pixel (explicit, sat, mip) and compares its reflected radiance (the CPU
+/// twin's `cpu::render_reflection`, which the GPU matches to 6e-5 in `tests/gpu_twin.rs`; the
+/// GPU image mixes it with the diffuse shade) with the ray-traced lobe
+/// (`reference::render_reflection_reference`, `mc_samples` rays per pixel); the times are the
+/// GPU frame's. The caster must not be downsampled (the reference reads its texels as given).
+pub fn compare_reflection(g: &Gpu, scene: &Scene, mc_samples: u32) -> Result<Vec<BlurRow>> {
+    let Some(c) = scene.caster.as_ref().filter(|_| scene.glossy.is_some()) else {
+        return Err(crate::Error::Scene(
+            "comparing reflections needs a glossy receiver and a caster".into(),
+        ));
+    };
+    let p = scene.prepare()?;
+    if p.caster_downsample != 1 {
+        return Err(crate::Error::Scene(format!(
+            "comparing reflections reads the caster's texels as given: use a caster of at most \
+             the scene's texels (this one is downsampled {}×)",
+            p.caster_downsample
+        )));
+    }
+    let reference = reference::render_reflection_reference(&p, &c.rgba, mc_samples);
+    let mut rows = Vec::new();
+    for blur in [Blur::Explicit, Blur::Sat, Blur::Mip] {
+        let mut s = scene.clone();
+        s.blur = blur;
+        let p = s.prepare()?;
+        let r = gpu::Renderer::new(g, &p)?;
+        r.frame()?; // warm-up, as in compare_blur
+        let shade_s = r.frame()?;
+        let setup_s = r
+            .setup
+            .passes
+            .iter()
+            .filter(|(n, _)| !matches!(*n, "compile" | "upload"))
+            .fold(0.0, |a, (_, s)| a + s);
+        let got = crate::cpu::render_reflection(&p).expect("a glossy scene reflects");
+        let (mut max, mut sum) = (0f32, 0f64);
+        for (x, y) in got.iter().zip(&reference) {
+            for k in 0..3 {
+                let e = (x[k] - y[k]).abs();
+                max = max.max(e);
+                sum += e as f64;
+            }
+        }
+        rows.push(BlurRow {
+            method: blur.name(),
+            max_abs_error: max,
+            mean_abs_error: (sum / (3 * got.len().max(1)) as f64) as f32,
+            shade_s,
+            setup_s,
+        });
+    }
+    Ok(rows)
+}
+
 /// A plain-text table of the rows.
 pub fn table(rows: &[BlurRow]) -> String {
     let mut s = String::from("method      max |err|   mean |err|   shade ms   setup ms\n");

@@ -85,8 +85,8 @@ pub struct Frame {
     pub glossy_background: [f32; 3],
     /// Glossy receiver: sin of the lobe's cone half-angle (the imaginary light's R/D).
     pub glossy_sin: f32,
-    /// Glossy receiver: the caster's linear colour as reflected (its α-weighted mean).
-    pub glossy_tint: [f32; 3],
+    /// Padding to 16 bytes.
+    pub pad7: [f32; 3],
     /// Glossy receiver: Schlick's reflectance at normal incidence F0.
     pub glossy_f0: f32,
 }
@@ -345,7 +345,7 @@ mod tests {
             ptm_texels_per_pixel, ptm_level_count, pad4, eye, perspective, cam_right, pad0,
             cam_up, pad1, cam_forward, pad2, fill, sheen_roughness, sheen_color, near,
             normal_size, far, pad5, shadow_lo, shadow_size, shadow_hi, pad6,
-            glossy_background, glossy_sin, glossy_tint, glossy_f0);
+            glossy_background, glossy_sin, pad7, glossy_f0);
         check(&shade_module(), "Frame", want, size_of::<Frame>());
         // A uniform block's size is a multiple of 16 bytes.
         assert_eq!(size_of::<Frame>() % 16, 0);

@@ -7,14 +7,11 @@
 
 use crate::layout::{MipLevel, PtmLevel};
 
-/// Levels concatenated (rgb opacity in 0..1, a unused) and where each level lies in them.
+/// Levels concatenated (the four 8-bit channels in 0..1) and where each level lies in them.
 pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<MipLevel>) {
     let mut texels: Vec<[f32; 4]> = opacity
         .iter()
-        .map(|o| {
-            let c = [o & 255, (o >> 8) & 255, (o >> 16) & 255].map(|c| c as f32 / 255.0);
-            [c[0], c[1], c[2], 0.0]
-        })
+        .map(|o| [o & 255, (o >> 8) & 255, (o >> 16) & 255, o >> 24].map(|c| c as f32 / 255.0))
         .collect();
     let mut levels = vec![MipLevel::new(0, w, h)];
     let (mut lw, mut lh, mut off) = (w, h, 0usize);
@@ -28,7 +25,7 @@ pub fn build_chain(opacity: &[u32], w: usize, h: usize) -> (Vec<[f32; 4]>, Vec<M
                     let (cx, cy) = (2 * x + dx, 2 * y + dy);
                     if cx < lw && cy < lh {
                         let t = texels[off + cy * lw + cx];
-                        for c in 0..3 {
+                        for c in 0..4 {
                             s[c] += t[c];
                         }
                     }

@@ -14,6 +14,17 @@ use crate::layout::{Frame, LightGpu};
 use crate::output::Image;
 use crate::scene::SceneBuffers;
 
+/// The opacity per channel of the caster texel at texel coordinate tc: a glossy scene's
+/// 4-channel image holds premultiplied colour and casts its shadow by α (the fourth).
+fn plane_opacity(plane: &Plane, tc: [f32; 2]) -> [f64; 3] {
+    let v = opacity_raw(&plane.texels, plane.size, tc).map(|x| (x as f32 / 255.0) as f64);
+    if plane.channels == 4 {
+        [v[3]; 3]
+    } else {
+        [v[0], v[1], v[2]]
+    }
+}
+
 /// The ground-truth image: as [`crate::cpu::render`], but the caster opacity of each (pixel,
 /// light) is the Monte Carlo mean over the spherical light ([`mc_opacity`], `samples` rays)
 /// instead of the blur method's estimate. K, albedo and the unshadowed light term are
@@ -94,7 +105,7 @@ pub fn mc_opacity(
                 ((hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64) as f32,
                 ((rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64) as f32,
             ];
-            o = opacity_raw(&plane.texels, [w, ht], tc).map(|x| (x as f32 / 255.0) as f64);
+            o = plane_opacity(plane, tc);
         }
         sum_w += weight;
         for k in 0..3 {
@@ -166,7 +177,7 @@ pub fn mc_opacity_rect(
                 ((hit[0] - rect[0]) / (rect[2] - rect[0]) * w as f64) as f32,
                 ((rect[3] - hit[1]) / (rect[3] - rect[1]) * ht as f64) as f32,
             ];
-            o = opacity_raw(&plane.texels, [w, ht], tc).map(|x| (x as f32 / 255.0) as f64);
+            o = plane_opacity(plane, tc);
         }
         sum_w += weight;
         for k in 0..3 {
@@ -305,7 +316,7 @@ pub fn render_reflection_reference(
 /// around the mirror direction, each intersected exactly with the (tilted) caster plane; a ray
 /// that hits the caster takes its texel (nearest, as the methods see them) composited over the
 /// background, α·colour + (1 − α)·background with the texel's own linear colour (sRGB decoded,
-/// not the kernel's mean tint); a ray that misses it takes the background. `rgba` is the caster's
+/// as the methods' premultiplied image holds it, unquantised); a ray that misses it takes the background. `rgba` is the caster's
 /// image as the scene laid it out (`plane.size` texels). Deterministic: the random numbers hash
 /// (`key`, sample).
 pub fn mc_reflection(

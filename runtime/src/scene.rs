@@ -96,9 +96,10 @@ pub struct Perspective {
 /// the reflection point to the plane: the blur method averages the caster's opacity over it as
 /// for a spherical "imaginary light" on the mirror ray whose cone is the lobe's. Where the
 /// kernel runs off the caster, the background is reflected. The pixel is
-/// (1 − F)·diffuse + F·(tint·ᾱ + (1 − ᾱ)·background), F Schlick's Fresnel of F0 at the view
-/// angle, ᾱ the mean opacity over the kernel and tint the caster's α-weighted mean linear
-/// colour (one colour: per-texel colour would need a fourth image channel).
+/// (1 − F)·diffuse + F·(mean(α·rgb) + (1 − ᾱ)·background), F Schlick's Fresnel of F0 at the
+/// view angle, mean(α·rgb) the mean over the kernel of each texel's premultiplied linear colour
+/// and ᾱ of its opacity (the caster's image then has four channels,
+/// `caster::reflection_texels`; its shadows use α).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Glossy {
     /// 0 (a mirror) ..= 1 (a cone of half-angle 45°): the half-angle is roughness × 45°.
@@ -471,16 +472,24 @@ impl Scene {
             method.check(c)?;
             let (cw, ch, texels, factor) = crate::caster::fit_caster(c);
             caster_downsample = factor;
-            // The image the blur filters: the caster's opacity (grey, or rgb for stained glass).
+            // The image the blur filters: the caster's opacity (grey, or rgb for stained glass),
+            // or with a glossy receiver its premultiplied colour and opacity.
             plane = crate::blur::Plane {
                 size: [cw as u32, ch as u32],
-                channels: if self.colored_shadow { 3 } else { 1 },
-                texels: crate::caster::opacity_texels(&texels, self.colored_shadow),
+                channels: match (self.glossy.is_some(), self.colored_shadow) {
+                    (true, _) => 4,
+                    (false, true) => 3,
+                    (false, false) => 1,
+                },
+                texels: if self.glossy.is_some() {
+                    crate::caster::reflection_texels(&texels)
+                } else {
+                    crate::caster::opacity_texels(&texels, self.colored_shadow)
+                },
             };
             if let Some(g) = &self.glossy {
                 frame.glossy_background = g.background;
                 frame.glossy_sin = g.cone_half_angle().sin();
-                frame.glossy_tint = reflected_tint(&texels);
                 frame.glossy_f0 = g.f0;
             }
             frame.caster_rect = c.rect;
@@ -919,32 +928,17 @@ impl Variant {
         parts.join("+")
     }
 
-    /// Opacity channels stored in the summed-area table.
+    /// Channels of the caster's image (the blur's [`crate::blur::Plane`]): 4 with a glossy
+    /// receiver (α·rgb, α), 3 for coloured shadows, else 1.
     pub fn sat_channels(&self) -> u32 {
-        if self.colored {
+        if self.glossy && self.caster.is_some() {
+            4
+        } else if self.colored {
             3
         } else {
             1
         }
     }
-}
-
-/// The caster's colour as a glossy receiver reflects it: the α-weighted mean of its texels'
-/// linear colour (sRGB decoded); black for a wholly transparent caster.
-pub fn reflected_tint(rgba: &[[u8; 4]]) -> [f32; 3] {
-    let mut sum = [0f64; 3];
-    let mut weight = 0f64;
-    for p in rgba {
-        let a = p[3] as f64 / 255.0;
-        for c in 0..3 {
-            sum[c] += a * crate::output::srgb_decode(p[c] as f32 / 255.0) as f64;
-        }
-        weight += a;
-    }
-    if weight <= 0.0 {
-        return [0.0; 3];
-    }
-    sum.map(|x| (x / weight) as f32)
 }
 
 /// Right, up (scaled to the image's half-extent at unit distance) and forward unit vectors.

@@ -19,13 +19,13 @@ pub struct Explicit;
 
 /// 8-bit counts per channel of the texel of a `size` image containing texel coordinate t; 0
 /// outside.
-pub fn opacity_raw(opacity: &[u32], size: [u32; 2], t: [f32; 2]) -> [u32; 3] {
+pub fn opacity_raw(opacity: &[u32], size: [u32; 2], t: [f32; 2]) -> [u32; 4] {
     let [w, h] = size;
     if t[0] < 0.0 || t[1] < 0.0 || t[0] >= w as f32 || t[1] >= h as f32 {
-        return [0; 3];
+        return [0; 4];
     }
     let o = opacity[t[1] as usize * w as usize + t[0] as usize];
-    [o & 255, (o >> 8) & 255, (o >> 16) & 255]
+    [o & 255, (o >> 8) & 255, (o >> 16) & 255, o >> 24]
 }
 
 /// Reference blur: mean over an n×n grid of samples inside the sheared ellipse of radii wt
@@ -38,9 +38,9 @@ pub fn blur_explicit(
     wt: [f32; 2],
     shear: f32,
     kernel: Kernel,
-) -> [f32; 3] {
+) -> [f32; 4] {
     let n = ((4.0 * wt[0].max(wt[1])).ceil() as u32).clamp(16, samples);
-    let mut sum = [0u32; 3];
+    let mut sum = [0u32; 4];
     let mut count = 0u32;
     for j in 0..n {
         for i in 0..n {
@@ -57,7 +57,7 @@ pub fn blur_explicit(
                         t[1] + o[1] * wt[1],
                     ],
                 );
-                for c in 0..3 {
+                for c in 0..4 {
                     sum[c] += v[c];
                 }
                 count += 1;
@@ -72,9 +72,9 @@ pub const GAUSS_REACH: f32 = 3.5;
 
 /// Reference blur of [`Kernel::Gauss`]: an n×n grid over ±[`GAUSS_REACH`]·wt around t, each
 /// sample weighted by exp(−½|o|²), n = clamp(⌈4·GAUSS_REACH·max(wt)⌉, 16, `samples`).
-pub fn blur_explicit_gauss(plane: &Plane, samples: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+pub fn blur_explicit_gauss(plane: &Plane, samples: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 4] {
     let n = ((4.0 * GAUSS_REACH * wt[0].max(wt[1])).ceil() as u32).clamp(16, samples);
-    let mut sum = [0f32; 3];
+    let mut sum = [0f32; 4];
     let mut total = 0f32;
     for j in 0..n {
         for i in 0..n {
@@ -88,7 +88,7 @@ pub fn blur_explicit_gauss(plane: &Plane, samples: u32, t: [f32; 2], wt: [f32; 2
                 plane.size,
                 [t[0] + o[0] * wt[0], t[1] + o[1] * wt[1]],
             );
-            for c in 0..3 {
+            for c in 0..4 {
                 sum[c] += w * v[c] as f32;
             }
             total += w;
@@ -133,7 +133,7 @@ impl Method for Explicit {
         wt: [f32; 2],
         shear: f32,
         kernel: Kernel,
-    ) -> [f32; 3] {
+    ) -> [f32; 4] {
         if kernel == Kernel::Gauss {
             return blur_explicit_gauss(b.plane, b.uniform.samples, t, wt);
         }

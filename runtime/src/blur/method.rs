@@ -42,13 +42,14 @@ impl Blur {
 }
 
 /// A filtered planar image: what a method convolves. Texels are packed 8-bit values per
-/// channel (`r | g << 8 | b << 16`, each 0..=255), row-major, row 0 at the far edge; texels
+/// channel (`r | g << 8 | b << 16 | a << 24`, each 0..=255), row-major, row 0 at the far edge; texels
 /// outside the image count as 0 (transparent).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Plane {
     /// Texels w, h.
     pub size: [u32; 2],
-    /// Channels that differ (1: all three equal, a grey opacity; 3: coloured).
+    /// Channels that differ (1: all four equal, a grey opacity; 3: coloured opacity; 4: a glossy
+    /// scene's premultiplied linear colour α·rgb and opacity α, `caster::reflection_texels`).
     pub channels: u32,
     /// The packed texels.
     pub texels: Vec<u32>,
@@ -109,8 +110,8 @@ pub trait Method: Sync {
 
     /// Its WGSL, included into `shade.wgsl` where a scene has a caster: its bindings and
     /// `fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) ->
-    /// vec3<f32>`. `{{CHANNELS}}` is
-    /// replaced by the image's channel count.
+    /// vec4<f32>` (one value per channel; the fourth means something only in a 4-channel image).
+    /// `{{CHANNELS}}` is replaced by the image's channel count.
     fn wgsl(&self) -> &'static str;
 
     /// The compute shaders it runs before shading, (file name, source).
@@ -159,7 +160,7 @@ pub trait Method: Sync {
         wt: [f32; 2],
         shear: f32,
         kernel: Kernel,
-    ) -> [f32; 3];
+    ) -> [f32; 4];
 
     /// Whether `lights` (moved) can be shaded with what was prepared for the scene's lights,
     /// so a renderer needs only the new light buffer.

@@ -18,7 +18,7 @@ pub const WGSL: &str = include_str!("mip.wgsl");
 /// The MIP method.
 pub struct Mip;
 
-/// The image's chain: levels concatenated (rgb in 0..1, a unused) and where each lies.
+/// The image's chain: levels concatenated (its four channels in 0..1) and where each lies.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Chain {
     /// Every level's texels, level 0 first.
@@ -27,30 +27,29 @@ pub struct Chain {
     pub levels: Vec<MipLevel>,
 }
 
-fn mix3(a: [f32; 3], b: [f32; 3], t: f32) -> [f32; 3] {
-    [0, 1, 2].map(|c| a[c] * (1.0 - t) + b[c] * t)
+fn mix4(a: [f32; 4], b: [f32; 4], t: f32) -> [f32; 4] {
+    [0, 1, 2, 3].map(|c| a[c] * (1.0 - t) + b[c] * t)
 }
 
 /// Texel (x, y) of level `l`; transparent outside.
-pub fn mip_texel(mip: &[[f32; 4]], l: &MipLevel, x: i32, y: i32) -> [f32; 3] {
+pub fn mip_texel(mip: &[[f32; 4]], l: &MipLevel, x: i32, y: i32) -> [f32; 4] {
     if x < 0 || y < 0 || x >= l.width as i32 || y >= l.height as i32 {
-        return [0.0; 3];
+        return [0.0; 4];
     }
-    let t = mip[(l.offset + y as u32 * l.width + x as u32) as usize];
-    [t[0], t[1], t[2]]
+    mip[(l.offset + y as u32 * l.width + x as u32) as usize]
 }
 
 /// Bilinear sample of `level` at level-0 texel coordinate t.
-pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 2]) -> [f32; 3] {
+pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 2]) -> [f32; 4] {
     let l = &levels[level as usize];
     let scale = (1u32 << level) as f32;
     let c = [t[0] / scale - 0.5, t[1] / scale - 0.5];
     let c0 = [c[0].floor(), c[1].floor()];
     let a = [c[0] - c0[0], c[1] - c0[1]];
     let (x, y) = (c0[0] as i32, c0[1] as i32);
-    mix3(
-        mix3(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
-        mix3(
+    mix4(
+        mix4(mip_texel(mip, l, x, y), mip_texel(mip, l, x + 1, y), a[0]),
+        mix4(
             mip_texel(mip, l, x, y + 1),
             mip_texel(mip, l, x + 1, y + 1),
             a[0],
@@ -61,12 +60,12 @@ pub fn mip_bilinear(mip: &[[f32; 4]], levels: &[MipLevel], level: u32, t: [f32; 
 
 /// Trilinear: level log2(2·max(wt)) (the box side in texels), blended between the two nearest.
 /// Trilinear at level `lod` (log2 of a box side in texels), blended between the two nearest.
-pub fn mip_trilinear(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], lod: f32) -> [f32; 3] {
+pub fn mip_trilinear(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], lod: f32) -> [f32; 4] {
     let top = levels.len() as u32 - 1;
     let lod = lod.clamp(0.0, top as f32);
     let l0 = lod as u32;
     let l1 = (l0 + 1).min(top);
-    mix3(
+    mix4(
         mip_bilinear(mip, levels, l0, t),
         mip_bilinear(mip, levels, l1, t),
         lod - l0 as f32,
@@ -74,7 +73,7 @@ pub fn mip_trilinear(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], lod: f3
 }
 
 /// Trilinear at level log2(2·max(wt)) (the box's side in texels).
-pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+pub fn blur_mip(mip: &[[f32; 4]], levels: &[MipLevel], t: [f32; 2], wt: [f32; 2]) -> [f32; 4] {
     mip_trilinear(mip, levels, t, (2.0 * wt[0].max(wt[1])).log2())
 }
 
@@ -95,7 +94,7 @@ pub fn blur_mip_ellipse(
     t: [f32; 2],
     wt: [f32; 2],
     shear: f32,
-) -> [f32; 3] {
+) -> [f32; 4] {
     let p = wt[0] * wt[0] + shear * shear * wt[1] * wt[1];
     let q = shear * wt[1] * wt[1];
     let r = wt[1] * wt[1];
@@ -115,7 +114,7 @@ pub fn blur_mip_ellipse(
     }
     let n = ((major / minor - 1e-3).ceil() as u32).min(MIP_EWA_MAX);
     let lod = minor.log2();
-    let mut sum = [0f32; 3];
+    let mut sum = [0f32; 4];
     let mut total = 0f32;
     for i in 0..n {
         let e0 = -1.0 + 2.0 * i as f32 / n as f32;
@@ -123,7 +122,7 @@ pub fn blur_mip_ellipse(
         let w = ewa_area(e1) - ewa_area(e0);
         let c = 0.5 * (e0 + e1) * major;
         let v = mip_trilinear(mip, levels, [t[0] + c * axis[0], t[1] + c * axis[1]], lod);
-        for k in 0..3 {
+        for k in 0..4 {
             sum[k] += w * v[k];
         }
         total += w;
@@ -178,7 +177,7 @@ impl Method for Mip {
         wt: [f32; 2],
         shear: f32,
         kernel: Kernel,
-    ) -> [f32; 3] {
+    ) -> [f32; 4] {
         let chain: &Chain = own(b.prepared, "mip");
         if kernel == Kernel::Disc {
             return blur_mip_ellipse(&chain.texels, &chain.levels, t, wt, shear);

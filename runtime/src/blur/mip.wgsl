@@ -13,15 +13,15 @@ struct MipLevel {
 
 @group(0) @binding(7) var<storage, read> mip_levels: array<MipLevel>;
 
-fn mip_texel(l: MipLevel, x: i32, y: i32) -> vec3<f32> {
+fn mip_texel(l: MipLevel, x: i32, y: i32) -> vec4<f32> {
     if (x < 0 || y < 0 || x >= i32(l.width) || y >= i32(l.height)) {
-        return vec3<f32>(0.0);
+        return vec4<f32>(0.0);
     }
-    return mip[l.offset + u32(y) * l.width + u32(x)].xyz;
+    return mip[l.offset + u32(y) * l.width + u32(x)];
 }
 
 // Bilinear sample of MIP `level` at level-0 texel coordinate t (transparent outside).
-fn mip_bilinear(level: u32, t: vec2<f32>) -> vec3<f32> {
+fn mip_bilinear(level: u32, t: vec2<f32>) -> vec4<f32> {
     let l = mip_levels[level];
     let c = t / f32(1u << level) - 0.5;
     let c0 = floor(c);
@@ -36,7 +36,7 @@ fn mip_bilinear(level: u32, t: vec2<f32>) -> vec3<f32> {
 }
 
 // Trilinear at level `lod` (log2 of a box side in texels), blended between the two nearest.
-fn mip_trilinear(t: vec2<f32>, lod_in: f32) -> vec3<f32> {
+fn mip_trilinear(t: vec2<f32>, lod_in: f32) -> vec4<f32> {
     let top = arrayLength(&mip_levels) - 1u;
     let lod = clamp(lod_in, 0.0, f32(top));
     let l0 = u32(lod);
@@ -45,7 +45,7 @@ fn mip_trilinear(t: vec2<f32>, lod_in: f32) -> vec3<f32> {
 }
 
 // Trilinear: level log2(2·max(wt)) (the box's side in texels).
-fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+fn blur_mip(t: vec2<f32>, wt: vec2<f32>) -> vec4<f32> {
     return mip_trilinear(t, log2(2.0 * max(wt.x, wt.y)));
 }
 
@@ -62,7 +62,7 @@ fn ewa_area(e: f32) -> f32 {
     return 0.5 * (c * sqrt(max(1.0 - c * c, 0.0)) + asin(c));
 }
 
-fn blur_mip_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec3<f32> {
+fn blur_mip_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec4<f32> {
     // L·Lᵀ = [[p, q], [q, r]]; its eigenvalues are the squared semi-axes.
     let p = wt.x * wt.x + shear * shear * wt.y * wt.y;
     let q = shear * wt.y * wt.y;
@@ -78,7 +78,7 @@ fn blur_mip_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec3<f32> {
     }
     let n = min(u32(ceil(major / minor - 1e-3)), MIP_EWA_MAX);
     let lod = log2(minor);
-    var sum = vec3<f32>(0.0);
+    var sum = vec4<f32>(0.0);
     var total = 0.0;
     for (var i = 0u; i < n; i++) {
         let e0 = -1.0 + 2.0 * f32(i) / f32(n);
@@ -94,7 +94,7 @@ fn blur_mip_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec3<f32> {
 // trilinear lookup, an ellipse by EWA, and a Gaussian of standard deviations wt as the ellipse
 // of the same variance (radii 2·wt: a disc of radius r has variance r²/4 per axis), so its
 // unequal axes give a non-proportionally scaled lookup.
-fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec3<f32> {
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec4<f32> {
     if (kernel == KERNEL_DISC) {
         return blur_mip_ellipse(t, wt, shear);
     }

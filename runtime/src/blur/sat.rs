@@ -99,7 +99,7 @@ pub fn sat_spans(lo: f32, hi: f32, n: u32) -> ([u32; 4], [f32; 3]) {
 
 /// Mean opacity (0..1 per channel) over the box t ± wt (texel units, wt > 0) of a `size`
 /// image from its summed-area table; outside the caster counts as transparent.
-pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 3] {
+pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f32; 2]) -> [f32; 4] {
     let [w, h] = size;
     let lo = [
         (t[0] - wt[0]).clamp(0.0, w as f32),
@@ -114,7 +114,7 @@ pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f3
     // Span m of an axis runs from corner A[m] to B[m]: inner 1→2, right 2→3, left 0→1.
     const A: [usize; 3] = [1, 2, 0];
     const B: [usize; 3] = [2, 3, 1];
-    let mut out = [0f32; 3];
+    let mut out = [0f32; 4];
     for ch in 0..channels {
         let mut s = [[0u32; 4]; 4];
         for b in 0..4 {
@@ -135,7 +135,7 @@ pub fn blur_sat(sat: &[u32], size: [u32; 2], channels: u32, t: [f32; 2], wt: [f3
         out[ch as usize] = total / (4.0 * wt[0] * wt[1] * 255.0);
     }
     if channels == 1 {
-        [out[0]; 3]
+        [out[0]; 4]
     } else {
         out
     }
@@ -162,8 +162,8 @@ pub fn blur_sat_ellipse(
     t: [f32; 2],
     wt: [f32; 2],
     shear: f32,
-) -> [f32; 3] {
-    let mut sum = [0f32; 3];
+) -> [f32; 4] {
+    let mut sum = [0f32; 4];
     let mut area = 0f32;
     for k in 0..SAT_SLABS {
         let mid = 0.5 * (SLAB_EDGE[k] + SLAB_EDGE[k + 1]) * wt[1];
@@ -173,7 +173,7 @@ pub fn blur_sat_ellipse(
         ];
         let a = half[0] * half[1];
         let m = blur_sat(sat, size, channels, [t[0] + shear * mid, t[1] + mid], half);
-        for c in 0..3 {
+        for c in 0..4 {
             sum[c] += a * m[c];
         }
         area += a;
@@ -198,8 +198,8 @@ pub fn blur_sat_gauss(
     channels: u32,
     t: [f32; 2],
     wt: [f32; 2],
-) -> [f32; 3] {
-    let mut sum = [0f32; 3];
+) -> [f32; 4] {
+    let mut sum = [0f32; 4];
     let mut total = 0f32;
     for j in 0..GAUSS_BOXES {
         for i in 0..GAUSS_BOXES {
@@ -211,7 +211,7 @@ pub fn blur_sat_gauss(
                 t,
                 [GAUSS_HALF[i] * wt[0], GAUSS_HALF[j] * wt[1]],
             );
-            for c in 0..3 {
+            for c in 0..4 {
                 sum[c] += a * m[c];
             }
             total += a;
@@ -270,7 +270,7 @@ impl Method for Sat {
         wt: [f32; 2],
         shear: f32,
         kernel: Kernel,
-    ) -> [f32; 3] {
+    ) -> [f32; 4] {
         let table: &Vec<u32> = own(b.built, "sat");
         if kernel == Kernel::Disc {
             return blur_sat_ellipse(table, b.plane.size, b.plane.channels, t, wt, shear);

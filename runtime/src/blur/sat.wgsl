@@ -38,13 +38,13 @@ fn sat_spans(lo: f32, hi: f32, n: u32) -> Spans {
 // Summed-area lookup: mean opacity over the box t ± wt (texels); outside the caster counts as
 // transparent, so the sum is divided by the full box area. Corner differences are taken in
 // wrapping u32 (exact for any box up to 4096² texels), converted to f32 only after.
-fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
+fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec4<f32> {
     let size = vec2<f32>(plane.size);
     let lo = clamp(t - wt, vec2<f32>(0.0), size);
     let hi = clamp(t + wt, vec2<f32>(0.0), size);
     let sx = sat_spans(lo.x, hi.x, plane.size.x);
     let sy = sat_spans(lo.y, hi.y, plane.size.y);
-    var out = vec3<f32>(0.0);
+    var out = vec4<f32>(0.0);
     for (var ch = 0u; ch < SAT_CHANNELS; ch++) {
         var s: array<array<u32, 4>, 4>;
         for (var b = 0u; b < 4u; b++) {
@@ -67,7 +67,7 @@ fn blur_sat(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
         out[ch] = total / (4.0 * wt.x * wt.y * 255.0);
     }
     if (SAT_CHANNELS == 1u) {
-        return vec3<f32>(out.x);
+        return vec4<f32>(out.x);
     }
     return out;
 }
@@ -82,8 +82,8 @@ const SAT_SLABS: u32 = 4u;
 const SLAB_EDGE = array<f32, 5>(-1.0, -0.70710678, 0.0, 0.70710678, 1.0);
 const SLAB_WIDTH = array<f32, 4>(0.48720514, 0.90891376, 0.90891376, 0.48720514);
 
-fn blur_sat_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec3<f32> {
-    var sum = vec3<f32>(0.0);
+fn blur_sat_ellipse(t: vec2<f32>, wt: vec2<f32>, shear: f32) -> vec4<f32> {
+    var sum = vec4<f32>(0.0);
     var area = 0.0;
     for (var k = 0u; k < SAT_SLABS; k++) {
         let mid = 0.5 * (SLAB_EDGE[k] + SLAB_EDGE[k + 1u]) * wt.y;
@@ -105,8 +105,8 @@ const GAUSS_BOXES: u32 = 3u;
 const GAUSS_HALF = array<f32, 3>(0.77834513, 1.47147433, 2.45344008);
 const GAUSS_WEIGHT = array<f32, 3>(0.24554278, 0.43724912, 0.31720809);
 
-fn blur_sat_gauss(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
-    var sum = vec3<f32>(0.0);
+fn blur_sat_gauss(t: vec2<f32>, wt: vec2<f32>) -> vec4<f32> {
+    var sum = vec4<f32>(0.0);
     var total = 0.0;
     for (var j = 0u; j < GAUSS_BOXES; j++) {
         for (var i = 0u; i < GAUSS_BOXES; i++) {
@@ -121,7 +121,7 @@ fn blur_sat_gauss(t: vec2<f32>, wt: vec2<f32>) -> vec3<f32> {
 
 // The method's entry point, called by `light_opacity` (see blur/explicit.wgsl): the box, the
 // ellipse as boxes, or the Gaussian as boxes.
-fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec3<f32> {
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec4<f32> {
     if (kernel == KERNEL_DISC) {
         return blur_sat_ellipse(t, wt, shear);
     }

@@ -309,9 +309,11 @@ impl Method for Separable {
         _wt: [f32; 2],
         _shear: f32,
         _kernel: Kernel,
-    ) -> [f32; 3] {
+    ) -> [f32; 4] {
         let map: &Vec<f32> = own(b.built, "separable");
-        blur_separable(b.uniform, map, b.plane.channels, li, t)
+        let v = blur_separable(b.uniform, map, b.plane.channels, li, t);
+        // No fourth channel: only glossy scenes have one, and they never use this method.
+        [v[0], v[1], v[2], 0.0]
     }
 
     fn keeps(

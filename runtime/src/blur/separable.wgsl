@@ -35,6 +35,7 @@ fn blur_separable(li: u32, t: vec2<f32>) -> vec3<f32> {
 
 // The method's entry point, called by `light_opacity` (see blur/explicit.wgsl); the map of
 // light li was blurred with that light's radii (a box), so `wt` and `shear` are not read.
-fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec3<f32> {
-    return blur_separable(li, t);
+fn blur_lookup(li: u32, t: vec2<f32>, wt: vec2<f32>, shear: f32, kernel: u32) -> vec4<f32> {
+    // No fourth channel: only glossy scenes have one, and they never use this method.
+    return vec4<f32>(blur_separable(li, t), 0.0);
 }

@@ -561,17 +561,25 @@ impl Twin<'_> {
         [a[0], a[1], a[2]]
     }
 
-    /// Mean caster opacity seen from p towards light l: where the segment p → light meets the
-    /// (tilted) caster plane, blurred with radius R·s there (see `light_opacity` in WGSL).
+    /// Mean caster opacity seen from p towards light l (see `light_opacity` in WGSL): the
+    /// reference's where the twin has one, else [`Twin::light_blur`]'s opacity (its fourth
+    /// channel, α, in a glossy scene's premultiplied image).
     pub fn light_opacity(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 3] {
         if let Some(reference) = self.opacity {
             return reference(p, l);
         }
-        self.kernel_opacity(p, l, li)
+        let o = self.light_blur(p, l, li);
+        if self.p.variant.glossy {
+            [o[3]; 3]
+        } else {
+            [o[0], o[1], o[2]]
+        }
     }
 
-    /// [`Twin::light_opacity`] by the blur method alone (never the reference's).
-    pub fn kernel_opacity(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 3] {
+    /// Mean caster image seen from p towards light l by the blur method (never the
+    /// reference's): where the segment p → light meets the (tilted) caster plane, blurred with
+    /// radius R·s there (see `light_blur` in WGSL).
+    pub fn light_blur(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 4] {
         let f = self.f();
         let [lx, ly, lz] = l.position;
         let r = f.caster_rect;
@@ -584,11 +592,11 @@ impl Twin<'_> {
         let ray = [lx - pp[0], ly - pp[1], lz];
         let denom = dot(n, ray);
         if denom == 0.0 {
-            return [0.0; 3];
+            return [0.0; 4];
         }
         let s = dot(n, [centre[0] - pp[0], centre[1] - pp[1], centre[2]]) / denom;
         if !(0.0..1.0).contains(&s) {
-            return [0.0; 3];
+            return [0.0; 4];
         }
         let off: [f32; 3] = std::array::from_fn(|k| pp[k] + s * ray[k] - centre[k]);
         let q = [centre[0] + off[0], centre[1] + dot(off, e2)];
@@ -601,7 +609,7 @@ impl Twin<'_> {
         let t = caster_texel_coords(f, &self.p.plane_gpu, q);
         let (t, wt, shear, kernel) = if l.shape == LightGpu::RECT {
             // A rectangle facing down: a box of half-sides s·half, moved to the centroid of
-            // its patches' z²/r⁴ weights (see `light_opacity` in WGSL).
+            // its patches' z²/r⁴ weights (see `light_blur` in WGSL).
             let h = l.half;
             let k = -4.0 / (3.0 * dot(ray, ray));
             let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
@@ -616,7 +624,7 @@ impl Twin<'_> {
             (tr, wr, 0.0, Kernel::Box)
         } else if l.shape == LightGpu::GAUSSIAN {
             // A Gaussian facing down (σ = half): itself scaled by s, moved by −4·σ²·d/r² on the
-            // light (see `light_opacity` in WGSL).
+            // light (see `light_blur` in WGSL).
             let h = l.half;
             let k = -4.0 / dot(ray, ray);
             let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
@@ -642,7 +650,7 @@ impl Twin<'_> {
                 _ => (t, wt, 0.0, Kernel::Box),
             }
         };
-        let (method, built) = self.blur.expect("light_opacity without a blur method");
+        let (method, built) = self.blur.expect("light_blur without a blur method");
         let bound = Bound {
             plane: &self.p.plane,
             uniform: &self.p.plane_gpu,
@@ -696,7 +704,7 @@ impl Twin<'_> {
 
     /// `glossy_reflection` of `shade.wgsl`: the radiance a glossy receiver reflects at p seen
     /// along the unit view direction `dir`: the caster blurred through the imaginary light on
-    /// the mirror ray (derivation in the WGSL), composited over the background.
+    /// the mirror ray (derivation in the WGSL): mean(α·rgb) + (1 − mean α)·background.
     pub fn glossy_reflection(&self, p: [f32; 2], dir: [f32; 3]) -> [f32; 3] {
         let f = self.f();
         let back = f.glossy_background;
@@ -723,8 +731,8 @@ impl Twin<'_> {
             half: [0.0; 2],
             pad: [0.0; 2],
         };
-        let a = self.kernel_opacity(p, &l, 0)[0].clamp(0.0, 1.0);
-        std::array::from_fn(|k| f.glossy_tint[k] * a + back[k] * (1.0 - a))
+        let o = self.light_blur(p, &l, 0).map(|x| x.max(0.0));
+        std::array::from_fn(|k| o[k] + back[k] * (1.0 - o[3].min(1.0)))
     }
 
     /// `glossy_fresnel` of `shade.wgsl`: Schlick's Fresnel at the view direction's angle to +Z.

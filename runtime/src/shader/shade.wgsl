@@ -44,7 +44,7 @@ struct Frame {
     pad6: f32,
     glossy_background: vec3<f32>, // glossy receiver: background radiance (linear)
     glossy_sin: f32,            // glossy receiver: sin of the lobe's cone half-angle
-    glossy_tint: vec3<f32>,     // glossy receiver: the caster's reflected colour (linear)
+    pad7: vec3<f32>,
     glossy_f0: f32,             // glossy receiver: Schlick's F0
 }
 
@@ -599,7 +599,7 @@ fn caster_texel_coords(q: vec2<f32>) -> vec2<f32> {
 // `Light` shape 2, and a sphere's fallback). A sphere's kernel is the ellipse its cone cuts from
 // the plane (`sphere_ellipse`). A light that is not beyond the caster plane as seen from p (s
 // outside [0, 1)) casts no caster shadow.
-fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
+fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
     let r = frame.caster_rect;
     let centre = vec3<f32>(0.5 * (r.xy + r.zw), frame.caster_height);
     let n = vec3<f32>(0.0, -frame.caster_sin_tilt, frame.caster_cos_tilt);
@@ -608,11 +608,11 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
     let ray = l.position - pp;
     let denom = dot(n, ray);
     if (denom == 0.0) {
-        return vec3<f32>(0.0);
+        return vec4<f32>(0.0);
     }
     let s = dot(n, centre - pp) / denom;
     if (!(s >= 0.0 && s < 1.0)) {
-        return vec3<f32>(0.0);
+        return vec4<f32>(0.0);
     }
     let off = pp + s * ray - centre;
     let q = centre.xy + vec2<f32>(off.x, dot(off, e2));
@@ -654,6 +654,17 @@ fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
         }
     }
     return blur_lookup(li, t, wt, 0.0, KERNEL_BOX);
+}
+
+// The caster's opacity towards light l at p (per channel): `light_blur`'s image mean, whose
+// opacity is α in a glossy scene's premultiplied image (its fourth channel).
+fn light_opacity(p: vec2<f32>, l: Light, li: u32) -> vec3<f32> {
+    let o = light_blur(p, l, li);
+//#if GLOSSY
+    return vec3<f32>(o.w);
+//#else
+    return o.xyz;
+//#endif
 }
 
 // The ellipse a sphere's cone cuts from the caster plane, in caster texels: centre offset from
@@ -747,9 +758,11 @@ const RECT_MIN: f32 = 0.00390625;
 // view direction `dir` (towards the cloth). The lobe is a cone of half-angle α around the mirror
 // direction r; it meets the (tilted) caster plane at distance h along r. The "imaginary light"
 // is the sphere on r at 2h whose radius 2h·sin α subtends that cone from p, so the caster is
-// blurred exactly as for its shadow (`light_opacity`: the cone's ellipse on the plane, half-way
-// to the light), by an amount growing linearly with h. Where the kernel runs off the caster its
-// texels count as transparent and the background shows: tint·ᾱ + (1 − ᾱ)·background. A lobe
+// blurred exactly as for its shadow (`light_blur`: the cone's ellipse on the plane, half-way
+// to the light), by an amount growing linearly with h. The image holds premultiplied linear
+// colour and opacity (α·rgb, α), so each texel reflects its own colour: mean(α·rgb) +
+// (1 − mean α)·background; where the kernel runs off the caster its texels count as
+// transparent and the background shows. A lobe
 // that never meets the plane reflects the background alone.
 fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
     let back = frame.glossy_background;
@@ -773,8 +786,8 @@ fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
     l.shape = 0u;
     l.half = vec2<f32>(0.0);
     l.pad = vec2<f32>(0.0);
-    let a = clamp(light_opacity(p, l, 0u).x, 0.0, 1.0);
-    return frame.glossy_tint * a + back * (1.0 - a);
+    let o = max(light_blur(p, l, 0u), vec4<f32>(0.0));
+    return o.xyz + back * (1.0 - min(o.w, 1.0));
 }
 
 // Schlick's Fresnel at the view direction's angle to the normal +Z.
