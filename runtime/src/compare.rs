@@ -1,8 +1,28 @@
 //! `--compare-blur`: every blur method on the GPU against the CPU Monte Carlo ground truth, as
 //! one table of errors (linear radiance) and GPU times.
 
-use crate::scene::{Blur, Scene};
+use crate::scene::{Blur, Scene, SceneBuffers};
 use crate::{gpu, reference, Gpu, Image, Result};
+
+/// `scene` with `blur`, prepared and rendered on the GPU after a warm-up frame (first-use costs,
+/// lavapipe's shader JIT among them, are not the method's): the renderer, the prepared scene,
+/// and the seconds of one shading frame and of the setup passes (SAT, MIP chain, separable:
+/// neither compiling nor uploading).
+fn timed(g: &Gpu, scene: &Scene, blur: Blur) -> Result<(gpu::Renderer, SceneBuffers, f64, f64)> {
+    let mut s = scene.clone();
+    s.blur = blur;
+    let p = s.prepare()?;
+    let r = gpu::Renderer::new(g, &p)?;
+    r.frame()?;
+    let shade_s = r.frame()?;
+    let setup_s = r
+        .setup
+        .passes
+        .iter()
+        .filter(|(n, _)| !matches!(*n, "compile" | "upload"))
+        .fold(0.0, |a, (_, s)| a + s);
+    Ok((r, p, shade_s, setup_s))
+}
 
 /// One method's row of the comparison.
 #[derive(Clone, Debug, PartialEq)]
@@ -35,19 +55,8 @@ pub fn compare_blur(g: &Gpu, scene: &Scene, mc_samples: u32) -> Result<Vec<BlurR
     let reference = reference::render_reference(&scene.prepare()?, mc_samples);
     let mut rows = Vec::new();
     for blur in Blur::ALL {
-        let mut s = scene.clone();
-        s.blur = blur;
-        let p = s.prepare()?;
-        let r = gpu::Renderer::new(g, &p)?;
-        r.frame()?; // warm-up: first-use costs (shader JIT on lavapipe) are not the method's
-        let shade_s = r.frame()?;
+        let (r, _, shade_s, setup_s) = timed(g, scene, blur)?;
         let img = r.readback()?;
-        let setup_s = r
-            .setup
-            .passes
-            .iter()
-            .filter(|(n, _)| !matches!(*n, "compile" | "upload"))
-            .fold(0.0, |a, (_, s)| a + s);
         rows.push(BlurRow {
             method: blur.name(),
             max_abs_error: img.max_abs_diff(&reference).unwrap_or(f32::NAN),
@@ -82,18 +91,7 @@ pub fn compare_reflection(g: &Gpu, scene: &Scene, mc_samples: u32) -> Result<Vec
     let reference = reference::render_reflection_reference(&p, &c.rgba, mc_samples);
     let mut rows = Vec::new();
     for blur in [Blur::Explicit, Blur::Sat, Blur::Mip] {
-        let mut s = scene.clone();
-        s.blur = blur;
-        let p = s.prepare()?;
-        let r = gpu::Renderer::new(g, &p)?;
-        r.frame()?; // warm-up, as in compare_blur
-        let shade_s = r.frame()?;
-        let setup_s = r
-            .setup
-            .passes
-            .iter()
-            .filter(|(n, _)| !matches!(*n, "compile" | "upload"))
-            .fold(0.0, |a, (_, s)| a + s);
+        let (_, p, shade_s, setup_s) = timed(g, scene, blur)?;
         let got = crate::cpu::render_reflection(&p).expect("a glossy scene reflects");
         let (mut max, mut sum) = (0f32, 0f64);
         for (x, y) in got.iter().zip(&reference) {

@@ -607,36 +607,27 @@ impl Twin<'_> {
             (r[3] - r[1]) / size[1] as f32,
         ];
         let t = caster_texel_coords(f, &self.p.plane_gpu, q);
+        // A planar light facing down, of half-sides or σ `half`: itself scaled by s, moved to
+        // the centroid of its z²/r⁴ weights, −k·var·d/r² with var = half²/3 for a rectangle's
+        // box and σ² for a Gaussian (see `light_blur` in WGSL).
+        let planar = |k: f32, kernel: Kernel| {
+            let h = l.half;
+            let k = -k / dot(ray, ray);
+            let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
+            let tr = [
+                t[0] + shift[0] / texel[0],
+                t[1] + -shift[1] * stretch / texel[1],
+            ];
+            let wr = [
+                (h[0] * s / texel[0]).max(RECT_MIN),
+                (h[1] * s * stretch / texel[1]).max(RECT_MIN),
+            ];
+            (tr, wr, 0.0, kernel)
+        };
         let (t, wt, shear, kernel) = if l.shape == LightGpu::RECT {
-            // A rectangle facing down: a box of half-sides s·half, moved to the centroid of
-            // its patches' z²/r⁴ weights (see `light_blur` in WGSL).
-            let h = l.half;
-            let k = -4.0 / (3.0 * dot(ray, ray));
-            let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
-            let tr = [
-                t[0] + shift[0] / texel[0],
-                t[1] + -shift[1] * stretch / texel[1],
-            ];
-            let wr = [
-                (h[0] * s / texel[0]).max(RECT_MIN),
-                (h[1] * s * stretch / texel[1]).max(RECT_MIN),
-            ];
-            (tr, wr, 0.0, Kernel::Box)
+            planar(4.0 / 3.0, Kernel::Box)
         } else if l.shape == LightGpu::GAUSSIAN {
-            // A Gaussian facing down (σ = half): itself scaled by s, moved by −4·σ²·d/r² on the
-            // light (see `light_blur` in WGSL).
-            let h = l.half;
-            let k = -4.0 / dot(ray, ray);
-            let shift = [k * h[0] * h[0] * ray[0] * s, k * h[1] * h[1] * ray[1] * s];
-            let tr = [
-                t[0] + shift[0] / texel[0],
-                t[1] + -shift[1] * stretch / texel[1],
-            ];
-            let wr = [
-                (h[0] * s / texel[0]).max(RECT_MIN),
-                (h[1] * s * stretch / texel[1]).max(RECT_MIN),
-            ];
-            (tr, wr, 0.0, Kernel::Gauss)
+            planar(4.0, Kernel::Gauss)
         } else {
             let w = l.radius * s;
             let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
