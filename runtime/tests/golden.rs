@@ -172,3 +172,53 @@ fn golden_sat_shadow_and_glossy_reflection() {
     });
     check_golden("sat_glossy", &s);
 }
+
+#[test]
+fn golden_sat_shadow_and_glossy_reflection_of_a_coloured_caster() {
+    // A caster of four opaque squares, red, yellow, blue and white (its quadrants, with clear
+    // gaps between them), tilted 20° over plain glossy cloth, lit from +x: its soft grey shadow
+    // thrown towards −x, and under it the four colours reflected, sharp near the low edge and
+    // blurring towards the high one, the blue background reflected through the gaps.
+    let n = 32;
+    let colours = [
+        [220, 40, 30],
+        [230, 210, 40],
+        [40, 60, 220],
+        [240, 240, 240],
+    ];
+    let rgba = (0..n * n)
+        .map(|t| {
+            let (x, y) = (t % n, t / n);
+            let (qx, qy) = (x * 2 / n, y * 2 / n);
+            let (ix, iy) = (x % (n / 2), y % (n / 2));
+            let inside = (2..n / 2 - 2).contains(&ix) && (2..n / 2 - 2).contains(&iy);
+            let [r, g, b] = colours[qy * 2 + qx];
+            if inside {
+                [r, g, b, 255]
+            } else {
+                [0, 0, 0, 0]
+            }
+        })
+        .collect();
+    let caster = ptm_runtime::Caster {
+        width: n,
+        height: n,
+        rgba,
+        rect: [0.5, 0.4, 1.5, 1.6],
+        elevation: 0.5,
+        tilt_deg: 20.0,
+    };
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.size = [96, 96];
+    s.view = [0.0, 0.0, 2.0, 2.0];
+    s.ptm = None;
+    s.albedo = [0.8; 3];
+    s.lights = vec![light([3.0, 1.0, 2.5], 0.3, 9.0)];
+    s.caster = Some(caster);
+    s.glossy = Some(ptm_runtime::Glossy {
+        roughness: 0.1,
+        background: [0.15, 0.2, 0.35],
+        f0: 0.6,
+    });
+    check_golden("sat_glossy_coloured", &s);
+}
