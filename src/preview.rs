@@ -130,7 +130,8 @@ pub struct Args {
     #[arg(long, default_value_t = 256)]
     pub mc_samples: u32,
     /// Interactive window instead of a PNG: drag to move the first light, keys 1-4 or B pick
-    /// the blur method, P toggles the PTM, Esc quits; on a --mesh, right-drag or the arrow keys
+    /// the blur method, P toggles the PTM, `[` and `]` lower and raise the --glossy roughness by
+    /// 0.05, Esc quits; on a --mesh, right-drag or the arrow keys
     /// orbit the camera (needs a build with `--features window`).
     #[arg(long, conflicts_with_all = ["output", "exr", "turntable", "compare_blur", "sheet"])]
     pub window: bool,
@@ -617,8 +618,8 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
         if args.colored_shadow {
             bail!("--glossy reflects a grey-opacity caster: not with --colored-shadow");
         }
-        if args.window || args.garment.mesh.is_some() {
-            bail!("--glossy renders a plane to a file: not with --window or --mesh");
+        if args.garment.mesh.is_some() {
+            bail!("--glossy reflects the caster in the plane of the cloth: not with --mesh");
         }
     }
     if args.mc_samples == 0 || args.mc_samples > MAX_MC_SAMPLES {

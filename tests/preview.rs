@@ -774,6 +774,31 @@ fn a_glossy_cloth_reflects_the_caster_over_the_background() {
         "{}",
         out.stderr
     );
+    // Still refused with a mesh, naming both flags.
+    let mut args = vec!["preview", "-o", p(&png), "--caster", p(&caster)];
+    args.extend_from_slice(&["--glossy", "0.2", "--mesh", "drape"]);
+    let out = ptm(args, dir.path());
+    assert!(
+        !out.ok && out.stderr.contains("--glossy") && out.stderr.contains("--mesh"),
+        "{}",
+        out.stderr
+    );
+    // The window shows a glossy cloth: not refused (this build may lack the window, or the
+    // machine a display, and says so; under Xvfb with the window it runs its one frame).
+    let out = ptm(
+        [
+            "preview",
+            "--caster",
+            p(&caster),
+            "--glossy",
+            "0.2",
+            "--window",
+            "--window-frames",
+            "1",
+        ],
+        dir.path(),
+    );
+    assert!(!out.stderr.contains("--glossy"), "{}", out.stderr);
 }
 
 #[test]

@@ -4,14 +4,17 @@
 //! Dragging with the left mouse button moves the first light's x, y to the point under the
 //! cursor (its height z stays; on a mesh, the point of the mesh's footprint under it); keys
 //! `1`–`4` pick the blur method (explicit, sat, mip, separable), `B` cycles it, `P` turns the
-//! PTM on and off, `Esc` (or closing the window) quits. On a mesh, dragging with the right button
+//! PTM on and off, `[` and `]` lower and raise a glossy receiver's roughness by 0.05 (within
+//! [0, 1]), `Esc` (or closing the window) quits. On a mesh, dragging with the right button
 //! or the arrow keys orbit the camera about the point it looks at (the mesh's shadow follows the
 //! light: its depth maps are rendered every frame). The title shows the blur method (or the
-//! mesh), the light position, PTM on/off and the last render time.
+//! mesh), the light position, PTM on/off, the glossy roughness (if any) and the last render
+//! time. A glossy receiver reflects the caster in the window as in the PNG; its reflection does
+//! not depend on the lights, so dragging still only rewrites the light buffer.
 //!
 //! A [`Session`] (no winit in it) keeps the headless [`Renderer`] between frames: dragging the
 //! light only rewrites the light buffer (`queue.write_buffer`) and draws again; a change of blur
-//! method or PTM re-prepares the scene and builds a new pipeline (and summed-area table or
+//! method, PTM or roughness re-prepares the scene and builds a new pipeline (and summed-area table or
 //! blurred maps). Either way the renderer draws into its `Rgba32Float` target exactly the image
 //! `ptm preview -o` writes for that scene. That target is copied into a
 //! texture a small blit pass reads (`textureLoad`, nearest, letterboxed to keep the aspect) and
@@ -86,6 +89,9 @@ enum Action {
     SetBlur(Blur),
     NextBlur,
     TogglePtm,
+    /// A glossy receiver's roughness changed by this step (kept within [0, 1]); nothing
+    /// without one.
+    Roughness(f32),
     /// Light x, y at this point of the view, as fractions (0, 0) = top left, (1, 1) = bottom
     /// right of the picture.
     LightAt([f32; 2]),
@@ -191,6 +197,13 @@ impl Session {
             }
             Action::TogglePtm => {
                 self.controls.ptm_on = !self.controls.ptm_on && self.base.ptm.is_some();
+                Change::Scene
+            }
+            Action::Roughness(step) => {
+                let Some(g) = self.base.glossy.as_mut() else {
+                    return;
+                };
+                g.roughness = (g.roughness + step).clamp(0.0, 1.0);
                 Change::Scene
             }
             Action::LightAt([fx, fy]) => {
@@ -352,6 +365,8 @@ struct App {
 /// Orbit per window pixel dragged (radians), and per arrow key press.
 const ORBIT_PER_PIXEL: f32 = 0.01;
 const ORBIT_PER_KEY: f32 = 0.1745;
+/// Roughness per `[` or `]` press.
+const ROUGHNESS_PER_KEY: f32 = 0.05;
 
 /// The window and everything on the GPU (created in `resumed`).
 struct State {
@@ -409,13 +424,22 @@ impl App {
             (true, true) => "on",
             (true, false) => "off",
         };
-        let keys = if self.session.mesh.is_some() {
-            "drag: light · right-drag/arrows: orbit · P: PTM · Esc: quit"
-        } else {
-            "drag: light · 1-4/B: blur · P: PTM · Esc: quit"
+        let (glossy, keys) = match (&s.glossy, self.session.mesh.is_some()) {
+            (_, true) => (
+                String::new(),
+                "drag: light · right-drag/arrows: orbit · P: PTM · Esc: quit",
+            ),
+            (Some(g), false) => (
+                format!(" · glossy {:.2}", g.roughness),
+                "drag: light · 1-4/B: blur · P: PTM · [ ]: roughness · Esc: quit",
+            ),
+            (None, false) => (
+                String::new(),
+                "drag: light · 1-4/B: blur · P: PTM · Esc: quit",
+            ),
         };
         format!(
-            "ptm preview — blur {blur} · light {light} · PTM {ptm} · {:.0} ms   [{keys}]",
+            "ptm preview — blur {blur} · light {light} · PTM {ptm}{glossy} · {:.0} ms   [{keys}]",
             1e3 * self.report.last_render_s
         )
     }
@@ -640,6 +664,8 @@ impl ApplicationHandler for App {
                         d if blur_key(d).is_some() => Action::SetBlur(blur_key(d).unwrap()),
                         "b" => Action::NextBlur,
                         "p" => Action::TogglePtm,
+                        "[" => Action::Roughness(-ROUGHNESS_PER_KEY),
+                        "]" => Action::Roughness(ROUGHNESS_PER_KEY),
                         _ => return,
                     },
                     _ => return,
@@ -986,6 +1012,97 @@ mod tests {
             session.render(&gpu).unwrap();
             assert_eq!((session.builds, session.renders), (3, 6), "{}", blur.name());
         }
+    }
+
+    /// `smoke_scene` with a glossy cloth under a tilted caster, red on its left half and
+    /// blue on its right, with a clear gap between them.
+    fn glossy_scene(blur: Blur) -> Scene {
+        let mut scene = smoke_scene();
+        scene.blur = blur;
+        let c = scene.caster.as_mut().unwrap();
+        c.tilt_deg = 30.0;
+        c.rgba = (0..64)
+            .map(|t| match t % 8 {
+                0..=2 => [220, 30, 30, 255],
+                5..=7 => [30, 40, 220, 255],
+                _ => [0, 0, 0, 0],
+            })
+            .collect();
+        scene.glossy = Some(crate::scene::Glossy {
+            roughness: 0.2,
+            background: [0.2, 0.25, 0.35],
+            f0: 0.6,
+        });
+        scene
+    }
+
+    /// A glossy receiver in the window: every frame (the first, after drags, after `[`/`]`)
+    /// equals a fresh offscreen render of the scene it shows, which reflects the caster (it
+    /// differs from the matte render); drags build no pipeline, roughness changes build one.
+    #[test]
+    fn a_glossy_window_renders_the_offscreen_image_and_drags_without_a_build() {
+        let gpu = Gpu::new().expect("GPU tests need a wgpu adapter (lavapipe in CI)");
+        let fresh = |s: &Session| {
+            crate::gpu::render(&gpu, &s.current_scene().prepare().unwrap())
+                .unwrap()
+                .0
+        };
+        for blur in Blur::ALL.into_iter().filter(|&b| b != Blur::Separable) {
+            let name = blur.name();
+            let mut session = Session::new(glossy_scene(blur));
+            let first = session.render(&gpu).unwrap().readback().unwrap();
+            assert!(
+                first.max_abs_diff(&fresh(&session)).unwrap() < 1e-6,
+                "{name}"
+            );
+            let mut matte = glossy_scene(blur);
+            matte.glossy = None;
+            let matte = crate::gpu::render(&gpu, &matte.prepare().unwrap())
+                .unwrap()
+                .0;
+            let reflected = first.max_abs_diff(&matte).unwrap();
+            assert!(reflected > 1e-2, "{name}: no reflection ({reflected})");
+            let mut last = first;
+            for at in [[0.2, 0.3], [0.8, 0.6]] {
+                session.apply(Action::LightAt(at));
+                let image = session.render(&gpu).unwrap().readback().unwrap();
+                assert_eq!(session.builds, 1, "{name}: a drag built a pipeline");
+                let diff = image.max_abs_diff(&fresh(&session)).unwrap();
+                assert!(
+                    diff < 1e-6,
+                    "{name}: drag to {at:?} vs a fresh render: {diff}"
+                );
+                assert!(image.max_abs_diff(&last).unwrap() > 1e-3, "{name}: {at:?}");
+                last = image;
+            }
+            for step in [ROUGHNESS_PER_KEY, -2.0 * ROUGHNESS_PER_KEY] {
+                let before = session.base.glossy.unwrap().roughness;
+                session.apply(Action::Roughness(step));
+                assert_eq!(session.change, Change::Scene);
+                let image = session.render(&gpu).unwrap().readback().unwrap();
+                let after = session.base.glossy.unwrap().roughness;
+                assert!((after - (before + step)).abs() < 1e-6, "{before} {after}");
+                let diff = image.max_abs_diff(&fresh(&session)).unwrap();
+                assert!(
+                    diff < 1e-6,
+                    "{name}: roughness {after} vs a fresh render: {diff}"
+                );
+                let blurred = image.max_abs_diff(&last).unwrap();
+                assert!(blurred > 1e-3, "{name}: roughness {after} changed nothing");
+                last = image;
+            }
+            assert_eq!((session.builds, session.renders), (3, 5), "{name}");
+            // Kept within [0, 1].
+            session.apply(Action::Roughness(5.0));
+            assert_eq!(session.base.glossy.unwrap().roughness, 1.0);
+            session.apply(Action::Roughness(-5.0));
+            assert_eq!(session.base.glossy.unwrap().roughness, 0.0);
+        }
+        // Without a glossy receiver the keys change nothing.
+        let mut matte = Session::new(smoke_scene());
+        matte.render(&gpu).unwrap();
+        matte.apply(Action::Roughness(ROUGHNESS_PER_KEY));
+        assert!(!matte.dirty() && matte.base.glossy.is_none());
     }
 
     /// A small shadowed drape under one light, seen in perspective (its view is the drape's
