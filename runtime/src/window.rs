@@ -3,7 +3,8 @@
 //!
 //! Dragging with the left mouse button moves the first light's x, y to the point under the
 //! cursor (its height z stays; on a mesh, the point of the mesh's footprint under it); keys
-//! `1`–`4` pick the blur method (explicit, sat, mip, separable), `B` cycles it, `P` turns the
+//! `1`–`4` pick the blur method (explicit, sat, mip, separable), `B` cycles it (past separable
+//! with a glossy receiver, which needs a kernel per pixel), `P` turns the
 //! PTM on and off, `[` and `]` lower and raise a glossy receiver's roughness by 0.05 (within
 //! [0, 1]), `Esc` (or closing the window) quits. On a mesh, dragging with the right button
 //! or the arrow keys orbit the camera about the point it looks at (the mesh's shadow follows the
@@ -193,6 +194,12 @@ impl Session {
             Action::NextBlur => {
                 let i = Blur::ALL.iter().position(|&b| b == self.controls.blur);
                 self.controls.blur = Blur::ALL[i.map_or(0, |i| (i + 1) % Blur::ALL.len())];
+                // A glossy receiver needs a kernel per pixel: B passes over the separable blur
+                // (key 4 still picks it, and the title says why it cannot render).
+                if self.base.glossy.is_some() && self.controls.blur == Blur::Separable {
+                    let i = Blur::ALL.iter().position(|&b| b == Blur::Separable);
+                    self.controls.blur = Blur::ALL[i.map_or(0, |i| (i + 1) % Blur::ALL.len())];
+                }
                 Change::Scene
             }
             Action::TogglePtm => {
@@ -1098,6 +1105,19 @@ mod tests {
             session.apply(Action::Roughness(-5.0));
             assert_eq!(session.base.glossy.unwrap().roughness, 0.0);
         }
+        // B cycles past the separable blur, which has no kernel per pixel; key 4 picks it and
+        // the scene refuses it.
+        let mut session = Session::new(glossy_scene(Blur::Mip));
+        session.apply(Action::NextBlur);
+        assert_eq!(session.controls.blur, Blur::Explicit);
+        session.render(&gpu).unwrap();
+        session.apply(Action::SetBlur(Blur::Separable));
+        assert!(matches!(session.render(&gpu), Err(Error::Scene(_))));
+        // Without one B reaches it.
+        let mut matte = Session::new(smoke_scene());
+        matte.controls.blur = Blur::Mip;
+        matte.apply(Action::NextBlur);
+        assert_eq!(matte.controls.blur, Blur::Separable);
         // Without a glossy receiver the keys change nothing.
         let mut matte = Session::new(smoke_scene());
         matte.render(&gpu).unwrap();
