@@ -75,8 +75,8 @@ cargo clippy --workspace --all-targets -- -D warnings
 step "cargo clippy --features ptm/window (the preview window compiles; it runs only with a display)"
 cargo clippy --workspace --features ptm/window --all-targets -- -D warnings
 
-step "cargo doc -D warnings (every intra-doc link resolves)"
-RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps
+step "cargo doc -D warnings, the window module too (every intra-doc link resolves)"
+RUSTDOCFLAGS="-D warnings" cargo doc --workspace --features ptm-runtime/window --no-deps
 
 # Every build below selects the whole workspace with the same features, so cargo resolves one
 # feature set and compiles each dependency once (a `-p CRATE` build resolves its own set and

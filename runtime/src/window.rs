@@ -13,7 +13,7 @@
 //! time. A glossy receiver reflects the caster in the window as in the PNG; its reflection does
 //! not depend on the lights, so dragging still only rewrites the light buffer.
 //!
-//! A [`Session`] (no winit in it) keeps the headless [`Renderer`] between frames: dragging the
+//! A `Session` (no winit in it) keeps the headless [`Renderer`] between frames: dragging the
 //! light only rewrites the light buffer (`queue.write_buffer`) and draws again; a change of blur
 //! method, PTM or roughness re-prepares the scene and builds a new pipeline (and summed-area table or
 //! blurred maps). Either way the renderer draws into its `Rgba32Float` target exactly the image
