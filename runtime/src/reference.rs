@@ -64,7 +64,7 @@ pub fn mc_opacity(
         return [0.0; 3];
     }
     let axis = c.map(|x| x / d);
-    let (e1, e2, cos_max) = cone_frame(axis, r, d);
+    let cone = cone_frame(axis, r, d);
     let [w, ht] = plane.size;
     let rect = frame.caster_rect.map(|x| x as f64);
     let (sin_t, cos_t) = (frame.caster_sin_tilt as f64, frame.caster_cos_tilt as f64);
@@ -80,13 +80,7 @@ pub fn mc_opacity(
         let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
         let u1 = (si as f64 + unit(hs)) / strata as f64;
         let u2 = (sj as f64 + unit(hash(hs))) / strata as f64;
-        // Uniform in solid angle within the cone.
-        let cos_t = 1.0 - u1 * (1.0 - cos_max);
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let phi = 2.0 * PI * u2;
-        let dir: [f64; 3] = std::array::from_fn(|k| {
-            axis[k] * cos_t + (e1[k] * phi.cos() + e2[k] * phi.sin()) * sin_t
-        });
+        let dir = cone.dir(u1, u2);
         let weight = dir[2];
         if weight <= 0.0 {
             continue;
@@ -244,7 +238,7 @@ pub fn mc_k(
         let n = (samples as f64).sqrt().ceil() as u32;
         (n, n)
     };
-    let (e1, e2, cos_max) = cone_frame(axis, r, d);
+    let cone = cone_frame(axis, r, d);
     let (mut sum_w, mut sum_k) = (0.0, 0.0);
     for s in 0..nx * ny {
         let (si, sj) = (s % nx, s / nx);
@@ -257,12 +251,7 @@ pub fn mc_k(
             let r2 = dot(q, q);
             (q.map(|x| x / r2.sqrt()), c[2] * c[2] / (r2 * r2))
         } else {
-            let cos_t = 1.0 - u1 * (1.0 - cos_max);
-            let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-            let phi = 2.0 * PI * u2;
-            let dir: [f64; 3] = std::array::from_fn(|k| {
-                axis[k] * cos_t + (e1[k] * phi.cos() + e2[k] * phi.sin()) * sin_t
-            });
+            let dir = cone.dir(u1, u2);
             (dir, dir[2])
         };
         if weight <= 0.0 {
@@ -332,7 +321,7 @@ pub fn mc_reflection(
     let d = [dir[0] as f64, dir[1] as f64, dir[2] as f64];
     let axis = normalize([d[0], d[1], -d[2]]);
     let sin_a = frame.glossy_sin as f64;
-    let (e1, e2, cos_max) = cone_frame(axis, sin_a, 1.0);
+    let cone = cone_frame(axis, sin_a, 1.0);
     let h = frame.caster_height as f64;
     let [w, ht] = size;
     let rect = frame.caster_rect.map(|x| x as f64);
@@ -347,12 +336,7 @@ pub fn mc_reflection(
         let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
         let u1 = (si as f64 + unit(hs)) / strata as f64;
         let u2 = (sj as f64 + unit(hash(hs))) / strata as f64;
-        let cos_s = 1.0 - u1 * (1.0 - cos_max);
-        let sin_s = (1.0 - cos_s * cos_s).max(0.0).sqrt();
-        let phi = 2.0 * PI * u2;
-        let ray: [f64; 3] = std::array::from_fn(|k| {
-            axis[k] * cos_s + (e1[k] * phi.cos() + e2[k] * phi.sin()) * sin_s
-        });
+        let ray = cone.dir(u1, u2);
         let mut c = back;
         let t_caster = dot(normal, below) / dot(normal, ray);
         if t_caster > 0.0 && t_caster.is_finite() {
@@ -378,9 +362,30 @@ pub fn mc_reflection(
     sum.map(|x| (x / (strata * strata) as f64) as f32)
 }
 
-/// An orthonormal frame (e1, e2) around the unit `axis` towards a sphere of radius `r` at
-/// distance `d`, and the cosine of the cone the sphere subtends (−1 from inside it).
-fn cone_frame(axis: [f64; 3], r: f64, d: f64) -> ([f64; 3], [f64; 3], f64) {
+/// A cone around a unit `axis`: an orthonormal frame (e1, e2) about it and the cosine of its
+/// half-angle.
+struct Cone {
+    axis: [f64; 3],
+    e1: [f64; 3],
+    e2: [f64; 3],
+    cos_max: f64,
+}
+
+impl Cone {
+    /// The direction at (u1, u2) ∈ [0, 1)², uniform in solid angle within the cone.
+    fn dir(&self, u1: f64, u2: f64) -> [f64; 3] {
+        let cos_t = 1.0 - u1 * (1.0 - self.cos_max);
+        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
+        let phi = 2.0 * PI * u2;
+        std::array::from_fn(|k| {
+            self.axis[k] * cos_t + (self.e1[k] * phi.cos() + self.e2[k] * phi.sin()) * sin_t
+        })
+    }
+}
+
+/// The cone that a sphere of radius `r` at distance `d` along the unit `axis` subtends (the
+/// whole sphere of directions, cos −1, from inside it).
+fn cone_frame(axis: [f64; 3], r: f64, d: f64) -> Cone {
     let helper = if axis[2].abs() < 0.9 {
         [0.0, 0.0, 1.0]
     } else {
@@ -393,5 +398,10 @@ fn cone_frame(axis: [f64; 3], r: f64, d: f64) -> ([f64; 3], [f64; 3], f64) {
     } else {
         (1.0 - (r / d) * (r / d)).sqrt()
     };
-    (e1, e2, cos_max)
+    Cone {
+        axis,
+        e1,
+        e2,
+        cos_max,
+    }
 }
