@@ -92,7 +92,7 @@ pub struct Args {
     #[arg(long, value_parser = choice::<Blur>(), default_value = "sat")]
     pub blur: Blur,
     /// Make the cloth glossy: it also reflects the caster (each texel's colour and opacity)
-    /// over --background, blurred by a lobe that is a cone of half-angle
+    /// over --background (or --background-image), blurred by a lobe that is a cone of half-angle
     /// ROUGHNESS × 45° around the mirror direction (0 a mirror, at most 1), so the reflection
     /// blurs with the distance to the caster. The pixel is (1 − F)·diffuse + F·reflection with
     /// Schlick's F of --reflectance. Needs --caster; --blur sat, mip or explicit.
@@ -101,6 +101,12 @@ pub struct Args {
     /// Linear RGB radiance a --glossy cloth reflects where its lobe misses the caster.
     #[arg(long, value_name = "R,G,B", value_parser = parse_triple, default_value = "0.2,0.25,0.35")]
     pub background: [f32; 3],
+    /// A sky a --glossy cloth reflects instead of the --background colour: a lat-long
+    /// (equirectangular) image, OpenEXR (linear RGB) or PNG/JPEG (sRGB), or `builtin:sky`;
+    /// row 0 is the zenith, the centre column looks along +X, and only its upper half (the
+    /// sky) is reflected, averaged over the lobe's cone.
+    #[arg(long, value_name = "FILE")]
+    pub background_image: Option<PathBuf>,
     /// Reflectance F0 of a --glossy cloth at normal incidence (Schlick's Fresnel), 0 to 1.
     #[arg(long, value_name = "F0", default_value_t = 0.3)]
     pub reflectance: f32,
@@ -329,10 +335,15 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
     }
     scene.colored_shadow = args.colored_shadow;
     scene.blur = args.blur;
+    let environment = match (&args.background_image, args.glossy) {
+        (Some(path), Some(_)) => Some(std::sync::Arc::new(background_image(path)?)),
+        _ => None,
+    };
     scene.glossy = args.glossy.map(|roughness| ptm_runtime::Glossy {
         roughness,
         background: args.background,
         f0: args.reflectance,
+        environment,
     });
     if let Some(eye) = args.camera.filter(|_| args.garment.mesh.is_none()) {
         if !(eye.iter().all(|c| c.is_finite()) && eye[2] > 0.0) {
@@ -365,6 +376,22 @@ fn builtin_caster(path: &Path) -> anyhow::Result<Option<Rgba8>> {
             Ok(Some((c.width, c.height, c.rgba)))
         }
         _ => bail!("--caster builtin:{name}: unknown builtin caster; there is builtin:leaves"),
+    }
+}
+
+/// `--background-image`: a lat-long file, or `builtin:sky` (`synthetic::sky_latlong` at
+/// 512 × 256: a blue gradient, cloud banks, a sun 35° up at azimuth 40°).
+fn background_image(path: &Path) -> anyhow::Result<ptm_runtime::environment::Environment> {
+    use ptm_runtime::environment::Environment;
+    let flag = || format!("--background-image {}", path.display());
+    match path.to_str().and_then(|s| s.strip_prefix("builtin:")) {
+        Some("sky") => {
+            let (w, h) = (512, 256);
+            let sky = ptm_runtime::synthetic::sky_latlong(w, h);
+            Ok(Environment::from_latlong("builtin:sky", w, h, &sky)?)
+        }
+        Some(name) => bail!("--background-image builtin:{name}: unknown; there is builtin:sky"),
+        None => Environment::load(path).with_context(flag),
     }
 }
 
@@ -621,6 +648,12 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
         if args.garment.mesh.is_some() {
             bail!("--glossy reflects the caster in the plane of the cloth: not with --mesh");
         }
+    }
+    if let (Some(path), None) = (&args.background_image, args.glossy) {
+        bail!(
+            "--background-image {}: only a --glossy cloth reflects a background: add --glossy",
+            path.display()
+        );
     }
     if args.mc_samples == 0 || args.mc_samples > MAX_MC_SAMPLES {
         bail!(

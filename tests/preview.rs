@@ -802,6 +802,71 @@ fn a_glossy_cloth_reflects_the_caster_over_the_background() {
 }
 
 #[test]
+fn a_glossy_cloth_reflects_a_background_image() {
+    // A lat-long PNG sky of one colour (sRGB 40, 90, 200): with --reflectance 1 the corner,
+    // where the lobe misses the caster, is that colour, whatever the roughness; the image is
+    // refused without --glossy, missing or unreadable, naming the flag and the file.
+    let dir = tempfile::tempdir().unwrap();
+    let caster = write_caster(dir.path());
+    let sky = dir.path().join("sky.png");
+    ptm_runtime::output::write_png_rgba8(&sky, 16, 8, &[40, 90, 200, 255].repeat(16 * 8)).unwrap();
+    for roughness in ["0", "0.3"] {
+        let png = dir.path().join("sky-out.png");
+        run_json(&[
+            "-o",
+            p(&png),
+            "--size",
+            "32,32",
+            "--caster",
+            p(&caster),
+            "--glossy",
+            roughness,
+            "--reflectance",
+            "1",
+            "--background-image",
+            p(&sky),
+        ]);
+        let px = ptm_runtime::output::read_rgba8(&png).unwrap().2;
+        for k in 0..3 {
+            let want = [40, 90, 200][k];
+            assert!(
+                (px[0][k] as i32 - want).abs() <= 1,
+                "{roughness}: {:?}",
+                px[0]
+            );
+        }
+    }
+    let not_image = dir.path().join("sky.exr");
+    std::fs::write(&not_image, b"no").unwrap();
+    let missing = dir.path().join("missing.png");
+    for (extra, says) in [
+        (
+            vec!["--background-image", p(&sky)],
+            "add --glossy".to_string(),
+        ),
+        (
+            vec!["--glossy", "0.2", "--background-image", p(&missing)],
+            format!("--background-image {}", missing.display()),
+        ),
+        (
+            vec!["--glossy", "0.2", "--background-image", p(&not_image)],
+            "sky.exr".to_string(),
+        ),
+    ] {
+        let png = dir.path().join("bad.png");
+        let mut args = vec!["preview", "-o", p(&png), "--caster", p(&caster)];
+        args.extend_from_slice(&extra);
+        let out = ptm(args, dir.path());
+        assert!(
+            !out.ok && out.stderr.contains(&says),
+            "{extra:?}: {}",
+            out.stderr
+        );
+        assert!(!png.exists());
+    }
+}
+
+#[test]
 fn compare_blur_with_glossy_reports_the_reflection_against_the_ray_traced_lobe() {
     // Each per-pixel method's reflected radiance against the ray-traced lobe (runtime
     // tests/glossy.rs holds sat and explicit to 2 % of it); separable has no per-pixel kernel.

@@ -51,6 +51,9 @@ pub struct BlurRow {
     /// ray-traced lobe (`compare::compare_reflection`), the light and penumbra fields unused
     /// (0).
     pub glossy: Option<(f32, f64)>,
+    /// A reflection row whose background is a sky image (`synthetic::sky`, prefiltered for the
+    /// lobe) rather than a colour.
+    pub sky: bool,
     /// The method's errors against the ground truth and its pass times.
     pub measured: compare::BlurRow,
 }
@@ -135,6 +138,7 @@ pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
                 light_gaussian: gaussian,
                 penumbra_texels: w,
                 glossy: None,
+                sky: false,
                 measured,
             });
         }
@@ -144,39 +148,52 @@ pub fn blur_methods(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
 }
 
 /// A glossy cloth's reflection of a leafy caster 0.4 above it, seen in perspective from the
-/// front and above, at roughness 0.1, 0.25 and 0.5: each per-pixel method's reflected radiance
-/// against the ray-traced lobe (48² and 1024 rays per pixel when `quick`, else 96² and 4096).
+/// front and above, at roughness 0.1, 0.25 and 0.5, over a background colour and over the
+/// synthetic sky: each per-pixel method's reflected radiance against the ray-traced lobe (48²
+/// and 1024 rays per pixel when `quick`, else 96² and 4096).
 pub fn reflections(g: &Gpu, quick: bool) -> Result<Vec<BlurRow>> {
     let (side, mc) = if quick { (48, 1024) } else { (96, 4096) };
+    let sky = std::sync::Arc::new(synthetic::sky());
     let mut rows = Vec::new();
-    for roughness in [0.1f32, 0.25, 0.5] {
-        let mut s = Scene::over_ptm(cloth(32), 4, [side, side]);
-        s.view = [-1.0, -1.0, 1.0, 1.0];
-        s.lights = vec![light([0.3, -0.2, 3.0], 0.2)];
-        s.caster = Some(leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4));
-        s.perspective = Some(ptm_runtime::scene::Perspective {
-            eye: [0.0, -2.5, 2.0],
-            target: [0.0, 0.0, 0.0],
-            fov_y_deg: 50.0,
-        });
-        s.glossy = Some(ptm_runtime::Glossy {
-            roughness,
-            background: [0.2, 0.3, 0.5],
-            f0: 0.3,
-        });
-        let p = s.prepare()?;
-        let c = s.caster.as_ref().expect("set above");
-        let fine = ptm_runtime::reference::render_reflection_reference(&p, &c.rgba, mc);
-        let level = fine.iter().flatten().map(|&x| x as f64).sum::<f64>() / (3 * fine.len()) as f64;
-        for measured in compare::compare_reflection(g, &s, mc)? {
-            rows.push(BlurRow {
-                light_radius: 0.0,
-                light_rect: None,
-                light_gaussian: None,
-                penumbra_texels: 0.0,
-                glossy: Some((roughness, level)),
-                measured,
+    for with_sky in [false, true] {
+        for roughness in [0.1f32, 0.25, 0.5] {
+            let mut s = Scene::over_ptm(cloth(32), 4, [side, side]);
+            s.view = [-1.0, -1.0, 1.0, 1.0];
+            s.lights = vec![light([0.3, -0.2, 3.0], 0.2)];
+            s.caster = Some(leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4));
+            s.perspective = Some(ptm_runtime::scene::Perspective {
+                eye: [0.0, -2.5, 2.0],
+                target: [0.0, 0.0, 0.0],
+                fov_y_deg: 50.0,
             });
+            let env = with_sky.then(|| sky.clone());
+            s.glossy = Some(ptm_runtime::Glossy {
+                roughness,
+                background: [0.2, 0.3, 0.5],
+                f0: 0.3,
+                environment: env.clone(),
+            });
+            let p = s.prepare()?;
+            let c = s.caster.as_ref().expect("set above");
+            let fine = ptm_runtime::reference::render_reflection_reference(
+                &p,
+                &c.rgba,
+                env.as_deref(),
+                mc,
+            );
+            let level =
+                fine.iter().flatten().map(|&x| x as f64).sum::<f64>() / (3 * fine.len()) as f64;
+            for measured in compare::compare_reflection(g, &s, mc)? {
+                rows.push(BlurRow {
+                    light_radius: 0.0,
+                    light_rect: None,
+                    light_gaussian: None,
+                    penumbra_texels: 0.0,
+                    glossy: Some((roughness, level)),
+                    sky: with_sky,
+                    measured,
+                });
+            }
         }
     }
     Ok(rows)

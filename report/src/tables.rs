@@ -453,11 +453,16 @@ fn blur(rows: &[BlurRow]) -> Table {
         if let Some((roughness, level)) = r.glossy {
             t.push(vec![
                 format!(
-                    "glossy reflection, roughness {} (mean reflected {})",
+                    "glossy reflection{}, roughness {} (mean reflected {})",
+                    if r.sky { " over a sky image" } else { "" },
                     g3(roughness as f64),
                     g3(level)
                 ),
-                "glossy lobe (imaginary light)".into(),
+                if r.sky {
+                    "glossy lobe (imaginary light) + prefiltered sky".into()
+                } else {
+                    "glossy lobe (imaginary light)".into()
+                },
                 "-".into(),
                 m.method.into(),
                 g3(m.max_abs_error as f64),

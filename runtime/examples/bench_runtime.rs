@@ -1,6 +1,8 @@
 //! Benchmark of the runtime: time per pass at 1920×1080 (ptm11, 1024² caster, every blur
 //! method), and the shade time of `sat` against `explicit` as the penumbra radius grows from 1
-//! to 64 caster texels, and of `sat` under a Gaussian light (nine box lookups) as its σ does.
+//! to 64 caster texels, and of `sat` under a Gaussian light (nine box lookups) as its σ does,
+//! a rectangular light (one box) as its half-side does, and a glossy receiver as its roughness
+//! widens the reflection's kernel.
 //! Run: `cargo run --release -p ptm-runtime --example bench_runtime` (`-- --quick` for fewer
 //! frames; `-- --sweep-size N` for the radius sweep's image side; `-- --sweep-only` without
 //! the 1080p table).
@@ -187,5 +189,52 @@ fn sweeps(gpu: &Gpu, base: &Scene, c: &ptm_runtime::Caster, sweep_size: u32, fra
             g1 = t;
         }
         println!("{s_tex:>10} {:>12.2} {:>10.2}", 1e3 * t, t / g1);
+    }
+
+    // --- rectangle sweep: sat's box, four table reads at any size ---
+    println!("\nRectangular light at {n}×{n}, sat (one box), half-side on the caster in texels");
+    println!("{:>10} {:>12} {:>12}", "half texels", "sat ms", "sat/sat(1)");
+    let mut r1 = 0.0;
+    for h_tex in [1.0f32, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0] {
+        let mut s = base.clone();
+        s.size = [n, n];
+        s.view = [0.0, 0.0, 4.0, 4.0];
+        s.caster = Some(c.clone());
+        s.blur = Blur::Sat;
+        // Half-side a/2 · h/lz = a/10 on the caster: a = 10 · half-side, at 2:1 aspect.
+        let a = 10.0 * h_tex * 3.0 / 1024.0;
+        s.lights[0].rect = Some([a, 0.5 * a]);
+        let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
+        let t = shade_min(&r, 3 * frames);
+        if h_tex == 1.0 {
+            r1 = t;
+        }
+        println!("{h_tex:>10} {:>12.2} {:>10.2}", 1e3 * t, t / r1);
+    }
+
+    // --- glossy sweep: the reflection's kernel grows with the roughness ---
+    println!("\nGlossy receiver at {n}×{n}, sat, the lobe's kernel radius on the caster in texels");
+    println!("{:>10} {:>10} {:>12} {:>12}", "roughness", "r texels", "sat ms", "sat/first");
+    let mut first = 0.0;
+    for roughness in [0.005f32, 0.01, 0.04, 0.16, 0.32, 0.64] {
+        let mut s = base.clone();
+        s.size = [n, n];
+        s.view = [0.0, 0.0, 4.0, 4.0];
+        s.caster = Some(c.clone());
+        s.blur = Blur::Sat;
+        s.glossy = Some(ptm_runtime::Glossy {
+            roughness,
+            background: [0.2, 0.3, 0.5],
+            f0: 0.3,
+            environment: None,
+        });
+        // From straight above the lobe meets the caster 0.5 up: radius 0.5·tan α.
+        let r_tex = 0.5 * (roughness * std::f32::consts::FRAC_PI_4).tan() * 1024.0 / 3.0;
+        let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
+        let t = shade_min(&r, 3 * frames);
+        if first == 0.0 {
+            first = t;
+        }
+        println!("{roughness:>10} {r_tex:>10.1} {:>12.2} {:>12.2}", 1e3 * t, t / first);
     }
 }

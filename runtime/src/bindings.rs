@@ -56,10 +56,28 @@ pub mod shade {
     pub const SHADOWS: Binding = b("shadow_maps", 14);
     /// Mesh path: the sampler the macro shadow gathers its depth maps with.
     pub const GATHER: Binding = b("shadow_sampler", 15);
+    /// Glossy receiver: the background image's equal-area map and its levels
+    /// (`SceneBuffers::environment`).
+    pub const ENVIRONMENT: Binding = b("environment", 16);
     /// Every binding of the shading pass.
     pub const ALL: &[Binding] = &[
-        FRAME, LIGHTS, COEFFS, ALBEDO, OPACITY, SAT, MIP, MIP_LEVELS, SEP_MAP, PTM_LEVELS,
-        COVERAGE, PLANE, NORMAL_MAP, LEARNED, SHADOWS, GATHER,
+        FRAME,
+        LIGHTS,
+        COEFFS,
+        ALBEDO,
+        OPACITY,
+        SAT,
+        MIP,
+        MIP_LEVELS,
+        SEP_MAP,
+        PTM_LEVELS,
+        COVERAGE,
+        PLANE,
+        NORMAL_MAP,
+        LEARNED,
+        SHADOWS,
+        GATHER,
+        ENVIRONMENT,
     ];
 }
 

@@ -88,7 +88,8 @@ pub fn compare_reflection(g: &Gpu, scene: &Scene, mc_samples: u32) -> Result<Vec
             p.caster_downsample
         )));
     }
-    let reference = reference::render_reflection_reference(&p, &c.rgba, mc_samples);
+    let env = scene.glossy.as_ref().and_then(|g| g.environment.as_deref());
+    let reference = reference::render_reflection_reference(&p, &c.rgba, env, mc_samples);
     let mut rows = Vec::new();
     for blur in [Blur::Explicit, Blur::Sat, Blur::Mip] {
         let (_, p, shade_s, setup_s) = timed(g, scene, blur)?;

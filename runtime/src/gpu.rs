@@ -203,6 +203,12 @@ impl Renderer {
                 gpu.storage("albedo", bytemuck::cast_slice(&p.albedo)),
             ));
         }
+        if v.glossy && v.env_size > 0 {
+            entries.push((
+                b::ENVIRONMENT.index,
+                gpu.storage("environment", bytemuck::cast_slice(&p.environment)),
+            ));
+        }
         if v.basis.is_some() && v.coverage {
             entries.push((
                 b::COVERAGE.index,

@@ -25,6 +25,7 @@ pub mod caster;
 pub mod compare;
 pub mod cpu;
 pub mod device;
+pub mod environment;
 pub mod gpu;
 pub mod layout;
 pub mod mesh;

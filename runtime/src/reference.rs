@@ -6,12 +6,13 @@
 use std::f64::consts::PI;
 
 use ptm_format::hash::{splitmix64 as hash, unit_f64 as unit};
-use ptm_format::vec3::{cross, dot, normalize};
+use ptm_format::vec3::{dot, normalize};
 
 use crate::blur::explicit::opacity_raw;
 use crate::blur::Plane;
 use crate::layout::{Frame, LightGpu};
 use crate::output::Image;
+use crate::penumbra::cone_frame;
 use crate::scene::SceneBuffers;
 
 /// The opacity per channel of the caster texel at texel coordinate tc: a glossy scene's
@@ -268,10 +269,12 @@ pub fn mc_k(
 
 /// [`mc_reflection`] at every pixel of a glossy scene (the twin of
 /// [`crate::cpu::render_reflection`]), row-major; `rgba` the caster's texels as laid out
-/// (`p.plane.size`).
+/// (`p.plane.size`); `env` the scene's background image, if it has one (the buffers hold only
+/// its map prefiltered for the lobe: the reference reads the image itself along every ray).
 pub fn render_reflection_reference(
     p: &SceneBuffers,
     rgba: &[[u8; 4]],
+    env: Option<&crate::environment::Environment>,
     samples: u32,
 ) -> Vec<[f32; 3]> {
     let [w, h] = [p.frame.screen[0] as usize, p.frame.screen[1] as usize];
@@ -294,7 +297,8 @@ pub fn render_reflection_reference(
                 return [0.0; 3];
             };
             let dir = twin.view_direction(frag);
-            mc_reflection(&p.frame, p.plane.size, rgba, q, dir, samples, t as u64)
+            let frame = &p.frame;
+            mc_reflection(frame, p.plane.size, rgba, env, q, dir, samples, t as u64)
         })
         .collect()
 }
@@ -306,12 +310,16 @@ pub fn render_reflection_reference(
 /// that hits the caster takes its texel (nearest, as the methods see them) composited over the
 /// background, α·colour + (1 − α)·background with the texel's own linear colour (sRGB decoded,
 /// as the methods' premultiplied image holds it, unquantised); a ray that misses it takes the background. `rgba` is the caster's
-/// image as the scene laid it out (`plane.size` texels). Deterministic: the random numbers hash
-/// (`key`, sample).
+/// image as the scene laid it out (`plane.size` texels). With a background image `env` each
+/// ray's background is the image along the ray at full resolution
+/// ([`crate::environment::Environment::radiance`]), not the lobe's prefiltered average.
+/// Deterministic: the random numbers hash (`key`, sample).
+#[allow(clippy::too_many_arguments)]
 pub fn mc_reflection(
     frame: &Frame,
     size: [u32; 2],
     rgba: &[[u8; 4]],
+    env: Option<&crate::environment::Environment>,
     p: [f32; 2],
     dir: [f32; 3],
     samples: u32,
@@ -337,6 +345,9 @@ pub fn mc_reflection(
         let u1 = (si as f64 + unit(hs)) / strata as f64;
         let u2 = (sj as f64 + unit(hash(hs))) / strata as f64;
         let ray = cone.dir(u1, u2);
+        let back = env.map_or(back, |e| {
+            e.radiance(ray.map(|x| x as f32)).map(|x| x as f64)
+        });
         let mut c = back;
         let t_caster = dot(normal, below) / dot(normal, ray);
         if t_caster > 0.0 && t_caster.is_finite() {
@@ -360,48 +371,4 @@ pub fn mc_reflection(
         }
     }
     sum.map(|x| (x / (strata * strata) as f64) as f32)
-}
-
-/// A cone around a unit `axis`: an orthonormal frame (e1, e2) about it and the cosine of its
-/// half-angle.
-struct Cone {
-    axis: [f64; 3],
-    e1: [f64; 3],
-    e2: [f64; 3],
-    cos_max: f64,
-}
-
-impl Cone {
-    /// The direction at (u1, u2) ∈ [0, 1)², uniform in solid angle within the cone.
-    fn dir(&self, u1: f64, u2: f64) -> [f64; 3] {
-        let cos_t = 1.0 - u1 * (1.0 - self.cos_max);
-        let sin_t = (1.0 - cos_t * cos_t).max(0.0).sqrt();
-        let phi = 2.0 * PI * u2;
-        std::array::from_fn(|k| {
-            self.axis[k] * cos_t + (self.e1[k] * phi.cos() + self.e2[k] * phi.sin()) * sin_t
-        })
-    }
-}
-
-/// The cone that a sphere of radius `r` at distance `d` along the unit `axis` subtends (the
-/// whole sphere of directions, cos −1, from inside it).
-fn cone_frame(axis: [f64; 3], r: f64, d: f64) -> Cone {
-    let helper = if axis[2].abs() < 0.9 {
-        [0.0, 0.0, 1.0]
-    } else {
-        [1.0, 0.0, 0.0]
-    };
-    let e1 = normalize(cross(helper, axis));
-    let e2 = cross(axis, e1);
-    let cos_max = if r >= d {
-        -1.0
-    } else {
-        (1.0 - (r / d) * (r / d)).sqrt()
-    };
-    Cone {
-        axis,
-        e1,
-        e2,
-        cos_max,
-    }
 }

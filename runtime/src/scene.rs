@@ -99,8 +99,9 @@ pub struct Perspective {
 /// (1 − F)·diffuse + F·(mean(α·rgb) + (1 − ᾱ)·background), F Schlick's Fresnel of F0 at the
 /// view angle, mean(α·rgb) the mean over the kernel of each texel's premultiplied linear colour
 /// and ᾱ of its opacity (the caster's image then has four channels,
-/// `caster::reflection_texels`; its shadows use α).
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// `caster::reflection_texels`; its shadows use α). With [`Glossy::environment`] the
+/// background is a sky image, averaged over the same lobe (`environment.rs`).
+#[derive(Clone, Debug, PartialEq)]
 pub struct Glossy {
     /// 0 (a mirror) ..= 1 (a cone of half-angle 45°): the half-angle is roughness × 45°.
     pub roughness: f32,
@@ -108,6 +109,9 @@ pub struct Glossy {
     pub background: [f32; 3],
     /// Reflectance at normal incidence F0, in [0, 1].
     pub f0: f32,
+    /// A background image (a sky) reflected instead of the colour `background`: looked up
+    /// along the mirror direction, averaged over the lobe's cone by its MIP chain.
+    pub environment: Option<std::sync::Arc<crate::environment::Environment>>,
 }
 
 impl Glossy {
@@ -304,6 +308,26 @@ impl Scene {
                     g.f0
                 )));
             }
+            if let Some(e) = &g.environment {
+                let n = e.size;
+                let levels = crate::environment::level_count(n.max(1));
+                if !n.is_power_of_two()
+                    || n > crate::environment::MAX_SIZE
+                    || e.texels.len() != crate::environment::level_offset(n, levels)
+                    || !e
+                        .texels
+                        .iter()
+                        .flatten()
+                        .all(|x| x.is_finite() && *x >= 0.0)
+                {
+                    return Err(Error::Scene(format!(
+                        "glossy background image: a {n}² map with {} texels (a power-of-two side \
+                         ≤ {}, every level, finite and ≥ 0): build it with Environment::load",
+                        e.texels.len(),
+                        crate::environment::MAX_SIZE
+                    )));
+                }
+            }
             if self.caster.is_none() {
                 return Err(Error::Scene(
                     "a glossy receiver reflects the caster: give it a caster".into(),
@@ -439,6 +463,7 @@ impl Scene {
         let mut plane_gpu = PlaneGpu::default();
         let mut prepared = crate::blur::nothing();
         let mut caster_downsample = 1;
+        let (mut environment, mut env_size) = (Vec::new(), 0);
         if let Some(c) = &self.caster {
             if c.width == 0 || c.height == 0 || c.rgba.len() != c.width * c.height {
                 return Err(Error::Scene(format!(
@@ -491,6 +516,10 @@ impl Scene {
                 frame.glossy_background = g.background;
                 frame.glossy_sin = g.cone_half_angle().sin();
                 frame.glossy_f0 = g.f0;
+                if let Some(e) = &g.environment {
+                    let (m, map) = e.prefiltered(frame.glossy_sin);
+                    (env_size, environment) = (m as u32, map);
+                }
             }
             frame.caster_rect = c.rect;
             frame.caster_height = c.elevation;
@@ -519,6 +548,7 @@ impl Scene {
                 .iter()
                 .any(|l| l.rect.is_none() && l.gaussian.is_some()),
             glossy: self.glossy.is_some(),
+            env_size,
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
@@ -543,6 +573,7 @@ impl Scene {
             coverage,
             learned,
             albedo,
+            environment,
             plane,
             plane_gpu,
             prepared,
@@ -767,6 +798,9 @@ pub struct Variant {
     /// A glossy receiver reflects the caster ([`Glossy`]): only then is `glossy_reflection`
     /// compiled.
     pub glossy: bool,
+    /// A glossy receiver's background image ([`Glossy::environment`]): the side of its map
+    /// prefiltered for the lobe (a constant of the source, `ENV_SIZE`), 0 for a colour.
+    pub env_size: u32,
 }
 
 impl Variant {
@@ -826,6 +860,7 @@ impl Variant {
                                 shadow: false,
                                 gaussian: false,
                                 glossy: false,
+                                env_size: 0,
                             });
                         }
                     }
@@ -850,6 +885,7 @@ impl Variant {
                             shadow,
                             gaussian: false,
                             glossy: false,
+                            env_size: 0,
                         });
                     }
                 }
@@ -879,7 +915,13 @@ impl Variant {
             })
             .map(|v| Variant { glossy: true, ..*v })
             .collect();
+        // … and each of them over a background image (an 8² map: its size is a constant).
+        let env: Vec<Variant> = glossy
+            .iter()
+            .map(|v| Variant { env_size: 8, ..*v })
+            .collect();
         out.extend(glossy);
+        out.extend(env);
         out
     }
 
@@ -924,6 +966,9 @@ impl Variant {
         }
         if self.glossy {
             parts.push("glossy".into());
+        }
+        if self.env_size > 0 {
+            parts.push(format!("env{}", self.env_size));
         }
         parts.join("+")
     }
@@ -1002,6 +1047,10 @@ pub struct SceneBuffers {
     pub coverage: Vec<f32>,
     /// Linear albedo texels (rgb, a = 1), row-major, row 0 at the far edge.
     pub albedo: Vec<[f32; 4]>,
+    /// A glossy receiver's background image: its equal-area map prefiltered for the lobe
+    /// ([`crate::environment::Environment::prefiltered`], side `variant.env_size`); empty
+    /// without.
+    pub environment: Vec<[f32; 4]>,
     /// The image the blur filters: the caster's opacity per texel as packed u8 (r | g << 8 |
     /// b << 16, each 0..=255; all three equal without `colored_shadow`); empty without a caster.
     pub plane: crate::blur::Plane,

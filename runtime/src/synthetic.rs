@@ -261,3 +261,44 @@ pub fn half_plane(n: usize, rows: usize, elevation: f32) -> Caster {
         tilt_deg: 0.0,
     }
 }
+
+/// A `w`×`h` lat-long sky (linear RGB, the convention of [`crate::environment`]): deep blue at
+/// the zenith paling to the horizon, a warm sun 35° up at azimuth 40° with a soft glow, and
+/// banks of cloud every 60° of azimuth; the ground (below the horizon) a dull brown.
+pub fn sky_latlong(w: usize, h: usize) -> Vec<[f32; 3]> {
+    let sun = {
+        let (el, az) = (35f64.to_radians(), 40f64.to_radians());
+        [el.cos() * az.cos(), el.cos() * az.sin(), el.sin()]
+    };
+    (0..w * h)
+        .map(|i| {
+            let phi = 2.0 * std::f64::consts::PI * ((i % w) as f64 + 0.5) / w as f64
+                - std::f64::consts::PI;
+            let theta = std::f64::consts::PI * ((i / w) as f64 + 0.5) / h as f64;
+            let d = [
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            ];
+            if d[2] < 0.0 {
+                return [0.12, 0.09, 0.06];
+            }
+            let t = 1.0 - d[2]; // 0 at the zenith, 1 at the horizon
+            let cos_sun = d[0] * sun[0] + d[1] * sun[1] + d[2] * sun[2];
+            let glow = 3.0 * ((cos_sun - 1.0) / 0.02).exp();
+            let cloud = 0.25 * (0.5 + 0.5 * (6.0 * phi).cos()).powi(4) * (1.0 - d[2]).sqrt();
+            let base = [0.10 + 0.55 * t, 0.20 + 0.55 * t, 0.55 + 0.40 * t];
+            [
+                (base[0] + cloud + glow) as f32,
+                (base[1] + cloud + 0.85 * glow) as f32,
+                (base[2] + cloud + 0.6 * glow) as f32,
+            ]
+        })
+        .collect()
+}
+
+/// [`sky_latlong`] at 128 × 64, as a glossy receiver's background image.
+pub fn sky() -> crate::environment::Environment {
+    crate::environment::Environment::from_latlong("synthetic sky", 128, 64, &sky_latlong(128, 64))
+        .expect("a finite sky")
+}

@@ -1039,6 +1039,7 @@ mod tests {
             roughness: 0.2,
             background: [0.2, 0.25, 0.35],
             f0: 0.6,
+            environment: None,
         });
         scene
     }
@@ -1083,11 +1084,11 @@ mod tests {
                 last = image;
             }
             for step in [ROUGHNESS_PER_KEY, -2.0 * ROUGHNESS_PER_KEY] {
-                let before = session.base.glossy.unwrap().roughness;
+                let before = session.base.glossy.as_ref().unwrap().roughness;
                 session.apply(Action::Roughness(step));
                 assert_eq!(session.change, Change::Scene);
                 let image = session.render(&gpu).unwrap().readback().unwrap();
-                let after = session.base.glossy.unwrap().roughness;
+                let after = session.base.glossy.as_ref().unwrap().roughness;
                 assert!((after - (before + step)).abs() < 1e-6, "{before} {after}");
                 let diff = image.max_abs_diff(&fresh(&session)).unwrap();
                 assert!(
@@ -1101,9 +1102,9 @@ mod tests {
             assert_eq!((session.builds, session.renders), (3, 5), "{name}");
             // Kept within [0, 1].
             session.apply(Action::Roughness(5.0));
-            assert_eq!(session.base.glossy.unwrap().roughness, 1.0);
+            assert_eq!(session.base.glossy.as_ref().unwrap().roughness, 1.0);
             session.apply(Action::Roughness(-5.0));
-            assert_eq!(session.base.glossy.unwrap().roughness, 0.0);
+            assert_eq!(session.base.glossy.as_ref().unwrap().roughness, 0.0);
         }
         // B cycles past the separable blur, which has no kernel per pixel; key 4 picks it and
         // the scene refuses it.

@@ -45,6 +45,7 @@ fn scene(roughness: f32, blur: Blur, perspective: bool) -> Scene {
             roughness,
             background: [0.2, 0.3, 0.5],
             f0: 0.3,
+            environment: None,
         }),
     }
 }
@@ -75,8 +76,11 @@ fn glossy_reflection_is_within_two_percent_of_the_ray_traced_lobe() {
     for perspective in [false, true] {
         for roughness in ROUGHNESS {
             let p = scene(roughness, Blur::Sat, perspective).prepare().unwrap();
-            let fine = render_reflection_reference(&p, &caster.rgba, 4096);
-            let noise = mean_abs(&render_reflection_reference(&p, &caster.rgba, 256), &fine);
+            let fine = render_reflection_reference(&p, &caster.rgba, None, 4096);
+            let noise = mean_abs(
+                &render_reflection_reference(&p, &caster.rgba, None, 256),
+                &fine,
+            );
             let level = mean(&fine);
             for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
                 let p = scene(roughness, blur, perspective).prepare().unwrap();
@@ -180,7 +184,7 @@ fn extremes_grazing_views_a_touching_caster_and_a_45_degree_lobe_stay_finite_and
         ("roughness 1", wide, 0.12),
     ] {
         let p = s.prepare().unwrap();
-        let fine = render_reflection_reference(&p, &caster.rgba, 4096);
+        let fine = render_reflection_reference(&p, &caster.rgba, None, 4096);
         let level = mean(&fine);
         for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
             let mut e = s.clone();
@@ -247,7 +251,7 @@ fn each_caster_texel_reflects_its_own_colour() {
             let mut s = scene(roughness, Blur::Sat, perspective);
             two_halves(&mut s);
             let p = s.prepare().unwrap();
-            let fine = render_reflection_reference(&p, &rgba, 4096);
+            let fine = render_reflection_reference(&p, &rgba, None, 4096);
             let level = mean(&fine);
             // The two colours both show: red dominates some pixels, blue-green others.
             assert!(fine.iter().any(|x| x[0] > 2.0 * x[2]));

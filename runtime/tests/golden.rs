@@ -169,6 +169,7 @@ fn golden_sat_shadow_and_glossy_reflection() {
         roughness: 0.15,
         background: [0.15, 0.2, 0.35],
         f0: 0.5,
+        environment: None,
     });
     check_golden("sat_glossy", &s);
 }
@@ -219,6 +220,38 @@ fn golden_sat_shadow_and_glossy_reflection_of_a_coloured_caster() {
         roughness: 0.1,
         background: [0.15, 0.2, 0.35],
         f0: 0.6,
+        environment: None,
     });
     check_golden("sat_glossy_coloured", &s);
+}
+
+#[test]
+fn golden_sat_shadow_and_a_reflected_sky() {
+    // The leafy caster, flat, over plain glossy cloth seen in perspective from the sun's side
+    // of the synthetic sky (the sun 35° up at azimuth 40°, behind the camera), so the mirror
+    // rays climb from about 20° above the horizon at the top of the picture to 60° at the
+    // bottom: the sky's pale horizon and cloud banks reflected far away, its deeper blue near,
+    // the leaves' green reflection and their soft shadow over it.
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.size = [128, 96];
+    s.ptm = None;
+    s.albedo = [0.5; 3];
+    s.lights = vec![light([2.5, 0.2, 2.5], 0.3, 9.0)];
+    s.caster = Some(ptm_runtime::synthetic::leaves(
+        48,
+        [0.5, 0.6, 1.5, 1.6],
+        0.5,
+    ));
+    s.perspective = Some(ptm_runtime::scene::Perspective {
+        eye: [2.9, 2.7, 1.5],
+        target: [1.0, 0.9, 0.0],
+        fov_y_deg: 60.0,
+    });
+    s.glossy = Some(ptm_runtime::Glossy {
+        roughness: 0.12,
+        background: [0.15, 0.2, 0.35],
+        f0: 0.35,
+        environment: Some(std::sync::Arc::new(ptm_runtime::synthetic::sky())),
+    });
+    check_golden("sat_glossy_sky", &s);
 }

@@ -126,24 +126,31 @@ fn gpu_matches_twin_with_a_glossy_receiver() {
         roughness: 0.3,
         background: [0.2, 0.3, 0.5],
         f0: 0.4,
+        environment: None,
     });
     let oblique = ptm_runtime::scene::Perspective {
         eye: [1.5, -2.0, 2.5],
         target: [1.5, 1.5, 0.0],
         fov_y_deg: 60.0,
     };
+    let sky = std::sync::Arc::new(ptm_runtime::synthetic::sky());
     for perspective in [None, Some(oblique)] {
         s.perspective = perspective;
         for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
             s.blur = blur;
-            check(
-                &s,
-                &format!(
-                    "glossy, {}, perspective {}",
-                    blur.name(),
-                    perspective.is_some()
-                ),
-            );
+            // Over the background colour, and over a sky (the background image's lookup).
+            for env in [None, Some(sky.clone())] {
+                s.glossy.as_mut().unwrap().environment = env.clone();
+                check(
+                    &s,
+                    &format!(
+                        "glossy, {}, perspective {}, sky {}",
+                        blur.name(),
+                        perspective.is_some(),
+                        env.is_some()
+                    ),
+                );
+            }
         }
     }
 }

@@ -698,8 +698,8 @@ impl Twin<'_> {
     /// the mirror ray (derivation in the WGSL): mean(α·rgb) + (1 − mean α)·background.
     pub fn glossy_reflection(&self, p: [f32; 2], dir: [f32; 3]) -> [f32; 3] {
         let f = self.f();
-        let back = f.glossy_background;
         let r = [dir[0], dir[1], -dir[2]];
+        let back = self.glossy_background(r);
         let c = f.caster_rect;
         let centre = [0.5 * (c[0] + c[2]), 0.5 * (c[1] + c[3]), f.caster_height];
         let n = [0.0, -f.caster_sin_tilt, f.caster_cos_tilt];
@@ -724,6 +724,16 @@ impl Twin<'_> {
         };
         let o = self.light_blur(p, &l, 0).map(|x| x.max(0.0));
         std::array::from_fn(|k| o[k] + back[k] * (1.0 - o[3].min(1.0)))
+    }
+
+    /// The background a glossy receiver reflects along the mirror direction r: the colour, or
+    /// the background image averaged over the lobe (prefiltered, [`env_lookup`]).
+    pub fn glossy_background(&self, r: [f32; 3]) -> [f32; 3] {
+        let f = self.f();
+        if self.p.variant.env_size == 0 {
+            return f.glossy_background;
+        }
+        env_lookup(self.p.variant.env_size as usize, &self.p.environment, r)
     }
 
     /// `glossy_fresnel` of `shade.wgsl`: Schlick's Fresnel at the view direction's angle to +Z.
@@ -844,6 +854,24 @@ pub fn sphere_ellipse(
         radii: radii.map(|r| r.max(0.5)),
         shear,
     })
+}
+
+/// `env_texel` of `shade.wgsl`: texel (x, y) of the prefiltered background map, clamped to
+/// its edge ([`crate::environment::texel`]).
+pub fn env_texel(n: usize, texels: &[[f32; 4]], x: i32, y: i32) -> [f32; 4] {
+    crate::environment::texel(n, texels, x, y)
+}
+
+/// `env_bilinear` of `shade.wgsl` ([`crate::environment::bilinear`]).
+pub fn env_bilinear(n: usize, texels: &[[f32; 4]], t: [f32; 2]) -> [f32; 4] {
+    crate::environment::bilinear(n, texels, t)
+}
+
+/// `env_lookup` of `shade.wgsl`: the prefiltered background along the mirror direction r
+/// ([`crate::environment::read`]).
+pub fn env_lookup(n: usize, texels: &[[f32; 4]], r: [f32; 3]) -> [f32; 3] {
+    let c = crate::environment::read(n, texels, r);
+    [c[0], c[1], c[2]]
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! remove bindings, so what a scene lacks is cut out of the text), and naga validation.
 //!
 //! Directives are whole lines `//#if NAME`, `//#else`, `//#endif` (nestable); placeholders
-//! `{{NC}}`, `{{PTM_EVAL}}`, `{{PTM_JET}}` (its value and derivatives), `{{GRID}}` (a learned basis's grid side), `{{BLUR}}` (the blur
+//! `{{NC}}`, `{{PTM_EVAL}}`, `{{PTM_JET}}` (its value and derivatives), `{{GRID}}` (a learned basis's grid side), `{{ENV_SIZE}}` (a background image's prefiltered map side), `{{BLUR}}` (the blur
 //! method's file), `{{CHANNELS}}` (its image's channels). The PTM polynomial is generated from
 //! the format crate's monomial table, so the shader and `Basis::eval` cannot disagree on the
 //! order; a learned basis replaces it by the bilinear read of its table (`learned_eval`).
@@ -56,6 +56,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     }
     if v.glossy && v.caster.is_some() {
         d.push("GLOSSY");
+    }
+    if v.glossy && v.caster.is_some() && v.env_size > 0 {
+        d.push("GLOSSY_ENV");
     }
     d
 }
@@ -198,6 +201,7 @@ pub fn shade_source(v: &Variant) -> Result<String> {
         .replace("{{PTM_EVAL}}", &eval)
         .replace("{{PTM_JET}}", &jet)
         .replace("{{GRID}}", &v.learned_grid.to_string())
+        .replace("{{ENV_SIZE}}", &v.env_size.to_string())
         .replace("{{CHANNELS}}", &v.sat_channels().to_string()))
 }
 
@@ -230,12 +234,13 @@ mod tests {
         // and without coverage, or learned6 or learned11 (logistic, hemispherical) × MIP chain
         // × coverage; × albedo × (caster, or a mesh with or without a normal map and a macro
         // shadow); and with a Gaussian light, without albedo, MIP chain or coverage; and with a
-        // glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3).
+        // glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3), with
+        // a background colour or image.
         assert_eq!(
             all.len(),
             (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4)
                 + (1 + 2 * 2 * 2 + 2) * (9 + 4)
-                + (1 + 2 * 2 * 2 + 2) * 3
+                + (1 + 2 * 2 * 2 + 2) * 3 * 2
         );
         for v in all {
             let src = shade_source(&v).unwrap();
@@ -277,6 +282,7 @@ mod tests {
             shadow: false,
             gaussian: false,
             glossy: false,
+            env_size: 0,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -312,6 +318,13 @@ mod tests {
             let src = shade_source(&v).unwrap();
             for name in ["glossy_reflection", "glossy_fresnel"] {
                 assert_eq!(src.contains(name), v.glossy, "{}: {name}", v.name());
+            }
+            // The background image's binding and lookup only with one.
+            for name in ["env_lookup", "var<storage, read> environment"] {
+                assert_eq!(src.contains(name), v.env_size > 0, "{}: {name}", v.name());
+            }
+            if v.env_size > 0 {
+                assert!(src.contains("const ENV_SIZE: u32 = 8u;"), "{}", v.name());
             }
         }
     }

@@ -765,8 +765,11 @@ const RECT_MIN: f32 = 0.00390625;
 // transparent and the background shows. A lobe
 // that never meets the plane reflects the background alone.
 fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
-    let back = frame.glossy_background;
     let r = vec3<f32>(dir.xy, -dir.z);
+    var back = frame.glossy_background;
+//#if GLOSSY_ENV
+    back = env_lookup(r);
+//#endif
     let c = frame.caster_rect;
     let centre = vec3<f32>(0.5 * (c.xy + c.zw), frame.caster_height);
     let n = vec3<f32>(0.0, -frame.caster_sin_tilt, frame.caster_cos_tilt);
@@ -789,6 +792,39 @@ fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
     let o = max(light_blur(p, l, 0u), vec4<f32>(0.0));
     return o.xyz + back * (1.0 - min(o.w, 1.0));
 }
+
+//#if GLOSSY_ENV
+// The background image (`environment.rs`): the upper hemisphere as an equal-area map, N × N
+// over [−1, 1]², prefiltered on the CPU for this scene's lobe (each texel the sky averaged
+// over the cone around its direction).
+const ENV_SIZE: u32 = {{ENV_SIZE}}u;
+@group(0) @binding(16) var<storage, read> environment: array<vec4<f32>>;
+
+fn env_texel(x: i32, y: i32) -> vec4<f32> {
+    let s = i32(ENV_SIZE);
+    return environment[u32(clamp(y, 0, s - 1) * s + clamp(x, 0, s - 1))];
+}
+
+// Bilinear read at texel coordinate t, clamped to the edge.
+fn env_bilinear(t: vec2<f32>) -> vec4<f32> {
+    let c = t - 0.5;
+    let c0 = floor(c);
+    let a = c - c0;
+    let x = i32(c0.x);
+    let y = i32(c0.y);
+    return mix(
+        mix(env_texel(x, y), env_texel(x + 1, y), a.x),
+        mix(env_texel(x, y + 1), env_texel(x + 1, y + 1), a.x),
+        a.y,
+    );
+}
+
+// The background along the mirror direction r (r.z ≥ 0): (u, v) = r.xy/√(1 + r.z).
+fn env_lookup(r: vec3<f32>) -> vec3<f32> {
+    let uv = r.xy * (1.0 / sqrt(1.0 + r.z));
+    return env_bilinear((uv + 1.0) * (0.5 * f32(ENV_SIZE))).xyz;
+}
+//#endif
 
 // Schlick's Fresnel at the view direction's angle to the normal +Z.
 fn glossy_fresnel(dir: vec3<f32>) -> f32 {
