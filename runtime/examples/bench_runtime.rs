@@ -127,114 +127,137 @@ fn table_1080p(gpu: &Gpu, base: &Scene, c: &ptm_runtime::Caster, quick: bool, fr
     }
 }
 
-/// Shade time as the penumbra grows: sat flat, explicit ∝ r²; sat under a Gaussian light.
+/// The fastest frame of each renderer over `rounds` rounds, each round one frame of every
+/// renderer in turn (after a warm-up of each): whatever else the machine runs slows the sizes of
+/// one sweep alike, so their ratios hold under load.
+fn interleaved_min(renderers: &[Renderer], rounds: usize) -> Vec<f64> {
+    for r in renderers {
+        r.frame().unwrap();
+    }
+    let mut best = vec![f64::INFINITY; renderers.len()];
+    for _ in 0..rounds {
+        for (b, r) in best.iter_mut().zip(renderers) {
+            *b = b.min(r.frame().unwrap());
+        }
+    }
+    best
+}
+
+/// One SAT sweep: the scene `at(size)` for each size, timed interleaved; prints each size's
+/// fastest frame and its ratio to the first size's.
+fn sat_sweep(
+    gpu: &Gpu,
+    title: &str,
+    unit: &str,
+    sizes: &[f32],
+    rounds: usize,
+    at: impl Fn(f32) -> Scene,
+) {
+    println!("\n{title}");
+    println!("{unit:>12} {:>12} {:>12}", "sat ms", "/ first");
+    let renderers: Vec<Renderer> = sizes
+        .iter()
+        .map(|&x| Renderer::new(gpu, &at(x).prepare().unwrap()).unwrap())
+        .collect();
+    let t = interleaved_min(&renderers, rounds);
+    for (x, ti) in sizes.iter().zip(&t) {
+        println!("{x:>12} {:>12.2} {:>12.2}", 1e3 * ti, ti / t[0]);
+    }
+}
+
+/// Shade time as the kernel grows: sat flat for the sphere's ellipse, the Gaussian's nine boxes,
+/// the rectangle's box and the glossy lobe's ellipse; explicit ∝ r².
 fn sweeps(gpu: &Gpu, base: &Scene, c: &ptm_runtime::Caster, sweep_size: u32, frames: usize) {
-    // --- radius sweep: sat flat, explicit grows ---
     let n = sweep_size;
-    println!(
-        "\nradius sweep at {n}×{n} (explicit at 1080p would take minutes per frame on lavapipe)"
+    let scene = |blur: Blur| {
+        let mut s = base.clone();
+        s.size = [n, n];
+        s.view = [0.0, 0.0, 4.0, 4.0];
+        s.caster = Some(c.clone());
+        s.blur = blur;
+        s
+    };
+    let texel = 3.0 / 1024.0;
+    let radii = [1.0f32, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0];
+    let rounds = 4 * frames;
+    println!("\nkernel sweeps at {n}×{n}: fastest frame of {rounds} interleaved rounds each");
+    // w = R·h/lz with h = 0.5, lz = 2.5: R = 5·w; w = r texels of 3/1024 units.
+    sat_sweep(
+        gpu,
+        "sphere light (ellipse as four boxes), radius on the caster",
+        "r texels",
+        &radii,
+        rounds,
+        |r| {
+            let mut s = scene(Blur::Sat);
+            s.lights[0].radius = 5.0 * r * texel;
+            s
+        },
     );
-    println!("(fastest of several frames each)");
-    println!(
-        "{:>10} {:>12} {:>12} {:>10} {:>14}",
-        "r texels", "sat ms", "explicit ms", "sat/sat(1)", "expl/expl(1)"
+    // σ·h/lz = σ/5 on the caster.
+    sat_sweep(
+        gpu,
+        "Gaussian light (nine boxes), σ on the caster",
+        "σ texels",
+        &radii,
+        rounds,
+        |g| {
+            let mut s = scene(Blur::Sat);
+            s.lights[0].gaussian = Some([5.0 * g * texel; 2]);
+            s
+        },
     );
-    let mut expl1 = 0.0;
-    let mut sat1 = 0.0;
-    for r_tex in [1.0f32, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0] {
-        let mut s = base.clone();
-        s.size = [n, n];
-        s.view = [0.0, 0.0, 4.0, 4.0];
-        s.caster = Some(c.clone());
-        // w = R·h/lz with h = 0.5, lz = 2.5: R = 5·w; w = r_tex texels of 3/1024 units.
-        s.lights[0].radius = 5.0 * r_tex * 3.0 / 1024.0;
-        let mut times = [0.0; 2];
-        for (k, blur) in [Blur::Sat, Blur::Explicit].into_iter().enumerate() {
-            s.blur = blur;
-            let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
-            let f = if blur == Blur::Sat {
-                3 * frames
-            } else {
-                frames.min(3)
-            };
-            times[k] = shade_min(&r, f);
-        }
-        if r_tex == 1.0 {
-            (sat1, expl1) = (times[0], times[1]);
-        }
-        println!(
-            "{r_tex:>10} {:>12.2} {:>12.2} {:>10.2} {:>14.1}",
-            1e3 * times[0],
-            1e3 * times[1],
-            times[0] / sat1,
-            times[1] / expl1
-        );
-    }
+    // Half-side a/2 · h/lz = a/10 on the caster: a = 10 · half-side, at 2:1 aspect.
+    sat_sweep(
+        gpu,
+        "rectangular light 2:1 (one box), longer half-side on the caster",
+        "half texels",
+        &radii,
+        rounds,
+        |h| {
+            let mut s = scene(Blur::Sat);
+            let a = 10.0 * h * texel;
+            s.lights[0].rect = Some([a, 0.5 * a]);
+            s
+        },
+    );
+    // From straight above the lobe meets the caster 0.5 up: radius 0.5·tan(roughness·45°).
+    let roughness = |r: f32| (r * texel / 0.5).atan() / std::f32::consts::FRAC_PI_4;
+    sat_sweep(
+        gpu,
+        "glossy receiver (the lobe's ellipse), its radius on the caster",
+        "r texels",
+        &radii,
+        rounds,
+        |r| {
+            let mut s = scene(Blur::Sat);
+            s.glossy = Some(ptm_runtime::Glossy {
+                roughness: roughness(r),
+                background: [0.2, 0.3, 0.5],
+                f0: 0.3,
+                environment: None,
+            });
+            s
+        },
+    );
 
-    // --- Gaussian sweep: sat's nine boxes stay flat too ---
-    println!("\nGaussian light at {n}×{n}, sat (nine box lookups), σ on the caster in texels");
-    println!("{:>10} {:>12} {:>12}", "σ texels", "sat ms", "sat/sat(1)");
-    let mut g1 = 0.0;
-    for s_tex in [1.0f32, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0] {
-        let mut s = base.clone();
-        s.size = [n, n];
-        s.view = [0.0, 0.0, 4.0, 4.0];
-        s.caster = Some(c.clone());
-        s.blur = Blur::Sat;
-        // σ·h/lz = σ/5 on the caster (h = 0.5, lz = 2.5), texels of 3/1024 units.
-        s.lights[0].gaussian = Some([5.0 * s_tex * 3.0 / 1024.0; 2]);
-        let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
-        let t = shade_min(&r, 3 * frames);
-        if s_tex == 1.0 {
-            g1 = t;
-        }
-        println!("{s_tex:>10} {:>12.2} {:>10.2}", 1e3 * t, t / g1);
-    }
-
-    // --- rectangle sweep: sat's box, four table reads at any size ---
-    println!("\nRectangular light at {n}×{n}, sat (one box), half-side on the caster in texels");
-    println!("{:>10} {:>12} {:>12}", "half texels", "sat ms", "sat/sat(1)");
-    let mut r1 = 0.0;
-    for h_tex in [1.0f32, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0] {
-        let mut s = base.clone();
-        s.size = [n, n];
-        s.view = [0.0, 0.0, 4.0, 4.0];
-        s.caster = Some(c.clone());
-        s.blur = Blur::Sat;
-        // Half-side a/2 · h/lz = a/10 on the caster: a = 10 · half-side, at 2:1 aspect.
-        let a = 10.0 * h_tex * 3.0 / 1024.0;
-        s.lights[0].rect = Some([a, 0.5 * a]);
-        let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
-        let t = shade_min(&r, 3 * frames);
-        if h_tex == 1.0 {
-            r1 = t;
-        }
-        println!("{h_tex:>10} {:>12.2} {:>10.2}", 1e3 * t, t / r1);
-    }
-
-    // --- glossy sweep: the reflection's kernel grows with the roughness ---
-    println!("\nGlossy receiver at {n}×{n}, sat, the lobe's kernel radius on the caster in texels");
-    println!("{:>10} {:>10} {:>12} {:>12}", "roughness", "r texels", "sat ms", "sat/first");
+    // --- explicit grows with the kernel's area ---
+    println!(
+        "\nexplicit, sphere light (fastest of {} frames each)",
+        frames.min(3)
+    );
+    println!("{:>12} {:>12} {:>12}", "r texels", "explicit ms", "/ first");
     let mut first = 0.0;
-    for roughness in [0.005f32, 0.01, 0.04, 0.16, 0.32, 0.64] {
-        let mut s = base.clone();
-        s.size = [n, n];
-        s.view = [0.0, 0.0, 4.0, 4.0];
-        s.caster = Some(c.clone());
-        s.blur = Blur::Sat;
-        s.glossy = Some(ptm_runtime::Glossy {
-            roughness,
-            background: [0.2, 0.3, 0.5],
-            f0: 0.3,
-            environment: None,
-        });
-        // From straight above the lobe meets the caster 0.5 up: radius 0.5·tan α.
-        let r_tex = 0.5 * (roughness * std::f32::consts::FRAC_PI_4).tan() * 1024.0 / 3.0;
-        let r = Renderer::new(gpu, &s.prepare().unwrap()).unwrap();
-        let t = shade_min(&r, 3 * frames);
+    for r in radii {
+        let mut s = scene(Blur::Explicit);
+        s.lights[0].radius = 5.0 * r * texel;
+        let t = shade_min(
+            &Renderer::new(gpu, &s.prepare().unwrap()).unwrap(),
+            frames.min(3),
+        );
         if first == 0.0 {
             first = t;
         }
-        println!("{roughness:>10} {r_tex:>10.1} {:>12.2} {:>12.2}", 1e3 * t, t / first);
+        println!("{r:>12} {:>12.2} {:>12.1}", 1e3 * t, t / first);
     }
 }
