@@ -261,6 +261,7 @@ pub fn build(
                 radius: nth(view.light_radius, i).unwrap_or(0.25 * r),
                 rect: None,
                 square_box: false,
+                rect_angle_deg: 0.0,
                 gaussian: None,
                 // Irradiance 1 at the mesh's centre, facing the light.
                 intensity: nth(view.intensity, i).unwrap_or(d2),

@@ -39,11 +39,12 @@ pub struct Args {
     #[arg(long)]
     pub light_radius: Vec<f32>,
     /// Make the lights rectangles: sides A,B along X and Y in swatch units, facing straight
-    /// down (the last value repeats for further lights), instead of spheres of --light-radius.
-    /// The penumbra is the rectangle's own box kernel, of any aspect ratio (exact with --blur
-    /// sat and explicit; mip blurs it as a square of the longer side).
-    #[arg(long, value_name = "A,B", value_parser = parse_pair::<f32>)]
-    pub light_rect: Vec<(f32, f32)>,
+    /// down, or with a third value side A turned DEG degrees from X towards Y (the last value
+    /// repeats for further lights), instead of spheres of --light-radius. The penumbra is the
+    /// rectangle's own kernel, of any aspect ratio: a box (exact with --blur sat and explicit),
+    /// turned a parallelogram on the caster averaged as six boxes (not with --blur separable).
+    #[arg(long, value_name = "A,B[,DEG]", value_parser = parse_rect)]
+    pub light_rect: Vec<(f32, f32, f32)>,
     /// Make the lights Gaussians facing straight down: intensity falling off from the light's
     /// position with standard deviations SX along X and SY along Y in swatch units (the last
     /// value repeats for further lights), instead of spheres of --light-radius. The penumbra is
@@ -148,6 +149,22 @@ pub struct Args {
     /// The mesh path's flags (`--mesh` and what goes with it).
     #[command(flatten)]
     pub garment: crate::garment::MeshArgs,
+}
+
+/// `A,B` or `A,B,DEG` (DEG 0 when left out).
+fn parse_rect(s: &str) -> Result<(f32, f32, f32), String> {
+    let number = |x: &str| {
+        x.trim()
+            .parse::<f32>()
+            .map_err(|_| format!("`{x}` is not a number"))
+    };
+    match s.split(',').collect::<Vec<_>>()[..] {
+        [a, b] => Ok((number(a)?, number(b)?, 0.0)),
+        [a, b, d] => Ok((number(a)?, number(b)?, number(d)?)),
+        _ => Err(format!(
+            "expected A,B or A,B,DEG (sides, and the turn of side A from X in degrees), got `{s}`"
+        )),
+    }
 }
 
 fn parse_pair<T: std::str::FromStr>(s: &str) -> Result<(T, T), String> {
@@ -299,9 +316,10 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                 position,
                 radius: nth(&args.light_radius, i, 0.05 * extent),
                 rect: (!args.light_rect.is_empty())
-                    .then(|| nth(&args.light_rect, i, (0.0, 0.0)))
-                    .map(|(a, b)| [a, b]),
+                    .then(|| nth(&args.light_rect, i, (0.0, 0.0, 0.0)))
+                    .map(|(a, b, _)| [a, b]),
                 square_box: false,
+                rect_angle_deg: nth(&args.light_rect, i, (0.0, 0.0, 0.0)).2,
                 gaussian: (!args.light_gaussian.is_empty())
                     .then(|| nth(&args.light_gaussian, i, (0.0, 0.0)))
                     .map(|(a, b)| [a, b]),
@@ -601,9 +619,18 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
             "--size {w},{h} × {frames} turntable frames is {pixels} pixels, more than the {MAX_PIXELS}              (4 GiB of linear RGBA) one run holds: lower --size or --turntable"
         );
     }
-    for &(a, b) in &args.light_rect {
+    for &(a, b, deg) in &args.light_rect {
         if !(a.is_finite() && b.is_finite() && a > 0.0 && b > 0.0) {
             bail!("--light-rect {a},{b}: both sides must be finite and > 0 (swatch units)");
+        }
+        if !deg.is_finite() {
+            bail!("--light-rect {a},{b},{deg}: the turn must be a finite number of degrees");
+        }
+        if args.blur == Blur::Separable && deg.to_radians().sin() != 0.0 && args.caster.is_some() {
+            bail!(
+                "--light-rect {a},{b},{deg}: --blur separable filters along X and Y only: use \
+                 sat, mip or explicit for a turned rectangle"
+            );
         }
     }
     for &(a, b) in &args.light_gaussian {

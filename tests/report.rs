@@ -240,10 +240,12 @@ fn check_runtime(report: &Report) {
             }
         }
     }
-    // Glossy reflections: explicit, sat and mip at three roughnesses; sat and explicit within
-    // 2 % of the mean reflected radiance of the ray-traced lobe.
+    // Glossy reflections: explicit, sat and mip at three roughnesses, over a colour and over a
+    // sky image; sat and explicit within 2 % of the mean reflected radiance of the ray-traced
+    // lobe.
     let glossy: Vec<_> = blur.iter().filter(|r| r.glossy.is_some()).collect();
-    assert_eq!(glossy.len(), 3 * 3, "{glossy:?}");
+    assert_eq!(glossy.len(), 2 * 3 * 3, "{glossy:?}");
+    assert_eq!(glossy.iter().filter(|r| r.sky).count(), 3 * 3);
     for r in glossy {
         let (roughness, level) = r.glossy.unwrap();
         assert!(level > 0.0 && r.measured.mean_abs_error.is_finite());

@@ -227,7 +227,7 @@ fn main() {
                                     } else {
                                         half.map(|h| (h * dist) as f32)
                                     },
-                                    pad: [0.0; 2],
+                                    axis: [1.0, 0.0],
                                 };
                                 let cf = twin.ptm_coeffs(pos, 0.0);
                                 let to_light = [

@@ -115,6 +115,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         radius,
         rect: None,
         square_box: false,
+        rect_angle_deg: 0.0,
         gaussian: None,
         intensity: 8.0,
         color: [1.0; 3],

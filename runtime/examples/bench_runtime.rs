@@ -67,6 +67,7 @@ fn main() {
         radius: 0.3,
         rect: None,
         square_box: false,
+        rect_angle_deg: 0.0,
         gaussian: None,
         intensity: 8.0,
         color: [1.0; 3],

@@ -131,8 +131,9 @@ pub struct LightGpu {
     pub shape: u32,
     /// A rectangle's half-sides along X and Y, a Gaussian's σ (0 for a sphere).
     pub half: [f32; 2],
-    /// Padding to 16 bytes, as the WGSL struct.
-    pub pad: [f32; 2],
+    /// A rectangle's side-a direction (cos θ, sin θ) in the plane of the cloth ((1, 0): along
+    /// X); (1, 0) for every other shape.
+    pub axis: [f32; 2],
 }
 
 impl LightGpu {
@@ -386,7 +387,7 @@ mod tests {
     #[test]
     fn light_and_mip_levels_match_the_wgsl_structs() {
         let m = shade_module();
-        let want = fields!(LightGpu: position, radius, color, shape, half, pad);
+        let want = fields!(LightGpu: position, radius, color, shape, half, axis);
         check(&m, "Light", want, size_of::<LightGpu>());
         let want = fields!(PtmLevel: offset, width, height, pad, period, pad2);
         check(&m, "PtmLevel", want, size_of::<PtmLevel>());

@@ -157,7 +157,7 @@ pub fn mc_opacity_rect(
         let hs = hash(key.wrapping_mul(0x1000_0001).wrapping_add(s as u64));
         let u1 = (si as f64 + unit(hs)) / nx as f64;
         let u2 = (sj as f64 + unit(hash(hs))) / ny as f64;
-        let o = planar_offset(light.shape, half, u1, u2);
+        let o = turned(light.axis, planar_offset(light.shape, half, u1, u2));
         let q = [lx + o[0], ly + o[1], lz];
         let dir = [q[0] - p[0] as f64, q[1] - p[1] as f64, lz];
         let r2 = dot(dir, dir);
@@ -196,6 +196,13 @@ pub fn planar_offset(shape: u32, half: [f64; 2], u1: f64, u2: f64) -> [f64; 2] {
         return [half[0] * r * phi.cos(), half[1] * r * phi.sin()];
     }
     [(2.0 * u1 - 1.0) * half[0], (2.0 * u2 - 1.0) * half[1]]
+}
+
+/// An offset in a planar light's own frame turned into the cloth's by its `axis` (cos θ, sin θ):
+/// a turned rectangle's points.
+fn turned(axis: [f32; 2], o: [f64; 2]) -> [f64; 2] {
+    let [c, s] = axis.map(|x| x as f64);
+    [o[0] * c - o[1] * s, o[0] * s + o[1] * c]
 }
 
 /// Ground truth for K under an area light: the mean of [`Ptm::eval_dir`] at texel `texel`
@@ -247,7 +254,7 @@ pub fn mc_k(
         let u1 = (si as f64 + unit(hs)) / nx as f64;
         let u2 = (sj as f64 + unit(hash(hs))) / ny as f64;
         let (dir, weight) = if light.shape == LightGpu::RECT || light.shape == LightGpu::GAUSSIAN {
-            let o = planar_offset(light.shape, half, u1, u2);
+            let o = turned(light.axis, planar_offset(light.shape, half, u1, u2));
             let q = [c[0] + o[0], c[1] + o[1], c[2]];
             let r2 = dot(q, q);
             (q.map(|x| x / r2.sqrt()), c[2] * c[2] / (r2 * r2))

@@ -34,6 +34,12 @@ pub struct Light {
     /// caster's fraction of the way to the light: a box of any aspect ratio, exact with the
     /// summed-area table.
     pub rect: Option<[f32; 2]>,
+    /// A rectangle's orientation: its side a turned this many degrees from X towards Y about
+    /// the vertical through `position` (0: sides along X and Y). Its kernel is then a
+    /// parallelogram on the caster (a turned rectangle, sheared by a tilted caster), which the
+    /// per-pixel methods average as six boxes of exact areas (`rect_slabs`); not with
+    /// `Blur::Separable`, whose kernels are per light along X and Y.
+    pub rect_angle_deg: f32,
     /// A sphere's penumbra kernel: `false` (the default) the ellipse where the cone from the
     /// shaded point to the sphere cuts the caster plane (longer along the direction away from
     /// the light, more so the more oblique the light); `true` the square box of half-side R·s
@@ -57,6 +63,7 @@ impl Default for Light {
             position: [0.0, 0.0, 1.0],
             radius: 0.0,
             rect: None,
+            rect_angle_deg: 0.0,
             square_box: false,
             gaussian: None,
             intensity: 1.0,
@@ -66,6 +73,12 @@ impl Default for Light {
 }
 
 impl Light {
+    /// A rectangle whose sides do not run along X and Y (turned other than by a multiple of
+    /// 180°): its kernel is a parallelogram.
+    pub fn is_turned_rect(&self) -> bool {
+        self.rect.is_some() && self.rect_angle_deg.to_radians().sin() != 0.0
+    }
+
     /// The light's largest distance from its centre in the plane of the cloth: the sphere's
     /// radius, or half the rectangle's diagonal (how far a penumbra can spread).
     pub fn extent(&self) -> f32 {
@@ -195,6 +208,11 @@ impl Scene {
         }
     }
 
+    /// Some light is a turned rectangle ([`Light::is_turned_rect`]).
+    pub fn turned_rect(&self) -> bool {
+        self.lights.iter().any(Light::is_turned_rect)
+    }
+
     /// The scene with every light turned by `angle` radians about the vertical axis through the
     /// centre of the view (a turntable frame).
     pub fn with_lights_turned(&self, angle: f32) -> Scene {
@@ -232,7 +250,13 @@ impl Scene {
                     (None, Some(sigma)) => sigma,
                     (None, None) => [0.0; 2],
                 },
-                pad: [0.0; 2],
+                axis: match l.rect {
+                    Some(_) => {
+                        let (s, c) = l.rect_angle_deg.to_radians().sin_cos();
+                        [c, s]
+                    }
+                    None => [1.0, 0.0],
+                },
             })
             .collect()
     }
@@ -273,6 +297,19 @@ impl Scene {
                         r[0], r[1]
                     )));
                 }
+            }
+            if !l.rect_angle_deg.is_finite() {
+                return Err(Error::Scene(format!(
+                    "light {i}'s rectangle is turned {}°: the angle must be finite",
+                    l.rect_angle_deg
+                )));
+            }
+            if self.caster.is_some() && self.blur == Blur::Separable && l.is_turned_rect() {
+                return Err(Error::Scene(format!(
+                    "light {i} is a rectangle turned {}°: the separable blur filters along X and \
+                     Y only; use sat, mip or explicit (or sides along X and Y)",
+                    l.rect_angle_deg
+                )));
             }
             if let Some(sigma) = l.gaussian {
                 if !sigma.iter().all(|x| x.is_finite() && *x > 0.0) {

@@ -944,6 +944,7 @@ mod tests {
             radius: 0.1,
             rect: None,
             square_box: false,
+            rect_angle_deg: 0.0,
             gaussian: None,
             intensity: 4.0,
             color: [1.0, 1.0, 1.0],

@@ -122,6 +122,19 @@ fn golden_ptm6_sat_under_rectangular_lights() {
 }
 
 #[test]
+fn golden_ptm6_sat_under_turned_rectangular_lights() {
+    // The 4:1 panel turned 35° and a 10:1 strip turned 120°, over a caster tilted 20°: each
+    // kernel a parallelogram of boxes, so the penumbrae run along the turned edges.
+    let mut s = scene(Basis::Ptm6, Blur::Sat, false);
+    s.lights[0].rect = Some([1.6, 0.4]);
+    s.lights[0].rect_angle_deg = 35.0;
+    s.lights[1].rect = Some([1.0, 0.1]);
+    s.lights[1].rect_angle_deg = 120.0;
+    s.caster.as_mut().unwrap().tilt_deg = 20.0;
+    check_golden("ptm6_sat_rect_turned", &s);
+}
+
+#[test]
 fn golden_ptm6_sat_oblique_sphere_ellipse_and_square_box() {
     // One sphere low in the sky (about 70° off the vertical over the view): its kernel is the
     // ellipse its cone cuts from the caster plane, drawn out away from the light; beside it the

@@ -169,7 +169,7 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             shade::cap_moments, shade::Twin::ptm_footprint,
             shade::Twin::ptm_k_area, shade::Twin::coverage_level,
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
-            shade::caster_texel_coords, shade::Twin::light_blur, shade::Twin::light_opacity, shade::sphere_ellipse,
+            shade::caster_texel_coords, shade::rect_chord, shade::rect_slabs, shade::Twin::light_blur, shade::Twin::light_opacity, shade::sphere_ellipse,
             shade::env_texel, shade::env_bilinear, shade::env_lookup,
             shade::Twin::glossy_reflection, shade::Twin::glossy_fresnel,
             shade::Twin::shade,

@@ -415,11 +415,19 @@ impl Twin<'_> {
             } else {
                 [h[0] * h[0] / 3.0, h[1] * h[1] / 3.0]
             };
+            // In the light's own frame (a turned rectangle's sides along its axes).
+            let [bx, by] = light.axis;
+            let tl = [
+                to_light[0] * bx + to_light[1] * by,
+                bx * to_light[1] - by * to_light[0],
+            ];
             let shift: [f32; 2] = std::array::from_fn(|k| {
-                (-4.0 * v0[k] * to_light[k] / (d * d)).clamp(-0.5 * h[k], 0.5 * h[k])
+                (-4.0 * v0[k] * tl[k] / (d * d)).clamp(-0.5 * h[k], 0.5 * h[k])
             });
             let var: [f32; 2] = std::array::from_fn(|k| (v0[k] - shift[k] * shift[k]).max(0.0));
             let sc = [l[2] / d, 1.0 / d];
+            // The radial axis in the light's frame.
+            let (ax, ay) = (ax * bx + ay * by, bx * ay - by * ax);
             (
                 [
                     sc[0] * (ax * shift[0] + ay * shift[1]),
@@ -624,8 +632,47 @@ impl Twin<'_> {
             ];
             (tr, wr, 0.0, kernel)
         };
+        let (method, built) = self.blur.expect("light_blur without a blur method");
+        let bound = Bound {
+            plane: &self.p.plane,
+            uniform: &self.p.plane_gpu,
+            prepared: self.p.prepared.as_ref(),
+            built,
+        };
         let (t, wt, shear, kernel) = if l.shape == LightGpu::RECT {
-            planar(4.0 / 3.0, Kernel::Box)
+            // Turned by θ (axis = (cos θ, sin θ)): the shift in the light's own frame, turned
+            // back (as `light_blur` in WGSL; for θ = 0 the same numbers as `planar`).
+            let [ax, ay] = l.axis;
+            let dl = [ray[0] * ax + ray[1] * ay, ax * ray[1] - ay * ray[0]];
+            let k = -4.0 / (3.0 * dot(ray, ray));
+            let sl = [
+                k * l.half[0] * l.half[0] * dl[0] * s,
+                k * l.half[1] * l.half[1] * dl[1] * s,
+            ];
+            let shift = [sl[0] * ax + sl[1] * -ay, sl[0] * ay + sl[1] * ax];
+            let tr = [
+                t[0] + shift[0] / texel[0],
+                t[1] + -shift[1] * stretch / texel[1],
+            ];
+            if ay != 0.0 {
+                let e1 = [
+                    ax * (l.half[0] * s) / texel[0],
+                    -ay * stretch * (l.half[0] * s) / texel[1],
+                ];
+                let e2 = [
+                    -ay * (l.half[1] * s) / texel[0],
+                    -ax * stretch * (l.half[1] * s) / texel[1],
+                ];
+                let lookup = |c: [f32; 2], w: [f32; 2]| {
+                    method.blur_lookup(&bound, li, c, w, 0.0, Kernel::Box)
+                };
+                return rect_slabs(&lookup, tr, e1, e2);
+            }
+            let wr = [
+                (l.half[0] * s / texel[0]).max(RECT_MIN),
+                (l.half[1] * s * stretch / texel[1]).max(RECT_MIN),
+            ];
+            (tr, wr, 0.0, Kernel::Box)
         } else if l.shape == LightGpu::GAUSSIAN {
             planar(4.0, Kernel::Gauss)
         } else {
@@ -640,13 +687,6 @@ impl Twin<'_> {
                 ),
                 _ => (t, wt, 0.0, Kernel::Box),
             }
-        };
-        let (method, built) = self.blur.expect("light_blur without a blur method");
-        let bound = Bound {
-            plane: &self.p.plane,
-            uniform: &self.p.plane_gpu,
-            prepared: self.p.prepared.as_ref(),
-            built,
         };
         method.blur_lookup(&bound, li, t, wt, shear, kernel)
     }
@@ -720,7 +760,7 @@ impl Twin<'_> {
             color: [0.0; 3],
             shape: LightGpu::SPHERE,
             half: [0.0; 2],
-            pad: [0.0; 2],
+            axis: [1.0, 0.0],
         };
         let o = self.light_blur(p, &l, 0).map(|x| x.max(0.0));
         std::array::from_fn(|k| o[k] + back[k] * (1.0 - o[3].min(1.0)))
@@ -770,6 +810,80 @@ impl Twin<'_> {
         }
         [r[0], r[1], r[2], 1.0]
     }
+}
+
+/// `rect_chord` of `shade.wgsl`: a parallelogram's horizontal chord at height y, (length,
+/// midpoint x).
+pub fn rect_chord(y: f32, top: f32, inner: f32, len: f32, slope: f32, apex_x: f32) -> [f32; 2] {
+    let ay = y.abs();
+    if ay <= inner {
+        return [len, y * slope];
+    }
+    let f = (ay - inner) / (top - inner);
+    let sg = if y > 0.0 { 1.0 } else { -1.0 };
+    let (a, b) = (sg * inner * slope, sg * apex_x);
+    [len * (1.0 - f), a * (1.0 - f) + b * f]
+}
+
+/// `RECT_TRI` of `shade.wgsl`: bands across each corner triangle of a turned rectangle.
+const RECT_TRI: u32 = 3;
+/// `RECT_MID_MAX` of `shade.wgsl`: most bands across its middle.
+const RECT_MID_MAX: u32 = 16;
+
+/// `rect_slabs` of `shade.wgsl`: a turned rectangle light's parallelogram kernel (centre t,
+/// half-edges e1, e2 in texels) as boxes of exact band areas, each looked up by `lookup`
+/// (centre, half-sides) with the scene's method.
+pub fn rect_slabs(
+    lookup: &dyn Fn([f32; 2], [f32; 2]) -> [f32; 4],
+    t: [f32; 2],
+    e1: [f32; 2],
+    e2: [f32; 2],
+) -> [f32; 4] {
+    let (y1, y2) = (e1[1].abs(), e2[1].abs());
+    let top = y1 + y2;
+    let inner = (y1 - y2).abs();
+    let area = 4.0 * (e1[0] * e2[1] - e1[1] * e2[0]).abs();
+    if !(top > RECT_MIN && area > 0.0) {
+        let w = [e1[0].abs() + e2[0].abs(), top];
+        return lookup(t, w.map(|x| x.max(RECT_MIN)));
+    }
+    let ea = if y1 >= y2 { e1 } else { e2 };
+    let slope = ea[0] / ea[1];
+    let len = area / (top + inner);
+    let sgn = |y: f32| if y >= 0.0 { 1.0 } else { -1.0 };
+    let apex_x = sgn(e1[1]) * e1[0] + sgn(e2[1]) * e2[0];
+    let shear = 2.0 * inner * slope.abs() / (0.5 * len);
+    let n_mid = shear.ceil().clamp(1.0, RECT_MID_MAX as f32) as u32;
+    let tri = (top - inner) / RECT_TRI as f32;
+    let mid = 2.0 * inner / n_mid as f32;
+    let mut sum = [0.0f32; 4];
+    let mut total = 0.0;
+    for k in 0..2 * RECT_TRI + n_mid {
+        let (y0, h) = if k >= RECT_TRI + n_mid {
+            (inner + (k - RECT_TRI - n_mid) as f32 * tri, tri)
+        } else if k >= RECT_TRI {
+            (-inner + (k - RECT_TRI) as f32 * mid, mid)
+        } else {
+            (-top + k as f32 * tri, tri)
+        };
+        if h.is_nan() || h <= 0.0 {
+            continue;
+        }
+        let chord = |y: f32| rect_chord(y, top, inner, len, slope, apex_x);
+        let (c0, cm, c1) = (chord(y0), chord(y0 + 0.5 * h), chord(y0 + h));
+        let w = h / 6.0 * (c0[0] + 4.0 * cm[0] + c1[0]);
+        if w.is_nan() || w <= 0.0 {
+            continue;
+        }
+        let cx = h / 6.0 * (c0[0] * c0[1] + 4.0 * cm[0] * cm[1] + c1[0] * c1[1]) / w;
+        let half = [(0.5 * w / h).max(RECT_MIN), (0.5 * h).max(RECT_MIN)];
+        let o = lookup([t[0] + cx, t[1] + (y0 + 0.5 * h)], half);
+        for c in 0..4 {
+            sum[c] += w * o[c];
+        }
+        total += w;
+    }
+    sum.map(|x| x / total)
 }
 
 /// `Ellipse` of `shade.wgsl`: a sphere's kernel on the caster plane in caster texels (centre

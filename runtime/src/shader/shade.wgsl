@@ -54,7 +54,7 @@ struct Light {
     color: vec3<f32>,    // colour × intensity
     shape: u32,          // 0 sphere, 1 rectangle facing down, 2 sphere as a box, 3 Gaussian
     half: vec2<f32>,     // rectangle: half-sides along X, Y; Gaussian: σ along X, Y
-    pad: vec2<f32>,
+    axis: vec2<f32>,     // rectangle: side a's direction (cos θ, sin θ); else (1, 0)
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -501,6 +501,11 @@ fn ptm_footprint(l: vec3<f32>, to_light: vec3<f32>, d: f32, light: Light) -> Foo
     var cov = vec3<f32>(0.0);
     var planar = light.shape == 1u;
     var v0 = light.half * light.half / 3.0;
+    // A planar light's moments in its own frame (a turned rectangle's sides along its axes):
+    // the direction to it and the radial axis turned into that frame.
+    let b = light.axis;
+    let tl = vec2<f32>(dot(to_light.xy, b), b.x * to_light.y - b.y * to_light.x);
+    let al = vec2<f32>(dot(axis, b), b.x * axis.y - b.y * axis.x);
 //#if GAUSSIAN
     if (light.shape == 3u) {
         planar = true;
@@ -508,14 +513,14 @@ fn ptm_footprint(l: vec3<f32>, to_light: vec3<f32>, d: f32, light: Light) -> Foo
     }
 //#endif
     if (planar) {
-        let shift = clamp(-4.0 * v0 * to_light.xy / (d * d), -0.5 * light.half, 0.5 * light.half);
+        let shift = clamp(-4.0 * v0 * tl / (d * d), -0.5 * light.half, 0.5 * light.half);
         let var_xy = max(v0 - shift * shift, vec2<f32>(0.0));
         let sc = vec2<f32>(l.z, 1.0) / d;
-        mean = sc * vec2<f32>(dot(axis, shift), axis.x * shift.y - axis.y * shift.x);
-        let ax2 = axis * axis;
+        mean = sc * vec2<f32>(dot(al, shift), al.x * shift.y - al.y * shift.x);
+        let ax2 = al * al;
         cov = vec3<f32>(
             sc.x * sc.x * (ax2.x * var_xy.x + ax2.y * var_xy.y),
-            sc.x * sc.y * axis.x * axis.y * (var_xy.y - var_xy.x),
+            sc.x * sc.y * al.x * al.y * (var_xy.y - var_xy.x),
             sc.y * sc.y * (ax2.y * var_xy.x + ax2.x * var_xy.y),
         );
     } else {
@@ -625,9 +630,20 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
         // p in proportion to cos·cos/r² = z²/r⁴, more on the side nearer p: to first order in
         // the half-sides the box moves to that weighting's centroid, −(4/3)·half²·d/r² on the
         // light (d = light − p across the cloth), s times that on the plane (rows run to −y).
-        let d = ray.xy;
-        let shift = -4.0 / (3.0 * dot(ray, ray)) * l.half * l.half * d * s;
+        // Turned by θ (l.axis = (cos θ, sin θ)), the shift is found in the light's own frame
+        // (side a along its first axis) and turned back.
+        let a = l.axis;
+        let dl = vec2<f32>(dot(ray.xy, a), a.x * ray.y - a.y * ray.x);
+        let sl = -4.0 / (3.0 * dot(ray, ray)) * l.half * l.half * dl * s;
+        let shift = sl.x * a + sl.y * vec2<f32>(-a.y, a.x);
         let tr = t + vec2<f32>(shift.x, -shift.y * stretch) / texel;
+        if (a.y != 0.0) {
+            // The turned rectangle's image: a parallelogram of half-edges e1, e2 in texels
+            // (rows run to −y, a tilted caster stretches them).
+            let e1 = vec2<f32>(a.x, -a.y * stretch) * (l.half.x * s) / texel;
+            let e2 = vec2<f32>(-a.y, -a.x * stretch) * (l.half.y * s) / texel;
+            return rect_slabs(li, tr, e1, e2);
+        }
         // Floored at 1/256 texel, not ½ as a sphere's: a thin light's kernel is a line, which
         // sees the texel it crosses, not the mean of two (the box stays exact down to there).
         let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
@@ -654,6 +670,77 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
         }
     }
     return blur_lookup(li, t, wt, 0.0, KERNEL_BOX);
+}
+
+// The horizontal chord of a parallelogram centred at 0 at height y: (length, midpoint x). Its
+// vertices are at heights ±top (the apexes, the upper one at x = apex_x) and ±inner; between
+// ±inner the chord runs between two parallel edges (length `len`, midpoint y·slope), beyond it
+// shrinks linearly to the apex.
+fn rect_chord(y: f32, top: f32, inner: f32, len: f32, slope: f32, apex_x: f32) -> vec2<f32> {
+    let ay = abs(y);
+    if (ay <= inner) {
+        return vec2<f32>(len, y * slope);
+    }
+    let f = (ay - inner) / (top - inner);
+    let sg = sign(y);
+    return vec2<f32>(len * (1.0 - f), mix(sg * inner * slope, sg * apex_x, f));
+}
+
+// A turned rectangle light's kernel: the parallelogram t + a·e1 + b·e2 (|a|, |b| ≤ 1, texels)
+// averaged as boxes, one per horizontal band, each of the band's exact area (Simpson's rule in
+// the chord, exact: the chord's length and midpoint are linear within a band) centred on its
+// centroid. The bands: RECT_TRI across each corner triangle (between the apex and inner vertex
+// heights) and, across the middle (between two parallel edges), enough that the chord's
+// midpoint moves at most half its length within one (at most RECT_MID_MAX). Axis-aligned, the
+// middle band is one exact box. The count depends on the shape (aspect and turn), not the size.
+const RECT_TRI: u32 = 3u;
+const RECT_MID_MAX: u32 = 16u;
+
+fn rect_slabs(li: u32, t: vec2<f32>, e1: vec2<f32>, e2: vec2<f32>) -> vec4<f32> {
+    let y1 = abs(e1.y);
+    let y2 = abs(e2.y);
+    let top = y1 + y2;
+    let inner = abs(y1 - y2);
+    let area = 4.0 * abs(e1.x * e2.y - e1.y * e2.x);
+    if (!(top > RECT_MIN && area > 0.0)) {
+        let w = vec2<f32>(abs(e1.x) + abs(e2.x), top);
+        return blur_lookup(li, t, max(w, vec2<f32>(RECT_MIN)), 0.0, KERNEL_BOX);
+    }
+    let ea = select(e2, e1, y1 >= y2);
+    let slope = ea.x / ea.y;
+    let len = area / (top + inner);
+    let apex_x = select(-1.0, 1.0, e1.y >= 0.0) * e1.x + select(-1.0, 1.0, e2.y >= 0.0) * e2.x;
+    let shear = 2.0 * inner * abs(slope) / (0.5 * len);
+    let n_mid = u32(clamp(ceil(shear), 1.0, f32(RECT_MID_MAX)));
+    let tri = (top - inner) / f32(RECT_TRI);
+    let mid = 2.0 * inner / f32(n_mid);
+    var sum = vec4<f32>(0.0);
+    var total = 0.0;
+    for (var k = 0u; k < 2u * RECT_TRI + n_mid; k++) {
+        var y0 = -top + f32(k) * tri;
+        var h = tri;
+        if (k >= RECT_TRI + n_mid) {
+            y0 = inner + f32(k - RECT_TRI - n_mid) * tri;
+        } else if (k >= RECT_TRI) {
+            y0 = -inner + f32(k - RECT_TRI) * mid;
+            h = mid;
+        }
+        if (!(h > 0.0)) {
+            continue;
+        }
+        let c0 = rect_chord(y0, top, inner, len, slope, apex_x);
+        let cm = rect_chord(y0 + 0.5 * h, top, inner, len, slope, apex_x);
+        let c1 = rect_chord(y0 + h, top, inner, len, slope, apex_x);
+        let w = h / 6.0 * (c0.x + 4.0 * cm.x + c1.x);
+        if (!(w > 0.0)) {
+            continue;
+        }
+        let cx = h / 6.0 * (c0.x * c0.y + 4.0 * cm.x * cm.y + c1.x * c1.y) / w;
+        let half = max(vec2<f32>(0.5 * w / h, 0.5 * h), vec2<f32>(RECT_MIN));
+        sum += w * blur_lookup(li, t + vec2<f32>(cx, y0 + 0.5 * h), half, 0.0, KERNEL_BOX);
+        total += w;
+    }
+    return sum / total;
 }
 
 // The caster's opacity towards light l at p (per channel): `light_blur`'s image mean, whose
@@ -788,7 +875,7 @@ fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
     l.color = vec3<f32>(0.0);
     l.shape = 0u;
     l.half = vec2<f32>(0.0);
-    l.pad = vec2<f32>(0.0);
+    l.axis = vec2<f32>(1.0, 0.0);
     let o = max(light_blur(p, l, 0u), vec4<f32>(0.0));
     return o.xyz + back * (1.0 - min(o.w, 1.0));
 }
