@@ -29,11 +29,12 @@
 //!
 //! Files: this one (constants, what a fit needs of the options and the dome), `learn.rs` (the
 //! subsample, the alternation, early stopping on held-out lights, the kernel's tables),
-//! `gauge.rs` (the gauge), `problem.rs` (the problem and its design rows), `band.rs` (the banded Cholesky solve of the table step).
+//! `gauge.rs` (the gauge), `problem.rs` (the problem and its design rows), `band.rs` (the banded Cholesky solve of the table step), `rough.rs` (the roughness).
 pub(crate) mod band;
 pub(crate) mod gauge;
 pub(crate) mod learn;
 pub(crate) mod problem;
+pub(crate) mod rough;
 
 pub use learn::subsample_order;
 

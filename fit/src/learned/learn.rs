@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::band::Band;
 use super::gauge::gauge;
 use super::problem::{rows, Problem};
+use super::rough::{roughness, roughness_matrix};
 use super::{start_basis, GRID, MAX_ALTERNATIONS, MAX_SUBSAMPLE, ROUGHNESS, STOP};
 use crate::logistic::pool::Source;
 use crate::logistic::tables::Tables;
@@ -204,47 +205,6 @@ fn rms(p: &Problem, a: &[f64], c: &[f64]) -> f64 {
         .collect();
     let (s, m) = per.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
     (s / m.max(1e-300)).sqrt()
-}
-
-/// The second-difference operator's DᵀD over the G × G grid (dense G² × G²).
-fn roughness_matrix(g: usize) -> Vec<f64> {
-    let g2 = g * g;
-    let mut dtd = vec![0f64; g2 * g2];
-    let mut add = |cells: [usize; 3]| {
-        let coef = [1.0, -2.0, 1.0];
-        for a in 0..3 {
-            for b in 0..3 {
-                dtd[cells[a] * g2 + cells[b]] += coef[a] * coef[b];
-            }
-        }
-    };
-    for j in 0..g {
-        for i in 1..g - 1 {
-            add([j * g + i - 1, j * g + i, j * g + i + 1]);
-        }
-    }
-    for j in 1..g - 1 {
-        for i in 0..g {
-            add([(j - 1) * g + i, j * g + i, (j + 1) * g + i]);
-        }
-    }
-    dtd
-}
-
-/// ‖D b‖² of the tables through DᵀD: bᵀ(DᵀD ⊗ I)b.
-fn roughness(dtd: &[f64], b: &[f64], g2: usize, k: usize) -> f64 {
-    let mut s = 0.0;
-    for c1 in 0..g2 {
-        for c2 in 0..g2 {
-            let d = dtd[c1 * g2 + c2];
-            if d != 0.0 {
-                for j in 0..k {
-                    s += d * b[c1 * k + j] * b[c2 * k + j];
-                }
-            }
-        }
-    }
-    s
 }
 
 /// One damped Newton step on the tables for fixed coefficients. Returns the new objective's
@@ -640,7 +600,7 @@ impl HeldOut {
 }
 
 /// (u, v) of grid node (column i, row j).
-fn node(i: usize, j: usize) -> (f64, f64) {
+pub(super) fn node(i: usize, j: usize) -> (f64, f64) {
     let s = (GRID - 1) as f64;
     (-1.0 + 2.0 * i as f64 / s, -1.0 + 2.0 * j as f64 / s)
 }
@@ -648,27 +608,6 @@ fn node(i: usize, j: usize) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn roughness_is_zero_on_bilinear_tables_and_positive_else() {
-        let g2 = GRID * GRID;
-        let dtd = roughness_matrix(GRID);
-        let mut b = vec![0f64; g2];
-        for j in 0..GRID {
-            for i in 0..GRID {
-                let (u, v) = node(i, j);
-                b[j * GRID + i] = 1.0 + 2.0 * u - v + 0.5 * u * v;
-            }
-        }
-        assert!(roughness(&dtd, &b, g2, 1).abs() < 1e-9);
-        for j in 0..GRID {
-            for i in 0..GRID {
-                let (u, _) = node(i, j);
-                b[j * GRID + i] = u * u;
-            }
-        }
-        assert!(roughness(&dtd, &b, g2, 1) > 1e-3);
-    }
 
     #[test]
     fn the_subsample_is_the_first_live_texels_of_the_subsample_order() {
