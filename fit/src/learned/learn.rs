@@ -9,7 +9,10 @@ use super::band::Band;
 use super::gauge::gauge;
 use super::problem::{rows, Problem};
 use super::rough::{roughness, roughness_matrix};
-use super::{start_basis, GRID, MAX_ALTERNATIONS, MAX_SUBSAMPLE, ROUGHNESS, STOP};
+use super::{
+    start_basis, EXTRAPOLATION, EXTRAPOLATION_GROWTH, EXTRAPOLATION_MAX, GRID, MAX_ALTERNATIONS,
+    MAX_SUBSAMPLE, MIN_DEVIANCE, ROUGHNESS, STOP,
+};
 use crate::logistic::pool::Source;
 use crate::logistic::tables::Tables;
 use crate::solve::options::{FitOptions, LearnedStats};
@@ -443,6 +446,8 @@ pub(crate) fn learn(
     coefficient_steps(&p, &a, &mut c, 30);
     let deviance_start = total_dev(&p, &a, &c);
     let rms_start = rms(&p, &a, &c);
+    // The roughness in units of what the polynomial leaves unexplained: μ = λ·S/d₀.
+    p.mu /= (deviance_start / p.weight_sum).max(MIN_DEVIANCE);
     let coef_ridge = |p: &Problem, c: &[f64]| 0.5 * p.rho * c.iter().map(|x| x * x).sum::<f64>();
     let mut f_table = deviance_start + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
     let mut j_prev = f_table + coef_ridge(&p, &c);
@@ -450,6 +455,9 @@ pub(crate) fn learn(
     // Early stopping on the held-out lights (when the fit holds some out): the tables, the
     // coefficients and the alternation of the lowest held-out RMS error so far.
     let mut best = (held_check.rms(&p, &b, &c), b.clone(), c.clone(), 0u32);
+    let mut beta = EXTRAPOLATION;
+    // The previous alternation's tables and coefficients, before its extrapolation.
+    let mut prev = (b.clone(), c.clone());
     while alternations < MAX_ALTERNATIONS {
         alternations += 1;
         table_step(&p, &dtd, &mut b, &c, f_table);
@@ -458,7 +466,30 @@ pub(crate) fn learn(
         coefficient_steps(&p, &a, &mut c, 1);
         let dv = total_dev(&p, &a, &c);
         f_table = dv + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
-        let j = f_table + coef_ridge(&p, &c);
+        let mut j = f_table + coef_ridge(&p, &c);
+        // Extrapolation: β times the step since the previous alternation further, kept when it
+        // lowers J (from the second alternation on).
+        let trial = (alternations > 1).then(|| {
+            let ext = |x: &[f64], x0: &[f64]| -> Vec<f64> {
+                x.iter()
+                    .zip(x0)
+                    .map(|(v, v0)| v + beta * (v - v0))
+                    .collect()
+            };
+            let (bt, ct) = (ext(&b, &prev.0), ext(&c, &prev.1));
+            let ft = total_dev(&p, &rows(&p, &bt), &ct) + 0.5 * p.mu * roughness(&dtd, &bt, g2, k);
+            let jt = ft + coef_ridge(&p, &ct);
+            (bt, ct, ft, jt)
+        });
+        prev = (b.clone(), c.clone());
+        match trial {
+            Some((bt, ct, ft, jt)) if jt < j => {
+                (b, c, f_table, j) = (bt, ct, ft, jt);
+                beta = (beta * EXTRAPOLATION_GROWTH).min(EXTRAPOLATION_MAX);
+            }
+            Some(_) => beta = EXTRAPOLATION,
+            None => {}
+        }
         let fell = j_prev - j;
         j_prev = j;
         if let Some(hd) = held_check.rms(&p, &b, &c) {
