@@ -8,7 +8,11 @@ use rayon::prelude::*;
 use super::band::Band;
 use super::gauge::gauge;
 use super::problem::{rows, Problem};
-use super::{start_basis, GRID, MAX_ALTERNATIONS, MAX_SUBSAMPLE, ROUGHNESS, STOP};
+use super::rough::{roughness, roughness_matrix};
+use super::{
+    start_basis, EXTRAPOLATION, EXTRAPOLATION_GROWTH, EXTRAPOLATION_MAX, GRID, MAX_ALTERNATIONS,
+    MAX_SUBSAMPLE, MIN_DEVIANCE, ROUGHNESS, STOP,
+};
 use crate::logistic::pool::Source;
 use crate::logistic::tables::Tables;
 use crate::solve::options::{FitOptions, LearnedStats};
@@ -204,47 +208,6 @@ fn rms(p: &Problem, a: &[f64], c: &[f64]) -> f64 {
         .collect();
     let (s, m) = per.iter().fold((0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1));
     (s / m.max(1e-300)).sqrt()
-}
-
-/// The second-difference operator's DᵀD over the G × G grid (dense G² × G²).
-fn roughness_matrix(g: usize) -> Vec<f64> {
-    let g2 = g * g;
-    let mut dtd = vec![0f64; g2 * g2];
-    let mut add = |cells: [usize; 3]| {
-        let coef = [1.0, -2.0, 1.0];
-        for a in 0..3 {
-            for b in 0..3 {
-                dtd[cells[a] * g2 + cells[b]] += coef[a] * coef[b];
-            }
-        }
-    };
-    for j in 0..g {
-        for i in 1..g - 1 {
-            add([j * g + i - 1, j * g + i, j * g + i + 1]);
-        }
-    }
-    for j in 1..g - 1 {
-        for i in 0..g {
-            add([(j - 1) * g + i, j * g + i, (j + 1) * g + i]);
-        }
-    }
-    dtd
-}
-
-/// ‖D b‖² of the tables through DᵀD: bᵀ(DᵀD ⊗ I)b.
-fn roughness(dtd: &[f64], b: &[f64], g2: usize, k: usize) -> f64 {
-    let mut s = 0.0;
-    for c1 in 0..g2 {
-        for c2 in 0..g2 {
-            let d = dtd[c1 * g2 + c2];
-            if d != 0.0 {
-                for j in 0..k {
-                    s += d * b[c1 * k + j] * b[c2 * k + j];
-                }
-            }
-        }
-    }
-    s
 }
 
 /// One damped Newton step on the tables for fixed coefficients. Returns the new objective's
@@ -483,6 +446,8 @@ pub(crate) fn learn(
     coefficient_steps(&p, &a, &mut c, 30);
     let deviance_start = total_dev(&p, &a, &c);
     let rms_start = rms(&p, &a, &c);
+    // The roughness in units of what the polynomial leaves unexplained: μ = λ·S/d₀.
+    p.mu /= (deviance_start / p.weight_sum).max(MIN_DEVIANCE);
     let coef_ridge = |p: &Problem, c: &[f64]| 0.5 * p.rho * c.iter().map(|x| x * x).sum::<f64>();
     let mut f_table = deviance_start + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
     let mut j_prev = f_table + coef_ridge(&p, &c);
@@ -490,6 +455,9 @@ pub(crate) fn learn(
     // Early stopping on the held-out lights (when the fit holds some out): the tables, the
     // coefficients and the alternation of the lowest held-out RMS error so far.
     let mut best = (held_check.rms(&p, &b, &c), b.clone(), c.clone(), 0u32);
+    let mut beta = EXTRAPOLATION;
+    // The previous alternation's tables and coefficients, before its extrapolation.
+    let mut prev = (b.clone(), c.clone());
     while alternations < MAX_ALTERNATIONS {
         alternations += 1;
         table_step(&p, &dtd, &mut b, &c, f_table);
@@ -498,7 +466,30 @@ pub(crate) fn learn(
         coefficient_steps(&p, &a, &mut c, 1);
         let dv = total_dev(&p, &a, &c);
         f_table = dv + 0.5 * p.mu * roughness(&dtd, &b, g2, k);
-        let j = f_table + coef_ridge(&p, &c);
+        let mut j = f_table + coef_ridge(&p, &c);
+        // Extrapolation: β times the step since the previous alternation further, kept when it
+        // lowers J (from the second alternation on).
+        let trial = (alternations > 1).then(|| {
+            let ext = |x: &[f64], x0: &[f64]| -> Vec<f64> {
+                x.iter()
+                    .zip(x0)
+                    .map(|(v, v0)| v + beta * (v - v0))
+                    .collect()
+            };
+            let (bt, ct) = (ext(&b, &prev.0), ext(&c, &prev.1));
+            let ft = total_dev(&p, &rows(&p, &bt), &ct) + 0.5 * p.mu * roughness(&dtd, &bt, g2, k);
+            let jt = ft + coef_ridge(&p, &ct);
+            (bt, ct, ft, jt)
+        });
+        prev = (b.clone(), c.clone());
+        match trial {
+            Some((bt, ct, ft, jt)) if jt < j => {
+                (b, c, f_table, j) = (bt, ct, ft, jt);
+                beta = (beta * EXTRAPOLATION_GROWTH).min(EXTRAPOLATION_MAX);
+            }
+            Some(_) => beta = EXTRAPOLATION,
+            None => {}
+        }
         let fell = j_prev - j;
         j_prev = j;
         if let Some(hd) = held_check.rms(&p, &b, &c) {
@@ -640,7 +631,7 @@ impl HeldOut {
 }
 
 /// (u, v) of grid node (column i, row j).
-fn node(i: usize, j: usize) -> (f64, f64) {
+pub(super) fn node(i: usize, j: usize) -> (f64, f64) {
     let s = (GRID - 1) as f64;
     (-1.0 + 2.0 * i as f64 / s, -1.0 + 2.0 * j as f64 / s)
 }
@@ -648,27 +639,6 @@ fn node(i: usize, j: usize) -> (f64, f64) {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn roughness_is_zero_on_bilinear_tables_and_positive_else() {
-        let g2 = GRID * GRID;
-        let dtd = roughness_matrix(GRID);
-        let mut b = vec![0f64; g2];
-        for j in 0..GRID {
-            for i in 0..GRID {
-                let (u, v) = node(i, j);
-                b[j * GRID + i] = 1.0 + 2.0 * u - v + 0.5 * u * v;
-            }
-        }
-        assert!(roughness(&dtd, &b, g2, 1).abs() < 1e-9);
-        for j in 0..GRID {
-            for i in 0..GRID {
-                let (u, _) = node(i, j);
-                b[j * GRID + i] = u * u;
-            }
-        }
-        assert!(roughness(&dtd, &b, g2, 1) > 1e-3);
-    }
 
     #[test]
     fn the_subsample_is_the_first_live_texels_of_the_subsample_order() {

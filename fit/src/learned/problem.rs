@@ -17,7 +17,7 @@ pub(super) struct Problem {
     pub(super) cells: Vec<[(usize, f64); 4]>,
     /// Per-texel ridge ρ (absolute).
     pub(super) rho: f64,
-    /// Roughness weight μ = λ·S.
+    /// Roughness weight μ = λ·S/d₀ (`learned.rs`).
     pub(super) mu: f64,
     /// Σ ω over the samples present (the deviance's normaliser).
     pub(super) weight_sum: f64,
