@@ -35,7 +35,7 @@ pub struct Environment {
     /// Side N of level 0 (a power of two, 1 ..= [`MAX_SIZE`]).
     pub size: usize,
     /// Every level, level 0 first, each row-major (row j at v = −1 + 2(j + ½)/side):
-    /// linear RGB and 0. Level k (side N/2^k) starts at [`Environment::level_offset`]`(k)`.
+    /// linear RGB and 0. Level k (side N/2^k) starts at [`level_offset`]`(N, k)`.
     pub texels: Vec<[f32; 4]>,
 }
 

@@ -11,59 +11,8 @@ use common::*;
 use ptm_runtime::cpu;
 use ptm_runtime::environment::Environment;
 use ptm_runtime::reference::render_reflection_reference;
-use ptm_runtime::scene::Perspective;
 use ptm_runtime::synthetic::{leaves, sky, sky_latlong};
-use ptm_runtime::{Blur, Glossy, Scene};
-
-/// The glossy test scene (`tests/glossy.rs`) over the synthetic sky: a 48² view of plain cloth
-/// under a leafy caster; `perspective`: seen from the front and above (mirror rays from 30° to
-/// 75° off the vertical, the sun's glow among them), else from straight above with the caster
-/// tilted 40° (the sky's zenith around it).
-fn scene(roughness: f32, blur: Blur, perspective: bool, env: Option<Arc<Environment>>) -> Scene {
-    let mut caster = leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4);
-    if !perspective {
-        caster.elevation = 0.8;
-        caster.tilt_deg = 40.0;
-    }
-    Scene {
-        size: [48, 48],
-        view: [-1.0, -1.0, 1.0, 1.0],
-        ptm: None,
-        albedo: [0.8; 3],
-        albedo_texture: None,
-        lights: vec![light([0.3, -0.2, 3.0], 0.2, 9.0)],
-        caster: Some(caster),
-        colored_shadow: false,
-        blur,
-        perspective: perspective.then_some(Perspective {
-            eye: [0.0, -2.5, 2.0],
-            target: [0.0, 0.0, 0.0],
-            fov_y_deg: 50.0,
-        }),
-        glossy: Some(Glossy {
-            roughness,
-            background: [0.2, 0.3, 0.5],
-            f0: 0.3,
-            environment: env,
-        }),
-    }
-}
-
-fn mean_abs(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
-    let sum: f64 = a
-        .iter()
-        .zip(b)
-        .flat_map(|(x, y)| (0..3).map(move |k| (x[k] - y[k]).abs() as f64))
-        .sum();
-    sum / (3 * a.len()) as f64
-}
-
-fn mean(a: &[[f32; 3]]) -> f64 {
-    a.iter()
-        .flat_map(|x| x.iter().map(|&v| v as f64))
-        .sum::<f64>()
-        / (3 * a.len()) as f64
-}
+use ptm_runtime::Blur;
 
 #[test]
 fn a_reflected_sky_is_within_two_percent_of_the_ray_traced_lobe() {
@@ -77,21 +26,21 @@ fn a_reflected_sky_is_within_two_percent_of_the_ray_traced_lobe() {
     let mut failures = Vec::new();
     for perspective in [false, true] {
         for roughness in [0.1, 0.25, 0.5] {
-            let p = scene(roughness, Blur::Sat, perspective, Some(sky.clone()))
+            let p = glossy_scene(roughness, Blur::Sat, perspective, Some(sky.clone()))
                 .prepare()
                 .unwrap();
             let fine = render_reflection_reference(&p, &caster.rgba, Some(&sky), 4096);
-            let noise = mean_abs(
+            let noise = mean_abs3(
                 &render_reflection_reference(&p, &caster.rgba, Some(&sky), 256),
                 &fine,
             );
-            let level = mean(&fine);
+            let level = mean3(&fine);
             for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
-                let p = scene(roughness, blur, perspective, Some(sky.clone()))
+                let p = glossy_scene(roughness, blur, perspective, Some(sky.clone()))
                     .prepare()
                     .unwrap();
                 let got = cpu::render_reflection(&p).unwrap();
-                let err = mean_abs(&got, &fine);
+                let err = mean_abs3(&got, &fine);
                 eprintln!(
                     "{} roughness {roughness}, {}: mean |error| {err:.2e} ({:.2} % of the \
                      reflected {level:.3}), reference noise (256) {noise:.2e}",
@@ -107,18 +56,18 @@ fn a_reflected_sky_is_within_two_percent_of_the_ray_traced_lobe() {
                 }
             }
             // The sky alone: the caster moved out of every lobe.
-            let mut s = scene(roughness, Blur::Sat, perspective, Some(sky.clone()));
+            let mut s = glossy_scene(roughness, Blur::Sat, perspective, Some(sky.clone()));
             let c = s.caster.as_mut().unwrap();
             (c.rect, c.tilt_deg) = ([50.0, 50.0, 51.0, 51.0], 0.0);
             let p = s.prepare().unwrap();
             let fine = render_reflection_reference(&p, &caster.rgba, Some(&sky), 4096);
-            let err = mean_abs(&cpu::render_reflection(&p).unwrap(), &fine);
+            let err = mean_abs3(&cpu::render_reflection(&p).unwrap(), &fine);
             eprintln!(
                 "  sky alone: mean |error| {err:.2e} ({:.2} % of {:.3})",
-                100.0 * err / mean(&fine),
-                mean(&fine)
+                100.0 * err / mean3(&fine),
+                mean3(&fine)
             );
-            if err > 0.02 * mean(&fine) {
+            if err > 0.02 * mean3(&fine) {
                 failures.push(format!("sky alone at {roughness}: {err:.2e}"));
             }
         }
@@ -134,13 +83,13 @@ fn a_uniform_sky_reflects_exactly_the_background_colour() {
     let uniform = Arc::new(Environment::uniform(colour));
     for (roughness, perspective) in [(0.0, false), (0.25, true), (1.0, true)] {
         let a = cpu::render_reflection(
-            &scene(roughness, Blur::Sat, perspective, None)
+            &glossy_scene(roughness, Blur::Sat, perspective, None)
                 .prepare()
                 .unwrap(),
         )
         .unwrap();
         let b = cpu::render_reflection(
-            &scene(roughness, Blur::Sat, perspective, Some(uniform.clone()))
+            &glossy_scene(roughness, Blur::Sat, perspective, Some(uniform.clone()))
                 .prepare()
                 .unwrap(),
         )
@@ -209,7 +158,7 @@ fn sky_files_round_trip_as_exr_and_png() {
 fn a_malformed_environment_is_refused_before_any_gpu_work() {
     let mut env = sky();
     env.texels.pop();
-    let e = scene(0.2, Blur::Sat, false, Some(Arc::new(env)))
+    let e = glossy_scene(0.2, Blur::Sat, false, Some(Arc::new(env)))
         .prepare()
         .unwrap_err()
         .to_string();

@@ -11,60 +11,10 @@ use ptm_runtime::cpu;
 use ptm_runtime::reference::render_reflection_reference;
 use ptm_runtime::scene::Perspective;
 use ptm_runtime::synthetic::leaves;
-use ptm_runtime::{Blur, Glossy, Scene};
+use ptm_runtime::{Blur, Scene};
 
 /// Roughnesses tried (cone half-angles 4.5°, 11.25°, 22.5°).
 const ROUGHNESS: [f32; 3] = [0.1, 0.25, 0.5];
-
-/// A 48² view of plain cloth under a leafy caster and one spherical light, with a glossy
-/// receiver of `roughness` over a blue-grey background. `perspective`: seen from the front and
-/// above (oblique mirror rays, the caster 0.4 up and flat); else from straight above with the
-/// caster tilted 40° (its distance from the cloth, and so the blur, grows across the view).
-fn scene(roughness: f32, blur: Blur, perspective: bool) -> Scene {
-    let mut caster = leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4);
-    if !perspective {
-        caster.elevation = 0.8;
-        caster.tilt_deg = 40.0;
-    }
-    Scene {
-        size: [48, 48],
-        view: [-1.0, -1.0, 1.0, 1.0],
-        ptm: None,
-        albedo: [0.8; 3],
-        albedo_texture: None,
-        lights: vec![light([0.3, -0.2, 3.0], 0.2, 9.0)],
-        caster: Some(caster),
-        colored_shadow: false,
-        blur,
-        perspective: perspective.then_some(Perspective {
-            eye: [0.0, -2.5, 2.0],
-            target: [0.0, 0.0, 0.0],
-            fov_y_deg: 50.0,
-        }),
-        glossy: Some(Glossy {
-            roughness,
-            background: [0.2, 0.3, 0.5],
-            f0: 0.3,
-            environment: None,
-        }),
-    }
-}
-
-fn mean_abs(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
-    let sum: f64 = a
-        .iter()
-        .zip(b)
-        .flat_map(|(x, y)| (0..3).map(move |k| (x[k] - y[k]).abs() as f64))
-        .sum();
-    sum / (3 * a.len()) as f64
-}
-
-fn mean(a: &[[f32; 3]]) -> f64 {
-    a.iter()
-        .flat_map(|x| x.iter().map(|&v| v as f64))
-        .sum::<f64>()
-        / (3 * a.len()) as f64
-}
 
 #[test]
 fn glossy_reflection_is_within_two_percent_of_the_ray_traced_lobe() {
@@ -75,17 +25,21 @@ fn glossy_reflection_is_within_two_percent_of_the_ray_traced_lobe() {
     let caster = leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4);
     for perspective in [false, true] {
         for roughness in ROUGHNESS {
-            let p = scene(roughness, Blur::Sat, perspective).prepare().unwrap();
+            let p = glossy_scene(roughness, Blur::Sat, perspective, None)
+                .prepare()
+                .unwrap();
             let fine = render_reflection_reference(&p, &caster.rgba, None, 4096);
-            let noise = mean_abs(
+            let noise = mean_abs3(
                 &render_reflection_reference(&p, &caster.rgba, None, 256),
                 &fine,
             );
-            let level = mean(&fine);
+            let level = mean3(&fine);
             for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
-                let p = scene(roughness, blur, perspective).prepare().unwrap();
+                let p = glossy_scene(roughness, blur, perspective, None)
+                    .prepare()
+                    .unwrap();
                 let got = cpu::render_reflection(&p).unwrap();
-                let err = mean_abs(&got, &fine);
+                let err = mean_abs3(&got, &fine);
                 eprintln!(
                     "{} roughness {roughness}, {}: mean |error| {err:.2e} ({:.2} % of the \
                      reflected {level:.3}), reference noise (256) {noise:.2e}",
@@ -110,8 +64,8 @@ fn the_reflection_blurs_with_distance_and_shows_the_background_off_the_caster() 
     // A mirror (roughness 0) reflects the caster's texels sharply: the reflected image varies
     // more from pixel to pixel than a rough one's; with the caster out of every lobe only the
     // background shows.
-    let p0 = scene(0.0, Blur::Sat, false).prepare().unwrap();
-    let p1 = scene(0.5, Blur::Sat, false).prepare().unwrap();
+    let p0 = glossy_scene(0.0, Blur::Sat, false, None).prepare().unwrap();
+    let p1 = glossy_scene(0.5, Blur::Sat, false, None).prepare().unwrap();
     let sharp = cpu::render_reflection(&p0).unwrap();
     let blurred = cpu::render_reflection(&p1).unwrap();
     // Total variation of the green channel along the rows (48 pixels each).
@@ -122,7 +76,7 @@ fn the_reflection_blurs_with_distance_and_shows_the_background_off_the_caster() 
     };
     let (tv_sharp, tv_blurred) = (variation(&sharp), variation(&blurred));
     assert!(tv_sharp > 1.5 * tv_blurred, "{tv_sharp} vs {tv_blurred}");
-    let mut off = scene(0.1, Blur::Sat, false);
+    let mut off = glossy_scene(0.1, Blur::Sat, false, None);
     off.caster.as_mut().unwrap().rect = [5.0, 5.0, 6.0, 6.0];
     off.caster.as_mut().unwrap().tilt_deg = 0.0;
     let r = cpu::render_reflection(&off.prepare().unwrap()).unwrap();
@@ -148,7 +102,7 @@ fn bad_glossy_input_is_refused_naming_it() {
         (|s: &mut Scene| s.caster = None, "caster"),
         (|s: &mut Scene| s.blur = Blur::Separable, "separable"),
     ] {
-        let mut s = scene(0.2, Blur::Sat, false);
+        let mut s = glossy_scene(0.2, Blur::Sat, false, None);
         mutate(&mut s);
         let e = s.prepare().unwrap_err().to_string();
         assert!(e.contains(want), "{want}: {e}");
@@ -165,16 +119,16 @@ fn extremes_grazing_views_a_touching_caster_and_a_45_degree_lobe_stay_finite_and
     let caster = leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4);
     let tint = [40.0f32, 160.0, 60.0].map(|c| ptm_runtime::output::srgb_decode(c / 255.0));
     let back = [0.2f32, 0.3, 0.5];
-    let mut grazing = scene(0.25, Blur::Sat, true);
+    let mut grazing = glossy_scene(0.25, Blur::Sat, true, None);
     grazing.perspective = Some(Perspective {
         eye: [0.0, -3.0, 0.3],
         target: [0.0, 0.0, 0.0],
         fov_y_deg: 50.0,
     });
-    let mut touching = scene(0.25, Blur::Sat, false);
+    let mut touching = glossy_scene(0.25, Blur::Sat, false, None);
     let c = touching.caster.as_mut().unwrap();
     c.elevation = 0.8 * 40f32.to_radians().sin() + 1e-5;
-    let wide = scene(1.0, Blur::Sat, false);
+    let wide = glossy_scene(1.0, Blur::Sat, false, None);
     for (what, s, bound) in [
         // Measured 2.1 %, 0.5 % and 9.9 % for sat, alike for every method: what grows at a
         // grazing or a 45° lobe is the kernel's shape (the ellipse is uniform in area on the
@@ -185,7 +139,7 @@ fn extremes_grazing_views_a_touching_caster_and_a_45_degree_lobe_stay_finite_and
     ] {
         let p = s.prepare().unwrap();
         let fine = render_reflection_reference(&p, &caster.rgba, None, 4096);
-        let level = mean(&fine);
+        let level = mean3(&fine);
         for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
             let mut e = s.clone();
             e.blur = blur;
@@ -205,7 +159,7 @@ fn extremes_grazing_views_a_touching_caster_and_a_45_degree_lobe_stay_finite_and
                     );
                 }
             }
-            let err = mean_abs(&got, &fine);
+            let err = mean_abs3(&got, &fine);
             eprintln!(
                 "{what}, {}: mean |error| {err:.2e} ({:.2} % of the reflected {level:.3})",
                 blur.name(),
@@ -248,19 +202,19 @@ fn each_caster_texel_reflects_its_own_colour() {
     };
     for perspective in [false, true] {
         for roughness in ROUGHNESS {
-            let mut s = scene(roughness, Blur::Sat, perspective);
+            let mut s = glossy_scene(roughness, Blur::Sat, perspective, None);
             two_halves(&mut s);
             let p = s.prepare().unwrap();
             let fine = render_reflection_reference(&p, &rgba, None, 4096);
-            let level = mean(&fine);
+            let level = mean3(&fine);
             // The two colours both show: red dominates some pixels, blue-green others.
             assert!(fine.iter().any(|x| x[0] > 2.0 * x[2]));
             assert!(fine.iter().any(|x| x[2] > 2.0 * x[0] && x[1] > 2.0 * x[0]));
             for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
-                let mut s = scene(roughness, blur, perspective);
+                let mut s = glossy_scene(roughness, blur, perspective, None);
                 two_halves(&mut s);
                 let got = cpu::render_reflection(&s.prepare().unwrap()).unwrap();
-                let err = mean_abs(&got, &fine);
+                let err = mean_abs3(&got, &fine);
                 eprintln!(
                     "two colours, {} roughness {roughness}, {}: mean |error| {err:.2e} ({:.2} % \
                      of the reflected {level:.3})",

@@ -78,3 +78,61 @@ pub fn fitted(
     assert_eq!(ptm.basis, basis);
     ptm
 }
+
+/// The glossy tests' scene (`tests/glossy.rs`, `tests/environment.rs`): a 48² view of plain
+/// cloth under a leafy caster and one spherical light, with a glossy receiver of `roughness`
+/// over a blue-grey background or the sky `env`. `perspective`: seen from the front and above
+/// (oblique mirror rays, the caster 0.4 up and flat); else from straight above with the caster
+/// tilted 40° (its distance from the cloth, and so the blur, grows across the view).
+pub fn glossy_scene(
+    roughness: f32,
+    blur: ptm_runtime::Blur,
+    perspective: bool,
+    env: Option<std::sync::Arc<ptm_runtime::environment::Environment>>,
+) -> ptm_runtime::Scene {
+    let mut caster = ptm_runtime::synthetic::leaves(96, [-0.8, -0.8, 0.8, 0.8], 0.4);
+    if !perspective {
+        caster.elevation = 0.8;
+        caster.tilt_deg = 40.0;
+    }
+    ptm_runtime::Scene {
+        size: [48, 48],
+        view: [-1.0, -1.0, 1.0, 1.0],
+        ptm: None,
+        albedo: [0.8; 3],
+        albedo_texture: None,
+        lights: vec![light([0.3, -0.2, 3.0], 0.2, 9.0)],
+        caster: Some(caster),
+        colored_shadow: false,
+        blur,
+        perspective: perspective.then_some(ptm_runtime::scene::Perspective {
+            eye: [0.0, -2.5, 2.0],
+            target: [0.0, 0.0, 0.0],
+            fov_y_deg: 50.0,
+        }),
+        glossy: Some(ptm_runtime::Glossy {
+            roughness,
+            background: [0.2, 0.3, 0.5],
+            f0: 0.3,
+            environment: env,
+        }),
+    }
+}
+
+/// Mean |a − b| over every channel of two reflected images.
+pub fn mean_abs3(a: &[[f32; 3]], b: &[[f32; 3]]) -> f64 {
+    let sum: f64 = a
+        .iter()
+        .zip(b)
+        .flat_map(|(x, y)| (0..3).map(move |k| (x[k] - y[k]).abs() as f64))
+        .sum();
+    sum / (3 * a.len()) as f64
+}
+
+/// Mean over every channel of a reflected image.
+pub fn mean3(a: &[[f32; 3]]) -> f64 {
+    a.iter()
+        .flat_map(|x| x.iter().map(|&v| v as f64))
+        .sum::<f64>()
+        / (3 * a.len()) as f64
+}
