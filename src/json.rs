@@ -137,7 +137,8 @@ pub struct Learned {
     pub terms: usize,
     /// Side G of each term's G × G table over the hemispherical (u, v) square.
     pub grid: usize,
-    /// Roughness λ of the tables (penalty λ × texels × the squared second differences).
+    /// Roughness λ of the tables (penalty λ × texels ÷ the polynomial start's mean deviance per
+    /// fitted sample × the squared second differences).
     pub roughness: f64,
     /// Texels the basis was learned on (a deterministic subsample of the covered ones).
     pub texels: usize,

@@ -222,25 +222,22 @@ fn sweeps(gpu: &Gpu, base: &Scene, c: &ptm_runtime::Caster, sweep_size: u32, fra
             s
         },
     );
-    // From straight above the lobe meets the caster 0.5 up: radius 0.5·tan(roughness·45°).
-    let roughness = |r: f32| (r * texel / 0.5).atan() / std::f32::consts::FRAC_PI_4;
-    sat_sweep(
-        gpu,
-        "glossy receiver (the lobe's ellipse), its radius on the caster",
-        "r texels",
-        &radii,
-        rounds,
-        |r| {
-            let mut s = scene(Blur::Sat);
-            s.glossy = Some(ptm_runtime::Glossy {
-                roughness: roughness(r),
-                background: [0.2, 0.3, 0.5],
-                f0: 0.3,
-                environment: None,
-            });
-            s
-        },
-    );
+    // Roughness 0.3 (a 13.5° cone, two nested cones), the caster raised so that the lobe's
+    // radius on it, h·tan α from straight above, is r texels: the kernel grows with the distance
+    // to the caster at a fixed cost.
+    let glossy = ptm_runtime::Glossy {
+        roughness: 0.3,
+        background: [0.2, 0.3, 0.5],
+        f0: 0.3,
+        environment: None,
+    };
+    let tan_a = glossy.cone_half_angle().tan();
+    sat_sweep(gpu, "glossy receiver at roughness 0.3 (two nested cones' ellipses), the lobe's radius on the caster", "r texels", &radii, rounds, |r| {
+        let mut s = scene(Blur::Sat);
+        s.caster.as_mut().unwrap().elevation = r * texel / tan_a;
+        s.glossy = Some(glossy.clone());
+        s
+    });
 
     // --- explicit grows with the kernel's area ---
     println!(

@@ -85,8 +85,12 @@ pub struct Frame {
     pub glossy_background: [f32; 3],
     /// Glossy receiver: sin of the lobe's cone half-angle (the imaginary light's R/D).
     pub glossy_sin: f32,
+    /// Glossy receiver: the lobe's cone half-angle α (radians).
+    pub glossy_alpha: f32,
+    /// Glossy receiver: how many nested cones the lobe is averaged as (1 to 4; 0 without).
+    pub glossy_rings: u32,
     /// Padding to 16 bytes.
-    pub pad7: [f32; 3],
+    pub pad7: f32,
     /// Glossy receiver: Schlick's reflectance at normal incidence F0.
     pub glossy_f0: f32,
 }
@@ -126,8 +130,8 @@ pub struct LightGpu {
     pub radius: f32,
     /// Colour × intensity (linear rgb).
     pub color: [f32; 3],
-    /// [`LightGpu::SPHERE`], [`LightGpu::RECT`], [`LightGpu::SPHERE_SQUARE_BOX`] or
-    /// [`LightGpu::GAUSSIAN`].
+    /// [`LightGpu::SPHERE`], [`LightGpu::RECT`], [`LightGpu::SPHERE_SQUARE_BOX`],
+    /// [`LightGpu::GAUSSIAN`] or [`LightGpu::LOBE`].
     pub shape: u32,
     /// A rectangle's half-sides along X and Y, a Gaussian's σ (0 for a sphere).
     pub half: [f32; 2],
@@ -145,6 +149,9 @@ impl LightGpu {
     pub const SPHERE_SQUARE_BOX: u32 = 2;
     /// A Gaussian of standard deviations `half`, facing down.
     pub const GAUSSIAN: u32 = 3;
+    /// A glossy lobe's imaginary light (never in the light list): a sphere whose ellipse is
+    /// moved to the centroid of solid angle alone, not of irradiance.
+    pub const LOBE: u32 = 4;
 }
 
 /// One level of the PTM's MIP chain: `struct PtmLevel` in `shader/shade.wgsl`.
@@ -346,7 +353,7 @@ mod tests {
             ptm_texels_per_pixel, ptm_level_count, pad4, eye, perspective, cam_right, pad0,
             cam_up, pad1, cam_forward, pad2, fill, sheen_roughness, sheen_color, near,
             normal_size, far, pad5, shadow_lo, shadow_size, shadow_hi, pad6,
-            glossy_background, glossy_sin, pad7, glossy_f0);
+            glossy_background, glossy_sin, glossy_alpha, glossy_rings, pad7, glossy_f0);
         check(&shade_module(), "Frame", want, size_of::<Frame>());
         // A uniform block's size is a multiple of 16 bytes.
         assert_eq!(size_of::<Frame>() % 16, 0);

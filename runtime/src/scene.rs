@@ -132,6 +132,16 @@ impl Glossy {
     pub fn cone_half_angle(&self) -> f32 {
         self.roughness * std::f32::consts::FRAC_PI_4
     }
+
+    /// How many nested cones the shader averages the lobe as: one per 10° of half-angle started,
+    /// at most 4 (a 4.5° lobe is one cone, 22.5° three, 45° four). A uniform-area kernel is a
+    /// uniform-solid-angle lobe only for narrow cones; the cones' weights give each ring between
+    /// them its exact solid angle (`glossy_ring_weights` in `shade.wgsl`).
+    pub fn rings(&self) -> u32 {
+        (self.cone_half_angle().to_degrees() / 10.0)
+            .ceil()
+            .clamp(1.0, 4.0) as u32
+    }
 }
 
 /// Everything one frame shows.
@@ -552,6 +562,8 @@ impl Scene {
             if let Some(g) = &self.glossy {
                 frame.glossy_background = g.background;
                 frame.glossy_sin = g.cone_half_angle().sin();
+                frame.glossy_alpha = g.cone_half_angle();
+                frame.glossy_rings = g.rings();
                 frame.glossy_f0 = g.f0;
                 if let Some(e) = &g.environment {
                     let (m, map) = e.prefiltered(frame.glossy_sin);

@@ -171,7 +171,7 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
             shade::caster_texel_coords, shade::rect_chord, shade::rect_slabs, shade::Twin::light_blur, shade::Twin::light_opacity, shade::sphere_ellipse,
             shade::env_texel, shade::env_bilinear, shade::env_lookup,
-            shade::Twin::glossy_reflection, shade::Twin::glossy_fresnel,
+            shade::Twin::glossy_reflection, shade::Twin::glossy_ring_weights, shade::Twin::glossy_fresnel,
             shade::Twin::shade,
             shade::Twin::fs_main;
         "blur/explicit.wgsl" => explicit::opacity_raw, explicit::blur_explicit,

@@ -678,8 +678,8 @@ impl Twin<'_> {
         } else {
             let w = l.radius * s;
             let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
-            match sphere_ellipse(f, ray, s, l.radius, texel) {
-                Some(e) if l.shape == LightGpu::SPHERE => (
+            match sphere_ellipse(f, ray, s, l.radius, texel, l.shape == LightGpu::LOBE) {
+                Some(e) if l.shape == LightGpu::SPHERE || l.shape == LightGpu::LOBE => (
                     [t[0] + e.centre[0], t[1] + e.centre[1]],
                     e.radii,
                     e.shear,
@@ -754,16 +754,69 @@ impl Twin<'_> {
         if h.is_nan() || h <= 0.0 {
             return back;
         }
-        let l = LightGpu {
+        let mut l = LightGpu {
             position: std::array::from_fn(|k| pp[k] + 2.0 * h * r[k]),
             radius: 2.0 * h * f.glossy_sin,
             color: [0.0; 3],
-            shape: LightGpu::SPHERE,
+            shape: LightGpu::LOBE,
             half: [0.0; 2],
             axis: [1.0, 0.0],
         };
-        let o = self.light_blur(p, &l, 0).map(|x| x.max(0.0));
+        // The lobe as nested cones, each ring between them of its exact solid angle.
+        let rings = self.glossy_ring_weights(denom);
+        let mut o = [0.0f32; 4];
+        for (j, &w) in rings.iter().enumerate().take(f.glossy_rings as usize) {
+            if w > 0.0 {
+                let a = f.glossy_alpha * (j + 1) as f32 / f.glossy_rings as f32;
+                l.radius = 2.0 * h * a.sin();
+                let b = self.light_blur(p, &l, 0);
+                for k in 0..4 {
+                    o[k] += w * b[k].max(0.0);
+                }
+            }
+        }
         std::array::from_fn(|k| o[k] + back[k] * (1.0 - o[3].min(1.0)))
+    }
+
+    /// `glossy_ring_weights` of `shade.wgsl`: the nested cones' weights, each ring between two
+    /// of them its exact share of the lobe's solid angle (derivation in the WGSL); (1, 0, 0, 0)
+    /// for one cone or where the widest does not close on the plane (cos β = `cos_b`).
+    pub fn glossy_ring_weights(&self, cos_b: f32) -> [f32; 4] {
+        let f = self.f();
+        let mut c = [1.0, 0.0, 0.0, 0.0];
+        let n = f.glossy_rings as usize;
+        if n <= 1 {
+            return c;
+        }
+        let (mut area, mut omega) = ([0.0f32; 5], [0.0f32; 5]);
+        for j in 1..=n {
+            let a = f.glossy_alpha * j as f32 / n as f32;
+            let s = a.sin();
+            let q = cos_b * cos_b - s * s;
+            if q.is_nan() || q <= 0.0 {
+                return c;
+            }
+            area[j] = s * s * a.cos() / (q * q.sqrt());
+            let half = (0.5 * a).sin();
+            omega[j] = 2.0 * half * half;
+        }
+        let mut d = [0.0f32; 5];
+        for i in 1..=n {
+            d[i - 1] = (omega[i] - omega[i - 1]) / (omega[n] * (area[i] - area[i - 1]));
+        }
+        let mut total = 0.0;
+        for j in 0..n {
+            let next = if j + 1 < n { d[j + 1] } else { 0.0 };
+            c[j] = (area[j + 1] * (d[j] - next)).max(0.0);
+            total += c[j];
+        }
+        if total.is_nan() || total <= 0.0 {
+            return [1.0, 0.0, 0.0, 0.0];
+        }
+        for cj in c.iter_mut().take(n) {
+            *cj /= total;
+        }
+        c
     }
 
     /// The background a glossy receiver reflects along the mirror direction r: the colour, or
@@ -908,6 +961,7 @@ pub fn sphere_ellipse(
     s: f32,
     radius: f32,
     texel: [f32; 2],
+    lobe: bool,
 ) -> Option<Ellipse> {
     let (sin_t, cos_t) = (f.caster_sin_tilt, f.caster_cos_tilt);
     let d2 = ray[0] * ray[0] + ray[1] * ray[1] + ray[2] * ray[2];
@@ -948,10 +1002,15 @@ pub fn sphere_ellipse(
     let y = [y[0] + x0[0], y[1], y[2]];
     let yy = y[0] * y[0] + y[1] * y[1] + y[2] * y[2];
     let ye2 = y[0] * e2[0] + y[1] * e2[1] + y[2] * e2[2];
-    let grad = [
-        -4.0 * y[0] / yy * texel[0],
-        -(e2[2] / y[2] - 4.0 * ye2 / yy) * texel[1],
-    ];
+    // A glossy lobe: solid angle alone, ∇ln = −3(y·e)/|y|² (see the WGSL).
+    let grad = if lobe {
+        [-3.0 * y[0] / yy * texel[0], 3.0 * ye2 / yy * texel[1]]
+    } else {
+        [
+            -4.0 * y[0] / yy * texel[0],
+            -(e2[2] / y[2] - 4.0 * ye2 / yy) * texel[1],
+        ]
+    };
     let [rx, ry] = radii;
     let sxx = 0.25 * (rx * rx + shear * shear * ry * ry);
     let sxy = 0.25 * shear * ry * ry;

@@ -44,7 +44,9 @@ struct Frame {
     pad6: f32,
     glossy_background: vec3<f32>, // glossy receiver: background radiance (linear)
     glossy_sin: f32,            // glossy receiver: sin of the lobe's cone half-angle
-    pad7: vec3<f32>,
+    glossy_alpha: f32,          // glossy receiver: the half-angle α itself (radians)
+    glossy_rings: u32,          // glossy receiver: nested cones the lobe is averaged as (1–4)
+    pad7: f32,
     glossy_f0: f32,             // glossy receiver: Schlick's F0
 }
 
@@ -52,7 +54,7 @@ struct Light {
     position: vec3<f32>, // centre
     radius: f32,         // sphere radius R
     color: vec3<f32>,    // colour × intensity
-    shape: u32,          // 0 sphere, 1 rectangle facing down, 2 sphere as a box, 3 Gaussian
+    shape: u32,          // 0 sphere, 1 rectangle facing down, 2 sphere as a box, 3 Gaussian, 4 glossy lobe
     half: vec2<f32>,     // rectangle: half-sides along X, Y; Gaussian: σ along X, Y
     axis: vec2<f32>,     // rectangle: side a's direction (cos θ, sin θ); else (1, 0)
 }
@@ -663,8 +665,8 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
 //#endif
     let w = l.radius * s;
     let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
-    if (l.shape == 0u) {
-        let e = sphere_ellipse(ray, s, l.radius, texel);
+    if (l.shape == 0u || l.shape == 4u) {
+        let e = sphere_ellipse(ray, s, l.radius, texel, l.shape == 4u);
         if (e.ok) {
             return blur_lookup(li, t + e.centre, e.radii, e.shear, KERNEL_DISC);
         }
@@ -772,7 +774,7 @@ struct Ellipse {
     ok: bool,
 }
 
-fn sphere_ellipse(ray: vec3<f32>, s: f32, radius: f32, texel: vec2<f32>) -> Ellipse {
+fn sphere_ellipse(ray: vec3<f32>, s: f32, radius: f32, texel: vec2<f32>, lobe: bool) -> Ellipse {
     var e: Ellipse;
     e.ok = false;
     let d2 = dot(ray, ray);
@@ -807,7 +809,12 @@ fn sphere_ellipse(ray: vec3<f32>, s: f32, radius: f32, texel: vec2<f32>) -> Elli
     let e2 = vec3<f32>(0.0, frame.caster_cos_tilt, frame.caster_sin_tilt);
     let y = s * ray + vec3<f32>(x0.x, 0.0, 0.0) + x0.y * e2;
     let yy = dot(y, y);
-    let grad = vec2<f32>(-4.0 * y.x / yy * texel.x, -(e2.z / y.z - 4.0 * dot(y, e2) / yy) * texel.y);
+    // A glossy lobe (`lobe`) is uniform in solid angle alone, |n·y|/|y|³ (n·y the same over the
+    // plane): ∇ln = −3(y·e)/|y|², no cos at p.
+    var grad = vec2<f32>(-4.0 * y.x / yy * texel.x, -(e2.z / y.z - 4.0 * dot(y, e2) / yy) * texel.y);
+    if (lobe) {
+        grad = vec2<f32>(-3.0 * y.x / yy * texel.x, 3.0 * dot(y, e2) / yy * texel.y);
+    }
     let rx = radii.x;
     let ry = radii.y;
     let sxx = 0.25 * (rx * rx + e.shear * e.shear * ry * ry);
@@ -873,11 +880,70 @@ fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
     l.position = pp + 2.0 * h * r;
     l.radius = 2.0 * h * frame.glossy_sin;
     l.color = vec3<f32>(0.0);
-    l.shape = 0u;
+    l.shape = 4u;
     l.half = vec2<f32>(0.0);
     l.axis = vec2<f32>(1.0, 0.0);
-    let o = max(light_blur(p, l, 0u), vec4<f32>(0.0));
+    // A wide lobe as nested cones (`glossy_rings`): the kernel is uniform over each cone's
+    // ellipse by area, the lobe uniform in solid angle, which per unit of plane area falls off
+    // as 1/distance³ away from the axis. The cones' weights c_j give every ring between two
+    // of them its exact solid angle (`glossy_ring_weights`).
+    let rings = glossy_ring_weights(denom);
+    var o = vec4<f32>(0.0);
+    for (var j = 0u; j < frame.glossy_rings; j++) {
+        let w = rings[j];
+        if (w > 0.0) {
+            let a = frame.glossy_alpha * f32(j + 1u) / f32(frame.glossy_rings);
+            l.radius = 2.0 * h * sin(a);
+            o += w * max(light_blur(p, l, 0u), vec4<f32>(0.0));
+        }
+    }
     return o.xyz + back * (1.0 - min(o.w, 1.0));
+}
+
+// The weights of the nested cones of half-angles α_j = α·j/N (j = 1 … N = `glossy_rings`)
+// whose uniform-area ellipses on the caster plane, mixed, put on every ring between cones
+// j − 1 and j the lobe's exact share of solid angle (Ω_j − Ω_{j−1})/Ω_N. With A_j the ellipse
+// areas, the mixture's density on ring i is Σ_{j≥i} c_j/A_j; setting it to the ring's
+// d_i = ΔΩ_i/(Ω_N·ΔA_i) gives c_j = A_j·(d_j − d_{j+1}). A cone of half-angle a whose axis is
+// β off the plane's normal (cos β = `cos_b`) cuts an ellipse of area ∝ sin²a·cos a/(cos²β −
+// sin²a)^{3/2}; Ω ∝ 1 − cos a = 2 sin²(a/2). One cone (weight 1) where N = 1 or the widest
+// cone does not close on the plane.
+fn glossy_ring_weights(cos_b: f32) -> array<f32, 4> {
+    var c = array<f32, 4>(1.0, 0.0, 0.0, 0.0);
+    let n = frame.glossy_rings;
+    if (n <= 1u) {
+        return c;
+    }
+    var area = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);
+    var omega = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);
+    for (var j = 1u; j <= n; j++) {
+        let a = frame.glossy_alpha * f32(j) / f32(n);
+        let s = sin(a);
+        let q = cos_b * cos_b - s * s;
+        if (!(q > 0.0)) {
+            return c;
+        }
+        area[j] = s * s * cos(a) / (q * sqrt(q));
+        let half = sin(0.5 * a);
+        omega[j] = 2.0 * half * half;
+    }
+    var d = array<f32, 5>(0.0, 0.0, 0.0, 0.0, 0.0);
+    for (var i = 1u; i <= n; i++) {
+        d[i - 1u] = (omega[i] - omega[i - 1u]) / (omega[n] * (area[i] - area[i - 1u]));
+    }
+    var total = 0.0;
+    for (var j = 0u; j < n; j++) {
+        let next = select(0.0, d[j + 1u], j + 1u < n);
+        c[j] = max(area[j + 1u] * (d[j] - next), 0.0);
+        total += c[j];
+    }
+    if (!(total > 0.0)) {
+        return array<f32, 4>(1.0, 0.0, 0.0, 0.0);
+    }
+    for (var j = 0u; j < n; j++) {
+        c[j] = c[j] / total;
+    }
+    return c;
 }
 
 //#if GLOSSY_ENV
