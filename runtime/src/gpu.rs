@@ -25,6 +25,8 @@ pub struct Renderer {
     light_count: usize,
     /// Its shader has the Gaussian light's code (`Variant::gaussian`).
     gaussian: bool,
+    /// Its shader has the turned rectangle's code (`Variant::turned_rect`).
+    turned_rect: bool,
     /// The uniform block, and with a caster the blur method with what it prepared (asked
     /// whether moved lights keep it valid).
     frame: Frame,
@@ -364,6 +366,7 @@ impl Renderer {
             lights,
             light_count: p.lights.len(),
             gaussian: v.gaussian,
+            turned_rect: v.turned_rect,
             frame: p.frame,
             blur: v
                 .caster
@@ -446,6 +449,14 @@ impl Renderer {
             return Err(Error::Scene(
                 "a Gaussian light needs the shader variant with its code, which this renderer \
                  was built without: rebuild the renderer"
+                    .into(),
+            ));
+        }
+        let turned = |l: &LightGpu| l.shape == LightGpu::RECT && l.axis[1] != 0.0;
+        if !self.turned_rect && self.blur.is_some() && lights.iter().any(turned) {
+            return Err(Error::Scene(
+                "a turned rectangular light needs the shader variant with its code, which this \
+                 renderer was built without: rebuild the renderer"
                     .into(),
             ));
         }

@@ -596,6 +596,7 @@ impl Scene {
                 .lights
                 .iter()
                 .any(|l| l.rect.is_none() && l.gaussian.is_some()),
+            turned_rect: self.turned_rect(),
             glossy: self.glossy.is_some(),
             env_size,
         };
@@ -844,6 +845,9 @@ pub struct Variant {
     /// Some light is a Gaussian ([`Light::gaussian`]): only then is its code compiled (its
     /// kernel, `KERNEL_GAUSS`, and its footprint).
     pub gaussian: bool,
+    /// Some light is a turned rectangle ([`Light::is_turned_rect`]): only then is its kernel's
+    /// code (`rect_slabs`) compiled.
+    pub turned_rect: bool,
     /// A glossy receiver reflects the caster ([`Glossy`]): only then is `glossy_reflection`
     /// compiled.
     pub glossy: bool,
@@ -908,6 +912,7 @@ impl Variant {
                                 normal_map: false,
                                 shadow: false,
                                 gaussian: false,
+                                turned_rect: false,
                                 glossy: false,
                                 env_size: 0,
                             });
@@ -933,6 +938,7 @@ impl Variant {
                             normal_map,
                             shadow,
                             gaussian: false,
+                            turned_rect: false,
                             glossy: false,
                             env_size: 0,
                         });
@@ -951,6 +957,23 @@ impl Variant {
             })
             .collect();
         out.extend(gaussian);
+        // A turned rectangle's code with every per-pixel method and channel count (the plain
+        // variants with a caster: separable refuses a turned rectangle).
+        let turned: Vec<Variant> = out
+            .iter()
+            .filter(|v| {
+                v.caster.is_some_and(|b| b != Blur::Separable)
+                    && !v.albedo_texture
+                    && !v.ptm_mip
+                    && !v.coverage
+                    && !v.gaussian
+            })
+            .map(|v| Variant {
+                turned_rect: true,
+                ..*v
+            })
+            .collect();
+        out.extend(turned);
         // A glossy receiver with every method that has a kernel per pixel, over a grey caster.
         let glossy: Vec<Variant> = out
             .iter()
@@ -961,6 +984,7 @@ impl Variant {
                     && !v.ptm_mip
                     && !v.coverage
                     && !v.gaussian
+                    && !v.turned_rect
             })
             .map(|v| Variant { glossy: true, ..*v })
             .collect();
@@ -1012,6 +1036,9 @@ impl Variant {
         }
         if self.gaussian {
             parts.push("gaussian".into());
+        }
+        if self.turned_rect {
+            parts.push("turned-rect".into());
         }
         if self.glossy {
             parts.push("glossy".into());

@@ -187,6 +187,23 @@ fn a_renderer_without_the_gaussian_code_refuses_gaussian_lights() {
 }
 
 #[test]
+fn a_renderer_without_the_turned_rectangle_code_refuses_turned_rectangles() {
+    // Likewise for a rectangle turned about the vertical (its parallelogram's code); one along
+    // X and Y needs none.
+    let g = gpu();
+    let mut s = scene(Some(Basis::Ptm6), [16, 16]);
+    s.caster = Some(random_caster(16, 16, [0.3, 0.2, 2.6, 2.4], 0.6, 3));
+    s.lights[0].rect = Some([0.4, 0.2]);
+    let r = gpu::Renderer::new(&g, &s.prepare().unwrap()).unwrap();
+    assert!(r.set_lights(&s.gpu_lights()).is_ok());
+    s.lights[0].rect_angle_deg = 30.0;
+    let e = r.set_lights(&s.gpu_lights()).unwrap_err().to_string();
+    assert!(e.contains("turned") && e.contains("rebuild"), "{e}");
+    let r = gpu::Renderer::new(&g, &s.prepare().unwrap()).unwrap();
+    assert!(r.set_lights(&s.gpu_lights()).is_ok());
+}
+
+#[test]
 fn gpu_sat_equals_cpu_sat_bit_for_bit() {
     let g = gpu();
     let (w, h) = (301usize, 97usize);

@@ -54,6 +54,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.gaussian {
         d.push("GAUSSIAN");
     }
+    if v.turned_rect && v.caster.is_some() {
+        d.push("RECT_TURNED");
+    }
     if v.glossy && v.caster.is_some() {
         d.push("GLOSSY");
     }
@@ -234,12 +237,14 @@ mod tests {
         // and without coverage, or learned6 or learned11 (logistic, hemispherical) × MIP chain
         // × coverage; × albedo × (caster, or a mesh with or without a normal map and a macro
         // shadow); and with a Gaussian light, without albedo, MIP chain or coverage; and with a
-        // glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3), with
-        // a background colour or image.
+        // turned rectangle, likewise, with a per-pixel method (3) and either channel count; and
+        // with a glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3),
+        // with a background colour or image.
         assert_eq!(
             all.len(),
             (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4)
                 + (1 + 2 * 2 * 2 + 2) * (9 + 4)
+                + (1 + 2 * 2 * 2 + 2) * 3 * 2
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
         );
         for v in all {
@@ -281,6 +286,7 @@ mod tests {
             normal_map: false,
             shadow: false,
             gaussian: false,
+            turned_rect: false,
             glossy: false,
             env_size: 0,
         };
@@ -308,6 +314,16 @@ mod tests {
             assert!(!src.contains(name), "plain variant still mentions {name}");
         }
         assert_eq!(module.global_variables.len(), 2, "only frame and lights");
+    }
+
+    #[test]
+    fn only_turned_rectangle_variants_have_its_kernel() {
+        let all = Variant::all();
+        assert!(all.iter().any(|v| v.turned_rect));
+        for v in all {
+            let src = shade_source(&v).unwrap();
+            assert_eq!(src.contains("fn rect_slabs"), v.turned_rect, "{}", v.name());
+        }
     }
 
     #[test]

@@ -639,6 +639,7 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
         let sl = -4.0 / (3.0 * dot(ray, ray)) * l.half * l.half * dl * s;
         let shift = sl.x * a + sl.y * vec2<f32>(-a.y, a.x);
         let tr = t + vec2<f32>(shift.x, -shift.y * stretch) / texel;
+//#if RECT_TURNED
         if (a.y != 0.0) {
             // The turned rectangle's image: a parallelogram of half-edges e1, e2 in texels
             // (rows run to −y, a tilted caster stretches them).
@@ -646,6 +647,7 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
             let e2 = vec2<f32>(-a.y, -a.x * stretch) * (l.half.y * s) / texel;
             return rect_slabs(li, tr, e1, e2);
         }
+//#endif
         // Floored at 1/256 texel, not ½ as a sphere's: a thin light's kernel is a line, which
         // sees the texel it crosses, not the mean of two (the box stays exact down to there).
         let wr = max(vec2<f32>(l.half.x * s, l.half.y * s * stretch) / texel, vec2<f32>(RECT_MIN));
@@ -674,6 +676,7 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
     return blur_lookup(li, t, wt, 0.0, KERNEL_BOX);
 }
 
+//#if RECT_TURNED
 // The horizontal chord of a parallelogram centred at 0 at height y: (length, midpoint x). Its
 // vertices are at heights ±top (the apexes, the upper one at x = apex_x) and ±inner; between
 // ±inner the chord runs between two parallel edges (length `len`, midpoint y·slope), beyond it
@@ -744,6 +747,7 @@ fn rect_slabs(li: u32, t: vec2<f32>, e1: vec2<f32>, e2: vec2<f32>) -> vec4<f32> 
     }
     return sum / total;
 }
+//#endif
 
 // The caster's opacity towards light l at p (per channel): `light_blur`'s image mean, whose
 // opacity is α in a glossy scene's premultiplied image (its fourth channel).
