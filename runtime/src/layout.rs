@@ -83,14 +83,14 @@ pub struct Frame {
     /// Glossy receiver: the background's linear radiance, reflected where the lobe misses the
     /// caster (`scene::Glossy`).
     pub glossy_background: [f32; 3],
-    /// Glossy receiver: sin of the lobe's cone half-angle (the imaginary light's R/D).
-    pub glossy_sin: f32,
     /// Glossy receiver: the lobe's cone half-angle α (radians).
     pub glossy_alpha: f32,
     /// Glossy receiver: how many nested cones the lobe is averaged as (1 to 4; 0 without).
     pub glossy_rings: u32,
     /// Padding to 16 bytes.
     pub pad7: f32,
+    /// Padding to 16 bytes.
+    pub pad8: f32,
     /// Glossy receiver: Schlick's reflectance at normal incidence F0.
     pub glossy_f0: f32,
 }
@@ -353,7 +353,7 @@ mod tests {
             ptm_texels_per_pixel, ptm_level_count, pad4, eye, perspective, cam_right, pad0,
             cam_up, pad1, cam_forward, pad2, fill, sheen_roughness, sheen_color, near,
             normal_size, far, pad5, shadow_lo, shadow_size, shadow_hi, pad6,
-            glossy_background, glossy_sin, glossy_alpha, glossy_rings, pad7, glossy_f0);
+            glossy_background, glossy_alpha, glossy_rings, pad7, pad8, glossy_f0);
         check(&shade_module(), "Frame", want, size_of::<Frame>());
         // A uniform block's size is a multiple of 16 bytes.
         assert_eq!(size_of::<Frame>() % 16, 0);

@@ -312,7 +312,7 @@ pub fn render_reflection_reference(
 
 /// Ground truth for a glossy receiver ([`crate::scene::Glossy`]): the radiance reflected at
 /// cloth point p seen along the unit view direction `dir`, ray-traced over its lobe: `samples`
-/// stratified directions uniform in solid angle within the cone of half-angle asin(`frame.glossy_sin`)
+/// stratified directions uniform in solid angle within the cone of half-angle `frame.glossy_alpha`
 /// around the mirror direction, each intersected exactly with the (tilted) caster plane; a ray
 /// that hits the caster takes its texel (nearest, as the methods see them) composited over the
 /// background, α·colour + (1 − α)·background with the texel's own linear colour (sRGB decoded,
@@ -335,7 +335,7 @@ pub fn mc_reflection(
     let back = frame.glossy_background.map(|x| x as f64);
     let d = [dir[0] as f64, dir[1] as f64, dir[2] as f64];
     let axis = normalize([d[0], d[1], -d[2]]);
-    let sin_a = frame.glossy_sin as f64;
+    let sin_a = (frame.glossy_alpha as f64).sin();
     let cone = cone_frame(axis, sin_a, 1.0);
     let h = frame.caster_height as f64;
     let [w, ht] = size;

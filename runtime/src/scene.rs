@@ -561,12 +561,11 @@ impl Scene {
             };
             if let Some(g) = &self.glossy {
                 frame.glossy_background = g.background;
-                frame.glossy_sin = g.cone_half_angle().sin();
                 frame.glossy_alpha = g.cone_half_angle();
                 frame.glossy_rings = g.rings();
                 frame.glossy_f0 = g.f0;
                 if let Some(e) = &g.environment {
-                    let (m, map) = e.prefiltered(frame.glossy_sin);
+                    let (m, map) = e.prefiltered(g.cone_half_angle().sin());
                     (env_size, environment) = (m as u32, map);
                 }
             }
@@ -957,35 +956,30 @@ impl Variant {
             })
             .collect();
         out.extend(gaussian);
-        // A turned rectangle's code with every per-pixel method and channel count (the plain
-        // variants with a caster: separable refuses a turned rectangle).
+        // The plain variants with a per-pixel kernel (a caster blurred by any method but
+        // separable; no albedo texture, PTM MIP chain, coverage or Gaussian light).
+        let per_pixel = |v: &Variant| {
+            v.caster.is_some_and(|b| b != Blur::Separable)
+                && !v.albedo_texture
+                && !v.ptm_mip
+                && !v.coverage
+                && !v.gaussian
+        };
+        // A turned rectangle's code with each of them, either channel count (separable refuses
+        // a turned rectangle).
         let turned: Vec<Variant> = out
             .iter()
-            .filter(|v| {
-                v.caster.is_some_and(|b| b != Blur::Separable)
-                    && !v.albedo_texture
-                    && !v.ptm_mip
-                    && !v.coverage
-                    && !v.gaussian
-            })
+            .filter(|v| per_pixel(v))
             .map(|v| Variant {
                 turned_rect: true,
                 ..*v
             })
             .collect();
         out.extend(turned);
-        // A glossy receiver with every method that has a kernel per pixel, over a grey caster.
+        // A glossy receiver with each of them, over a grey caster.
         let glossy: Vec<Variant> = out
             .iter()
-            .filter(|v| {
-                v.caster.is_some_and(|b| b != Blur::Separable)
-                    && !v.colored
-                    && !v.albedo_texture
-                    && !v.ptm_mip
-                    && !v.coverage
-                    && !v.gaussian
-                    && !v.turned_rect
-            })
+            .filter(|v| per_pixel(v) && !v.colored && !v.turned_rect)
             .map(|v| Variant { glossy: true, ..*v })
             .collect();
         // … and each of them over a background image (an 8² map: its size is a constant).

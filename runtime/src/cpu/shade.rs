@@ -756,7 +756,7 @@ impl Twin<'_> {
         }
         let mut l = LightGpu {
             position: std::array::from_fn(|k| pp[k] + 2.0 * h * r[k]),
-            radius: 2.0 * h * f.glossy_sin,
+            radius: 0.0, // per cone below
             color: [0.0; 3],
             shape: LightGpu::LOBE,
             half: [0.0; 2],

@@ -317,21 +317,13 @@ mod tests {
     }
 
     #[test]
-    fn only_turned_rectangle_variants_have_its_kernel() {
+    fn only_turned_rectangle_and_glossy_variants_have_their_code() {
         let all = Variant::all();
         assert!(all.iter().any(|v| v.turned_rect));
-        for v in all {
-            let src = shade_source(&v).unwrap();
-            assert_eq!(src.contains("fn rect_slabs"), v.turned_rect, "{}", v.name());
-        }
-    }
-
-    #[test]
-    fn only_glossy_variants_have_the_reflection() {
-        let all = Variant::all();
         assert!(all.iter().any(|v| v.glossy));
         for v in all {
             let src = shade_source(&v).unwrap();
+            assert_eq!(src.contains("fn rect_slabs"), v.turned_rect, "{}", v.name());
             for name in ["glossy_reflection", "glossy_fresnel"] {
                 assert_eq!(src.contains(name), v.glossy, "{}: {name}", v.name());
             }

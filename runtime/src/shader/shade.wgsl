@@ -43,10 +43,10 @@ struct Frame {
     shadow_hi: vec3<f32>,       // mesh: its high corner
     pad6: f32,
     glossy_background: vec3<f32>, // glossy receiver: background radiance (linear)
-    glossy_sin: f32,            // glossy receiver: sin of the lobe's cone half-angle
-    glossy_alpha: f32,          // glossy receiver: the half-angle α itself (radians)
+    glossy_alpha: f32,          // glossy receiver: the lobe's cone half-angle α (radians)
     glossy_rings: u32,          // glossy receiver: nested cones the lobe is averaged as (1–4)
     pad7: f32,
+    pad8: f32,
     glossy_f0: f32,             // glossy receiver: Schlick's F0
 }
 
@@ -882,7 +882,7 @@ fn glossy_reflection(p: vec2<f32>, dir: vec3<f32>) -> vec3<f32> {
     }
     var l: Light;
     l.position = pp + 2.0 * h * r;
-    l.radius = 2.0 * h * frame.glossy_sin;
+    l.radius = 0.0; // per cone below
     l.color = vec3<f32>(0.0);
     l.shape = 4u;
     l.half = vec2<f32>(0.0);
