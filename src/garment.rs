@@ -263,6 +263,7 @@ pub fn build(
                 square_box: false,
                 rect_angle_deg: 0.0,
                 gaussian: None,
+                distant: false,
                 // Irradiance 1 at the mesh's centre, facing the light.
                 intensity: nth(view.intensity, i).unwrap_or(d2),
                 color: view

@@ -52,6 +52,15 @@ pub struct Args {
     /// ellipse of the same variance; separable: the box of the same variance).
     #[arg(long, value_name = "SX,SY", value_parser = parse_pair::<f32>)]
     pub light_gaussian: Vec<(f32, f32)>,
+    /// A distant light (the sun): ELEV degrees above the cloth, AZ degrees from +X towards +Y,
+    /// an angular RADIUS in degrees (default 0.27, the sun's; 0 a hard shadow; at most 45);
+    /// repeat for several. Its direction is the same at every point, and so is K's footprint:
+    /// the PTM's basis (monomials or learned tables) is evaluated once per frame and each
+    /// pixel only dots it with its coefficients. Irradiance on a surface facing it: I ·
+    /// colour. Numbered after the --light lights for --intensity and --color; only the plane
+    /// preview (not --mesh or --window).
+    #[arg(long, value_name = "ELEV,AZ[,RADIUS]", value_parser = parse_distant, allow_hyphen_values = true)]
+    pub light_distant: Vec<(f32, f32, f32)>,
     /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen
     /// so the first light gives irradiance 0.8 at the view's centre (headroom below white).
     #[arg(long)]
@@ -166,6 +175,25 @@ fn parse_rect(s: &str) -> Result<(f32, f32, f32), String> {
         )),
     }
 }
+
+fn parse_distant(s: &str) -> Result<(f32, f32, f32), String> {
+    let number = |x: &str| {
+        x.trim()
+            .parse::<f32>()
+            .map_err(|_| format!("`{x}` is not a number"))
+    };
+    match s.split(',').collect::<Vec<_>>()[..] {
+        [e, a] => Ok((number(e)?, number(a)?, SUN_RADIUS_DEG)),
+        [e, a, r] => Ok((number(e)?, number(a)?, number(r)?)),
+        _ => Err(format!(
+            "expected ELEV,AZ or ELEV,AZ,RADIUS (degrees: elevation above the cloth, azimuth \
+             from +X towards +Y, angular radius), got `{s}`"
+        )),
+    }
+}
+
+/// The sun's angular radius, degrees: `--light-distant`'s default.
+const SUN_RADIUS_DEG: f32 = 0.27;
 
 fn parse_pair<T: std::str::FromStr>(s: &str) -> Result<(T, T), String> {
     let parts: Vec<&str> = s.split(',').collect();
@@ -292,7 +320,9 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
         0.5 * (scene.view[0] + scene.view[2]),
         0.5 * (scene.view[1] + scene.view[3]),
     ];
-    let positions = if args.light.is_empty() {
+    let positions = if args.light.is_empty() && !args.light_distant.is_empty() {
+        Vec::new()
+    } else if args.light.is_empty() {
         vec![[
             centre[0] - 2.4 * extent,
             centre[1] + 1.2 * extent,
@@ -323,11 +353,30 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
                 gaussian: (!args.light_gaussian.is_empty())
                     .then(|| nth(&args.light_gaussian, i, (0.0, 0.0)))
                     .map(|(a, b)| [a, b]),
+                distant: false,
                 intensity: nth(&args.intensity, i, 0.8 * d2 / cos),
                 color: nth(&args.color, i, [1.0, 1.0, 1.0]),
             }
         })
         .collect();
+    let local = scene.lights.len();
+    scene.lights.extend(
+        args.light_distant
+            .iter()
+            .enumerate()
+            .map(|(j, &(elev, az, r))| {
+                let i = local + j;
+                let (e, a) = (elev.to_radians(), az.to_radians());
+                Light {
+                    position: [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()],
+                    radius: r.to_radians(),
+                    distant: true,
+                    intensity: nth(&args.intensity, i, 0.8 / e.sin().max(0.05)),
+                    color: nth(&args.color, i, [1.0, 1.0, 1.0]),
+                    ..Light::default()
+                }
+            }),
+    );
 
     if let Some(path) = &args.caster {
         let (w, h, rgba) = match builtin_caster(path)? {
@@ -638,6 +687,32 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
             bail!(
                 "--light-gaussian {a},{b}: both standard deviations must be finite and > 0 \
                  (swatch units; a point light is --light-radius 0)"
+            );
+        }
+    }
+    for &(elev, az, r) in &args.light_distant {
+        if !(elev.is_finite() && elev > 0.0 && elev <= 90.0) {
+            bail!("--light-distant {elev},{az}: the elevation must be above 0° and at most 90°");
+        }
+        if !az.is_finite() {
+            bail!("--light-distant {elev},{az}: the azimuth must be a finite number of degrees");
+        }
+        if !(r.is_finite() && (0.0..=45.0).contains(&r)) {
+            bail!(
+                "--light-distant {elev},{az},{r}: the angular radius must be 0 to 45 degrees (the \
+                 sun's is {SUN_RADIUS_DEG}; a wider source is a sky)"
+            );
+        }
+        if !args.light_rect.is_empty() || !args.light_gaussian.is_empty() {
+            bail!(
+                "--light-distant: a distant light is a disc of an angular radius; not with \
+                 --light-rect or --light-gaussian"
+            );
+        }
+        if args.garment.mesh.is_some() || args.window {
+            bail!(
+                "--light-distant lights the plane preview only: not with --mesh or --window \
+                 (place a --light far away instead)"
             );
         }
     }

@@ -107,6 +107,7 @@ fn light(position: [f32; 3], radius: f32) -> Light {
         square_box: false,
         rect_angle_deg: 0.0,
         gaussian: None,
+        distant: false,
         intensity: 4.0,
         color: [1.0; 3],
     }

@@ -117,6 +117,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         square_box: false,
         rect_angle_deg: 0.0,
         gaussian: None,
+        distant: false,
         intensity: 8.0,
         color: [1.0; 3],
     };

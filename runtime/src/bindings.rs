@@ -59,6 +59,8 @@ pub mod shade {
     /// Glossy receiver: the background image's equal-area map and its levels
     /// (`SceneBuffers::environment`).
     pub const ENVIRONMENT: Binding = b("environment", 16);
+    /// Distant lights: the basis terms evaluated once per frame (`SceneBuffers::light_terms`).
+    pub const LIGHT_TERMS: Binding = b("light_terms", 17);
     /// Every binding of the shading pass.
     pub const ALL: &[Binding] = &[
         FRAME,
@@ -78,6 +80,7 @@ pub mod shade {
         SHADOWS,
         GATHER,
         ENVIRONMENT,
+        LIGHT_TERMS,
     ];
 }
 

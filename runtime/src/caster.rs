@@ -65,6 +65,40 @@ impl Caster {
         }
         Some(out)
     }
+
+    /// As [`Caster::shadow_rect`] for a distant light in unit direction `dir` whose angular
+    /// radius has sine `sin_radius`: the corners projected along `dir`, widened by the cone's
+    /// spread (its radius s·sin ρ at distance s along `dir`, stretched by up to 1/dir.z on the
+    /// cloth). `None` when the light is not above the horizon.
+    pub fn shadow_rect_distant(&self, dir: [f32; 3], sin_radius: f32) -> Option<[f32; 4]> {
+        if dir[2].is_nan() || dir[2] <= 0.0 {
+            return None;
+        }
+        let [x0, y0, x1, y1] = self.rect;
+        let (cy, hh) = (0.5 * (y0 + y1), 0.5 * (y1 - y0));
+        let (s, c) = self.tilt_deg.to_radians().sin_cos();
+        let mut out = [
+            f32::INFINITY,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        for x in [x0, x1] {
+            for side in [-1.0f32, 1.0] {
+                let (y, z) = (cy + side * hh * c, self.elevation + side * hh * s);
+                let along = z.max(0.0) / dir[2];
+                let spread = sin_radius.max(0.0) * along / dir[2];
+                let hit = [x - along * dir[0], y - along * dir[1]];
+                out = [
+                    out[0].min(hit[0] - spread),
+                    out[1].min(hit[1] - spread),
+                    out[2].max(hit[0] + spread),
+                    out[3].max(hit[1] + spread),
+                ];
+            }
+        }
+        Some(out)
+    }
 }
 
 /// Box-downsamples a caster whose larger side exceeds [`MAX_CASTER_SIDE`] by the smallest

@@ -205,6 +205,12 @@ impl Renderer {
                 gpu.storage("albedo", bytemuck::cast_slice(&p.albedo)),
             ));
         }
+        if v.distant && v.basis.is_some() {
+            entries.push((
+                b::LIGHT_TERMS.index,
+                gpu.storage("light terms", bytemuck::cast_slice(&p.light_terms)),
+            ));
+        }
         if v.glossy && v.env_size > 0 {
             entries.push((
                 b::ENVIRONMENT.index,
@@ -449,6 +455,14 @@ impl Renderer {
             return Err(Error::Scene(
                 "a Gaussian light needs the shader variant with its code, which this renderer \
                  was built without: rebuild the renderer"
+                    .into(),
+            ));
+        }
+        if lights.iter().any(|l| l.shape == LightGpu::DISTANT) {
+            return Err(Error::Scene(
+                "a distant light's basis terms are evaluated once per frame from the scene \
+                 (SceneBuffers::light_terms), which moving lights in place does not redo: \
+                 rebuild the renderer"
                     .into(),
             ));
         }

@@ -131,7 +131,7 @@ pub struct LightGpu {
     /// Colour × intensity (linear rgb).
     pub color: [f32; 3],
     /// [`LightGpu::SPHERE`], [`LightGpu::RECT`], [`LightGpu::SPHERE_SQUARE_BOX`],
-    /// [`LightGpu::GAUSSIAN`] or [`LightGpu::LOBE`].
+    /// [`LightGpu::GAUSSIAN`], [`LightGpu::LOBE`] or [`LightGpu::DISTANT`].
     pub shape: u32,
     /// A rectangle's half-sides along X and Y, a Gaussian's σ (0 for a sphere).
     pub half: [f32; 2],
@@ -152,6 +152,30 @@ impl LightGpu {
     /// A glossy lobe's imaginary light (never in the light list): a sphere whose ellipse is
     /// moved to the centroid of solid angle alone, not of irradiance.
     pub const LOBE: u32 = 4;
+    /// A distant light (the sun): `position` is the unit direction towards it, the same at
+    /// every point, and `radius` the sine of its angular radius; its kernel is the ellipse its
+    /// cone cuts from the caster plane, as a sphere's.
+    pub const DISTANT: u32 = 5;
+
+    /// The vector from cloth point p (z = 0) towards the light: to its centre, or for a
+    /// [`LightGpu::DISTANT`] light its unit direction. Its length is the distance d of the
+    /// `cos/d²` falloff (1 for a distant light).
+    pub fn to_light(&self, p: [f32; 2]) -> [f32; 3] {
+        if self.shape == LightGpu::DISTANT {
+            return self.position;
+        }
+        let lp = self.position;
+        [lp[0] - p[0], lp[1] - p[1], lp[2]]
+    }
+
+    /// A sphere's kernel and footprint (a sphere, a distant light's disc, a glossy lobe), not
+    /// a planar light's.
+    pub fn is_round(&self) -> bool {
+        matches!(
+            self.shape,
+            LightGpu::SPHERE | LightGpu::SPHERE_SQUARE_BOX | LightGpu::LOBE | LightGpu::DISTANT
+        )
+    }
 }
 
 /// One level of the PTM's MIP chain: `struct PtmLevel` in `shader/shade.wgsl`.

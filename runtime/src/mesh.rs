@@ -548,6 +548,12 @@ impl MeshScene {
         if self.mesh.corners.is_empty() {
             return Err(Error::Scene("the mesh has no triangles".into()));
         }
+        if let Some(i) = self.scene.lights.iter().position(|l| l.distant) {
+            return Err(Error::Scene(format!(
+                "light {i} is distant: the mesh path lights with local lights only (its shadow \
+                 maps are perspective); place a light far away instead, or preview the plane"
+            )));
+        }
         let roughness_ok = self.sheen_roughness > 0.0 && self.sheen_roughness <= 1.0;
         let colours_ok = self
             .sheen_color
@@ -828,6 +834,7 @@ mod tests {
             square_box: false,
             rect_angle_deg: 0.0,
             gaussian: None,
+            distant: false,
             intensity: 1.0,
             color: [1.0; 3],
         }];

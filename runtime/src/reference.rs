@@ -59,7 +59,13 @@ pub fn mc_opacity(
     let h = frame.caster_height as f64;
     let [lx, ly, lz] = light.position.map(|x| x as f64);
     let r = light.radius as f64;
-    let c = [lx - p[0] as f64, ly - p[1] as f64, lz];
+    // A distant light: a cone of half-angle asin(radius) about its direction, its disc at
+    // infinity (every caster hit is in front of it).
+    let distant = light.shape == LightGpu::DISTANT;
+    let c = match distant {
+        true => [lx, ly, lz],
+        false => [lx - p[0] as f64, ly - p[1] as f64, lz],
+    };
     let d = (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt();
     if d <= 0.0 || lz <= 0.0 {
         return [0.0; 3];
@@ -89,7 +95,11 @@ pub fn mc_opacity(
         // Nearest hit of the sphere along dir (the light surface the ray reaches first).
         let b = dot(dir, c);
         let disc = b * b - (d * d - r * r);
-        let t_light = if disc > 0.0 { b - disc.sqrt() } else { b };
+        let t_light = match (distant, disc > 0.0) {
+            (true, _) => f64::INFINITY,
+            (false, true) => b - disc.sqrt(),
+            (false, false) => b,
+        };
         // Exact hit of the (tilted) caster plane, in the caster's own axes X and e2.
         let t_caster = dot(normal, below) / dot(normal, dir);
         let mut o = [0.0; 3];
@@ -210,7 +220,8 @@ fn turned(axis: [f32; 2], o: [f64; 2]) -> [f64; 2] {
 /// irradiance is (cos θ at p over the solid angle; a point light is its centre's K).
 /// `samples` stratified directions, as [`mc_opacity`] (sphere: uniform in solid angle within
 /// its cone, directions below the horizon weigh 0) and [`mc_opacity_rect`] (rectangle: uniform
-/// in area, weighted z²/r⁴) draw them. Deterministic: the random numbers hash (`key`, sample).
+/// in area, weighted z²/r⁴; a distant light: its cone, as a sphere's) draw them.
+/// Deterministic: the random numbers hash (`key`, sample).
 ///
 /// [`Ptm::eval_dir`]: ptm_format::Ptm::eval_dir
 pub fn mc_k(
@@ -221,11 +232,15 @@ pub fn mc_k(
     samples: u32,
     key: u64,
 ) -> f32 {
-    let c = [
-        light.position[0] as f64 - p[0] as f64,
-        light.position[1] as f64 - p[1] as f64,
-        light.position[2] as f64,
-    ];
+    // A distant light: its cone about its unit direction, of half-angle asin(radius).
+    let c = match light.shape == LightGpu::DISTANT {
+        true => light.position.map(|x| x as f64),
+        false => [
+            light.position[0] as f64 - p[0] as f64,
+            light.position[1] as f64 - p[1] as f64,
+            light.position[2] as f64,
+        ],
+    };
     let d = dot(c, c).sqrt();
     if d <= 0.0 || c[2] <= 0.0 {
         return 1.0;
@@ -233,7 +248,8 @@ pub fn mc_k(
     let axis = c.map(|x| x / d);
     let k = |dir: [f64; 3]| ptm.eval_dir(texel[0], texel[1], dir) as f64;
     let r = light.radius as f64;
-    if light.shape == 0 && r <= 0.0 {
+    let round = light.shape == LightGpu::SPHERE || light.shape == LightGpu::DISTANT;
+    if round && r <= 0.0 {
         return k(axis) as f32;
     }
     let half = light.half.map(|x| x as f64);

@@ -20,6 +20,20 @@ pub const MAX_EXPLICIT_SAMPLES: u32 = 256;
 /// Largest output side: wgpu's guaranteed `max_texture_dimension_2d` (8192).
 pub const MAX_IMAGE_SIDE: u32 = 8192;
 
+/// The largest angular radius of a distant light, radians (45°): a wider source is a sky, and
+/// its cone would not meet a caster plane in a closed ellipse at moderate elevations.
+pub const MAX_DISTANT_RADIUS: f32 = std::f32::consts::FRAC_PI_4;
+
+/// `v` scaled to unit length (a zero vector stays zero; `prepare` refuses it for a light).
+fn normalize3(v: [f32; 3]) -> [f32; 3] {
+    let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+    if n > 0.0 {
+        v.map(|x| x / n)
+    } else {
+        v
+    }
+}
+
 /// A spherical area light.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
@@ -50,6 +64,15 @@ pub struct Light {
     /// total power as a point light's of `intensity`). Its penumbra kernel on a caster parallel
     /// to the cloth is that Gaussian scaled by the caster's fraction of the way to the light.
     pub gaussian: Option<[f32; 2]>,
+    /// A distant light (the sun, a key light far away): `position` is then the direction
+    /// towards it (normalised; z > 0), the same at every point of the cloth, `radius` its
+    /// angular radius in radians (0: a hard shadow; below 45°), and the irradiance it gives a
+    /// surface facing it is `intensity · color` (no falloff). Its penumbra kernel is the ellipse
+    /// its cone cuts from the caster plane, as a sphere's; not a rectangle or a Gaussian, and
+    /// not on the mesh path. K under it is the same at every point for given coefficients, so
+    /// its basis terms (monomials or learned tables) are evaluated once per frame
+    /// ([`SceneBuffers::light_terms`]) and each pixel only dots them with its coefficients.
+    pub distant: bool,
     /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
     pub intensity: f32,
     /// Linear RGB colour.
@@ -66,6 +89,7 @@ impl Default for Light {
             rect_angle_deg: 0.0,
             square_box: false,
             gaussian: None,
+            distant: false,
             intensity: 1.0,
             color: [1.0; 3],
         }
@@ -233,6 +257,8 @@ impl Scene {
         let (s, co) = angle.sin_cos();
         let mut out = self.clone();
         for l in &mut out.lights {
+            // A distant light's direction turns about the vertical itself.
+            let c = if l.distant { [0.0; 2] } else { c };
             let d = [l.position[0] - c[0], l.position[1] - c[1]];
             l.position[0] = c[0] + co * d[0] - s * d[1];
             l.position[1] = c[1] + s * d[0] + co * d[1];
@@ -246,10 +272,17 @@ impl Scene {
         self.lights
             .iter()
             .map(|l| LightGpu {
-                position: l.position,
-                radius: l.radius.max(0.0),
+                position: match l.distant {
+                    true => normalize3(l.position),
+                    false => l.position,
+                },
+                radius: match l.distant {
+                    true => l.radius.clamp(0.0, MAX_DISTANT_RADIUS).sin(),
+                    false => l.radius.max(0.0),
+                },
                 color: l.color.map(|c| c * l.intensity),
                 shape: match (l.rect, l.gaussian, l.square_box) {
+                    _ if l.distant => LightGpu::DISTANT,
                     (Some(_), _, _) => LightGpu::RECT,
                     (None, Some(_), _) => LightGpu::GAUSSIAN,
                     (None, None, false) => LightGpu::SPHERE,
@@ -320,6 +353,30 @@ impl Scene {
                      Y only; use sat, mip or explicit (or sides along X and Y)",
                     l.rect_angle_deg
                 )));
+            }
+            if l.distant {
+                let n2: f32 = l.position.iter().map(|x| x * x).sum();
+                if !(n2 > 0.0 && n2.is_finite()) {
+                    return Err(Error::Scene(format!(
+                        "distant light {i}'s direction {:?} must be a finite non-zero vector \
+                         towards the light",
+                        l.position
+                    )));
+                }
+                if l.radius > MAX_DISTANT_RADIUS {
+                    return Err(Error::Scene(format!(
+                        "distant light {i}'s angular radius {:.2}° exceeds {}°: a source that \
+                         wide is a sky (use a glossy background image), not a light",
+                        l.radius.to_degrees(),
+                        MAX_DISTANT_RADIUS.to_degrees()
+                    )));
+                }
+                if l.rect.is_some() || l.gaussian.is_some() {
+                    return Err(Error::Scene(format!(
+                        "light {i} is distant and a rectangle or Gaussian: a distant light is a \
+                         disc of an angular radius; drop one"
+                    )));
+                }
             }
             if let Some(sigma) = l.gaussian {
                 if !sigma.iter().all(|x| x.is_finite() && *x > 0.0) {
@@ -598,11 +655,16 @@ impl Scene {
             turned_rect: self.turned_rect(),
             glossy: self.glossy.is_some(),
             env_size,
+            distant: self.lights.iter().any(|l| l.distant),
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
-            for (i, l) in self.lights.iter().enumerate() {
-                let Some(s) = c.shadow_rect(l.position, l.extent()) else {
+            for (i, (l, g)) in self.lights.iter().zip(&lights).enumerate() {
+                let rect = match l.distant {
+                    true => c.shadow_rect_distant(g.position, g.radius),
+                    false => c.shadow_rect(l.position, l.extent()),
+                };
+                let Some(s) = rect else {
                     continue;
                 };
                 if s[2] < x0 || s[0] > x1 || s[3] < y0 || s[1] > y1 {
@@ -632,7 +694,9 @@ impl Scene {
             warnings,
             mesh_vertices: Vec::new(),
             normal_map: Vec::new(),
-        })
+            light_terms: Vec::new(),
+        }
+        .with_light_terms())
     }
 }
 
@@ -853,6 +917,9 @@ pub struct Variant {
     /// A glossy receiver's background image ([`Glossy::environment`]): the side of its map
     /// prefiltered for the lobe (a constant of the source, `ENV_SIZE`), 0 for a colour.
     pub env_size: u32,
+    /// Some light is distant ([`Light::distant`]): only then is its code compiled (its
+    /// direction, and with a PTM the per-frame basis terms, `distant_k`).
+    pub distant: bool,
 }
 
 impl Variant {
@@ -914,6 +981,7 @@ impl Variant {
                                 turned_rect: false,
                                 glossy: false,
                                 env_size: 0,
+                                distant: false,
                             });
                         }
                     }
@@ -940,6 +1008,7 @@ impl Variant {
                             turned_rect: false,
                             glossy: false,
                             env_size: 0,
+                            distant: false,
                         });
                     }
                 }
@@ -989,6 +1058,25 @@ impl Variant {
             .collect();
         out.extend(glossy);
         out.extend(env);
+        // A distant light with each plain plane variant (every basis, link and map, every
+        // blur method, either channel count, or no caster).
+        let distant: Vec<Variant> = out
+            .iter()
+            .filter(|v| {
+                !v.mesh
+                    && !v.albedo_texture
+                    && !v.ptm_mip
+                    && !v.coverage
+                    && !v.gaussian
+                    && !v.turned_rect
+                    && !v.glossy
+            })
+            .map(|v| Variant {
+                distant: true,
+                ..*v
+            })
+            .collect();
+        out.extend(distant);
         out
     }
 
@@ -1039,6 +1127,9 @@ impl Variant {
         }
         if self.env_size > 0 {
             parts.push(format!("env{}", self.env_size));
+        }
+        if self.distant {
+            parts.push("distant".into());
         }
         parts.join("+")
     }
@@ -1142,4 +1233,26 @@ pub struct SceneBuffers {
     pub mesh_vertices: Vec<crate::layout::MeshVertex>,
     /// The tangent-space normal map's texels (see `mesh_vertices`).
     pub normal_map: Vec<[f32; 4]>,
+    /// With a PTM, per light, what a distant light's K needs at every pixel, evaluated once
+    /// ([`crate::cpu::shade::distant_terms`]): [`LIGHT_TERM_STRIDE`]`(k)` vec4s per light, the
+    /// footprint's covariance (uu, uv, vv, 0), then per basis term k (whole vec4s, zeros past
+    /// the last) the predictor's mean weight p_k + ½·tr(H_k·C), and its gradient's u and v
+    /// parts, all at the footprint's mean; zeros for a light that is not distant. Empty
+    /// without a distant light or a PTM.
+    pub light_terms: Vec<[f32; 4]>,
+}
+
+/// vec4s per light in [`SceneBuffers::light_terms`] for a basis of `terms` terms: the
+/// covariance, then three runs of ⌈terms/4⌉.
+pub fn light_term_stride(terms: usize) -> usize {
+    1 + 3 * terms.div_ceil(4)
+}
+
+impl SceneBuffers {
+    /// Fills [`SceneBuffers::light_terms`] from the lights, the basis and its map (what the
+    /// shader's `distant_k` reads).
+    pub fn with_light_terms(mut self) -> SceneBuffers {
+        self.light_terms = crate::cpu::shade::distant_terms(&self);
+        self
+    }
 }

@@ -946,6 +946,7 @@ mod tests {
             square_box: false,
             rect_angle_deg: 0.0,
             gaussian: None,
+            distant: false,
             intensity: 4.0,
             color: [1.0, 1.0, 1.0],
         }];

@@ -354,6 +354,7 @@ fn gpu_matches_twin_under_large_and_grazing_area_lights() {
                 square_box: false,
                 rect_angle_deg: 0.0,
                 gaussian: None,
+                distant: false,
                 intensity: 3.0,
                 color: [1.0, 0.9, 0.8],
             },

@@ -68,7 +68,9 @@ pub fn plan(f: &Frame, size: [u32; 2], lights: &[LightGpu]) -> Plan {
         .map(|l| {
             let (lz, r) = (l.position[2], l.radius);
             let hgt = f.caster_height;
-            let active = lz > hgt;
+            // A distant light (`position` its direction) is always beyond the caster: its cone
+            // has radius sin ρ·s at s = hgt/lz along it, as a sphere's R·hgt/lz.
+            let active = lz > hgt || (l.shape == LightGpu::DISTANT && lz > 0.0);
             if l.shape == LightGpu::RECT || l.shape == LightGpu::GAUSSIAN {
                 // A rectangle: a box of half-sides s·half (s = d_ca/d_lc); a Gaussian of σ =
                 // half: the box of its variance (half-sides √3·σ·s).

@@ -118,8 +118,7 @@ pub fn k_excursion(p: &SceneBuffers) -> Option<KExcursion> {
                 };
                 let c = twin.ptm_coeffs(pos, ptm_lod(&p.frame, frag));
                 for l in lights {
-                    let lp = l.position;
-                    let d = [lp[0] - pos[0], lp[1] - pos[1], lp[2]];
+                    let d = l.to_light(pos);
                     let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
                     if d[2] <= 0.0 || len <= 0.0 {
                         continue;
@@ -167,7 +166,7 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             shade::Twin::learned_eval,
             shade::Twin::learned_jet, shade::Twin::ptm_k, shade::Twin::ptm_jet,
             shade::cap_moments, shade::Twin::ptm_footprint,
-            shade::Twin::ptm_k_area, shade::Twin::coverage_level,
+            shade::Twin::ptm_k_area, shade::Twin::distant_k, shade::Twin::coverage_level,
             shade::Twin::ptm_coverage, shade::Twin::albedo_at,
             shade::caster_texel_coords, shade::rect_chord, shade::rect_slabs, shade::Twin::light_blur, shade::Twin::light_opacity, shade::sphere_ellipse,
             shade::env_texel, shade::env_bilinear, shade::env_lookup,

@@ -395,7 +395,8 @@ impl Twin<'_> {
         light: &LightGpu,
     ) -> Footprint {
         // (`prepare` refuses a NaN radius.)
-        if light.shape == 0 && light.radius <= 0.0 {
+        let round = light.shape == LightGpu::SPHERE || light.shape == LightGpu::DISTANT;
+        if round && light.radius <= 0.0 {
             return Footprint::default();
         }
         let r = (l[0] * l[0] + l[1] * l[1]).sqrt();
@@ -506,15 +507,54 @@ impl Twin<'_> {
         k.clamp(0.0, 1.0)
     }
 
+    /// K under distant light `li` (`distant_k` in WGSL): its mean p̄ = c·m and gradient
+    /// g = (c·g_u, c·g_v) from the terms evaluated once per frame ([`distant_terms`]), then as
+    /// [`Twin::ptm_k_area`]: σ(p̄/√(1 + π·v/8)) with v = gᵀ·C·g (logistic) or p̄, clamped.
+    pub fn distant_k(&self, c: &[f32], li: usize) -> f32 {
+        let n = self.p.variant.basis.map_or(0, |b| b.len());
+        let quads = n.div_ceil(4);
+        let t = &self.p.light_terms[li * crate::scene::light_term_stride(n)..];
+        let cov = t[0];
+        let dot4 = |a: [f32; 4], b: [f32; 4]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
+        let (mut m, mut g) = (0f32, [0f32; 2]);
+        for q in 0..quads {
+            let ck: [f32; 4] = std::array::from_fn(|lane| {
+                let k = 4 * q + lane;
+                if k < n {
+                    c[k]
+                } else {
+                    0.0
+                }
+            });
+            m += dot4(ck, t[1 + q]);
+            g[0] += dot4(ck, t[1 + quads + q]);
+            g[1] += dot4(ck, t[1 + 2 * quads + q]);
+        }
+        let k = match self.p.variant.link {
+            Link::Logistic => {
+                let v = (g[0] * g[0] * cov[0] + 2.0 * g[0] * g[1] * cov[1] + g[1] * g[1] * cov[2])
+                    .max(0.0);
+                ptm_sigmoid(m / (1.0 + std::f32::consts::FRAC_PI_8 * v).sqrt())
+            }
+            Link::Identity => m,
+        };
+        k.clamp(0.0, 1.0)
+    }
+
+    /// The variant's (u, v) of unit direction l.
+    pub fn ptm_uv(&self, l: [f32; 3]) -> [f32; 2] {
+        match self.p.variant.uv {
+            UvMap::Projected => [l[0], l[1]],
+            UvMap::Hemispherical => ptm_hemispherical(l),
+        }
+    }
+
     /// K of the variant's link, (u, v) map and basis (the monomials, or the learned tables)
     /// before the clamp, for the unit light direction l: what `ptm_k` clamps.
     pub fn ptm_k_unclamped(&self, c: &[f32], l: [f32; 3]) -> f32 {
         let v = &self.p.variant;
         let basis = v.basis.expect("ptm_k without a PTM");
-        let uv = match v.uv {
-            UvMap::Projected => [l[0], l[1]],
-            UvMap::Hemispherical => ptm_hemispherical(l),
-        };
+        let uv = self.ptm_uv(l);
         let p = if basis.is_learned() {
             self.learned_eval(c, uv)
         } else {
@@ -589,7 +629,6 @@ impl Twin<'_> {
     /// radius R·s there (see `light_blur` in WGSL).
     pub fn light_blur(&self, p: [f32; 2], l: &LightGpu, li: usize) -> [f32; 4] {
         let f = self.f();
-        let [lx, ly, lz] = l.position;
         let r = f.caster_rect;
         let (sin_t, cos_t) = (f.caster_sin_tilt, f.caster_cos_tilt);
         let centre = [0.5 * (r[0] + r[2]), 0.5 * (r[1] + r[3]), f.caster_height];
@@ -597,13 +636,16 @@ impl Twin<'_> {
         let e2 = [0.0, cos_t, sin_t];
         let dot = |a: [f32; 3], b: [f32; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
         let pp = [p[0], p[1], 0.0];
-        let ray = [lx - pp[0], ly - pp[1], lz];
+        // To the light's centre, or a distant light's unit direction (s is then a distance).
+        let ray = l.to_light(p);
+        let distant = l.shape == LightGpu::DISTANT;
         let denom = dot(n, ray);
         if denom == 0.0 {
             return [0.0; 4];
         }
         let s = dot(n, [centre[0] - pp[0], centre[1] - pp[1], centre[2]]) / denom;
-        if !(0.0..1.0).contains(&s) {
+        let beyond = if distant { 3.4e38 } else { 1.0 };
+        if !(s >= 0.0 && s < beyond) {
             return [0.0; 4];
         }
         let off: [f32; 3] = std::array::from_fn(|k| pp[k] + s * ray[k] - centre[k]);
@@ -679,12 +721,18 @@ impl Twin<'_> {
             let w = l.radius * s;
             let wt = [(w / texel[0]).max(0.5), (w * stretch / texel[1]).max(0.5)];
             match sphere_ellipse(f, ray, s, l.radius, texel, l.shape == LightGpu::LOBE) {
-                Some(e) if l.shape == LightGpu::SPHERE || l.shape == LightGpu::LOBE => (
-                    [t[0] + e.centre[0], t[1] + e.centre[1]],
-                    e.radii,
-                    e.shear,
-                    Kernel::Disc,
-                ),
+                Some(e)
+                    if l.shape == LightGpu::SPHERE
+                        || l.shape == LightGpu::LOBE
+                        || l.shape == LightGpu::DISTANT =>
+                {
+                    (
+                        [t[0] + e.centre[0], t[1] + e.centre[1]],
+                        e.radii,
+                        e.shear,
+                        Kernel::Disc,
+                    )
+                }
                 _ => (t, wt, 0.0, Kernel::Box),
             }
         };
@@ -701,8 +749,7 @@ impl Twin<'_> {
             .iter()
             .enumerate()
         {
-            let lp = light.position;
-            let to_light = [lp[0] - p[0], lp[1] - p[1], lp[2]];
+            let to_light = light.to_light(p);
             let d2 =
                 to_light[0] * to_light[0] + to_light[1] * to_light[1] + to_light[2] * to_light[2];
             if d2 <= 0.0 || to_light[2] <= 0.0 {
@@ -712,7 +759,11 @@ impl Twin<'_> {
             let l = to_light.map(|x| x / d);
             let mut visible = [1f32; 3];
             if let Some(c) = &c {
-                let k = self.ptm_k_area(c, l, &self.ptm_footprint(l, to_light, d, light));
+                let k = if light.shape == LightGpu::DISTANT {
+                    self.distant_k(c, li)
+                } else {
+                    self.ptm_k_area(c, l, &self.ptm_footprint(l, to_light, d, light))
+                };
                 visible = visible.map(|v| v * (1.0 - k));
             }
             if self.p.variant.caster.is_some() {
@@ -1045,6 +1096,55 @@ pub fn env_bilinear(n: usize, texels: &[[f32; 4]], t: [f32; 2]) -> [f32; 4] {
 pub fn env_lookup(n: usize, texels: &[[f32; 4]], r: [f32; 3]) -> [f32; 3] {
     let c = crate::environment::read(n, texels, r);
     [c[0], c[1], c[2]]
+}
+
+/// What a distant light's K needs at every pixel, evaluated once per frame
+/// ([`SceneBuffers::light_terms`]): per light the footprint's covariance C in (u, v), then per
+/// basis term k its jet at the footprint's mean (the predictor is linear in the coefficients,
+/// so p̄ = Σ cₖ·(pₖ + ½·tr(Hₖ·C)) and g = Σ cₖ·gₖ): the mean weights, the gradient's u parts
+/// and its v parts, each run whole vec4s. A point light's (u, v) is the map of its direction
+/// and C = 0. Zeros for a light that is not distant (or below the horizon); empty without a
+/// PTM or a distant light.
+pub fn distant_terms(p: &SceneBuffers) -> Vec<[f32; 4]> {
+    let Some(basis) = p.variant.basis else {
+        return Vec::new();
+    };
+    if !p.lights.iter().any(|l| l.shape == LightGpu::DISTANT) {
+        return Vec::new();
+    }
+    let n = basis.len();
+    let quads = n.div_ceil(4);
+    let stride = crate::scene::light_term_stride(n);
+    let twin = Twin {
+        p,
+        blur: None,
+        opacity: None,
+    };
+    let mut out = vec![[0f32; 4]; stride * p.lights.len()];
+    for (light, block) in p.lights.iter().zip(out.chunks_exact_mut(stride)) {
+        let l = light.position;
+        if light.shape != LightGpu::DISTANT || !(l[2] > 0.0) {
+            continue;
+        }
+        let f = twin.ptm_footprint(l, l, 1.0, light);
+        let (centre, cov) = if f.cov[0] + f.cov[2] > 0.0 {
+            (f.centre, f.cov)
+        } else {
+            (twin.ptm_uv(l), [0.0; 3])
+        };
+        block[0] = [cov[0], cov[1], cov[2], 0.0];
+        for k in 0..n {
+            let mut e = [0f32; 16];
+            e[k] = 1.0;
+            let j = twin.ptm_jet(&e[..n], centre);
+            let (q, lane) = (k / 4, k % 4);
+            block[1 + q][lane] =
+                j.p + 0.5 * (j.h[0] * cov[0] + 2.0 * j.h[1] * cov[1] + j.h[2] * cov[2]);
+            block[1 + quads + q][lane] = j.g[0];
+            block[1 + 2 * quads + q][lane] = j.g[1];
+        }
+    }
+    out
 }
 
 #[cfg(test)]

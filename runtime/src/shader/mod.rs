@@ -63,6 +63,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.glossy && v.caster.is_some() && v.env_size > 0 {
         d.push("GLOSSY_ENV");
     }
+    if v.distant && !v.mesh {
+        d.push("DISTANT");
+    }
     d
 }
 
@@ -239,13 +242,15 @@ mod tests {
         // shadow); and with a Gaussian light, without albedo, MIP chain or coverage; and with a
         // turned rectangle, likewise, with a per-pixel method (3) and either channel count; and
         // with a glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3),
-        // with a background colour or image.
+        // with a background colour or image; and with a distant light, without albedo, MIP
+        // chain or coverage, with no caster or any method (4) and either channel count.
         assert_eq!(
             all.len(),
             (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4)
                 + (1 + 2 * 2 * 2 + 2) * (9 + 4)
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
+                + (1 + 2 * 2 * 2 + 2) * (1 + 4 * 2)
         );
         for v in all {
             let src = shade_source(&v).unwrap();
@@ -289,6 +294,7 @@ mod tests {
             turned_rect: false,
             glossy: false,
             env_size: 0,
+            distant: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [
@@ -317,12 +323,25 @@ mod tests {
     }
 
     #[test]
-    fn only_turned_rectangle_and_glossy_variants_have_their_code() {
+    fn only_turned_rectangle_glossy_and_distant_variants_have_their_code() {
         let all = Variant::all();
         assert!(all.iter().any(|v| v.turned_rect));
         assert!(all.iter().any(|v| v.glossy));
+        assert!(all.iter().any(|v| v.distant && v.basis.is_some()));
         for v in all {
             let src = shade_source(&v).unwrap();
+            // A distant light's direction only with one; its per-frame terms (binding and
+            // dot products) only with one over a PTM.
+            assert_eq!(
+                src.contains("to_light = light.position;"),
+                v.distant,
+                "{}",
+                v.name()
+            );
+            let terms = v.distant && v.basis.is_some();
+            for name in ["fn distant_k", "var<storage, read> light_terms"] {
+                assert_eq!(src.contains(name), terms, "{}: {name}", v.name());
+            }
             assert_eq!(src.contains("fn rect_slabs"), v.turned_rect, "{}", v.name());
             for name in ["glossy_reflection", "glossy_fresnel"] {
                 assert_eq!(src.contains(name), v.glossy, "{}: {name}", v.name());

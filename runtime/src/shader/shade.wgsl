@@ -51,13 +51,16 @@ struct Frame {
 }
 
 struct Light {
-    position: vec3<f32>, // centre
-    radius: f32,         // sphere radius R
+    position: vec3<f32>, // centre; a distant light's unit direction
+    radius: f32,         // sphere radius R; a distant light's sin(angular radius)
     color: vec3<f32>,    // colour × intensity
-    shape: u32,          // 0 sphere, 1 rectangle facing down, 2 sphere as a box, 3 Gaussian, 4 glossy lobe
+    shape: u32,          // 0 sphere, 1 rectangle facing down, 2 sphere as a box, 3 Gaussian, 4 glossy lobe, 5 distant
     half: vec2<f32>,     // rectangle: half-sides along X, Y; Gaussian: σ along X, Y
     axis: vec2<f32>,     // rectangle: side a's direction (cos θ, sin θ); else (1, 0)
 }
+
+// `Light::shape` of a distant light (`LightGpu::DISTANT`).
+const LIGHT_DISTANT: u32 = 5u;
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> lights: array<Light>;
@@ -493,7 +496,7 @@ fn cap_moments(rho: f32, r: f32, z: f32) -> vec3<f32> {
 // and any angle t by t²·sin θ/2 (projected, where the mean of l.xy is what (u, v) averages).
 fn ptm_footprint(l: vec3<f32>, to_light: vec3<f32>, d: f32, light: Light) -> Footprint {
     var f: Footprint;
-    if (light.shape == 0u && !(light.radius > 0.0)) {
+    if ((light.shape == 0u || light.shape == LIGHT_DISTANT) && !(light.radius > 0.0)) {
         return f;
     }
     let r = length(l.xy);
@@ -574,6 +577,44 @@ fn ptm_k_area(c: array<f32, {{NC}}>, l: vec3<f32>, f: Footprint) -> f32 {
 //#endif
     return clamp(k, 0.0, 1.0);
 }
+
+//#if DISTANT
+// ---- Distant lights: the basis evaluated once per frame ----
+// Under a distant light every point of the (flat) cloth sees the same directions, so K's
+// footprint and the basis's jet there are the same everywhere; only the coefficients vary.
+// The jet is linear in them, so the CPU evaluates it per term once per frame
+// (`cpu::shade::distant_terms`) and each pixel dots its coefficients with three runs of NC
+// values: p̄ = c·m (the mean, ½·tr(H·C) included), g = (c·g_u, c·g_v). That is the cost of a
+// PTM with its monomials precomputed, whatever the basis (tables included).
+// Per light TERM_STRIDE vec4s: the footprint's covariance (uu, uv, vv, 0), then m, g_u, g_v in
+// TERM_QUADS vec4s each (zeros past NC); zeros for a light that is not distant.
+const TERM_QUADS: u32 = (NC + 3u) / 4u;
+const TERM_STRIDE: u32 = 1u + 3u * TERM_QUADS;
+@group(0) @binding(17) var<storage, read> light_terms: array<vec4<f32>>;
+
+// K under distant light `li`, as `ptm_k_area` from the precomputed terms.
+fn distant_k(c: array<f32, {{NC}}>, li: u32) -> f32 {
+    let base = li * TERM_STRIDE;
+    let cov = light_terms[base].xyz;
+    var m = 0.0;
+    var g = vec2<f32>(0.0);
+    for (var q = 0u; q < TERM_QUADS; q++) {
+        let k = vec4<u32>(4u * q) + vec4<u32>(0u, 1u, 2u, 3u);
+        let i = min(k, vec4<u32>(NC - 1u));
+        let ck = select(vec4<f32>(0.0), vec4<f32>(c[i.x], c[i.y], c[i.z], c[i.w]), k < vec4<u32>(NC));
+        m += dot(ck, light_terms[base + 1u + q]);
+        g.x += dot(ck, light_terms[base + 1u + TERM_QUADS + q]);
+        g.y += dot(ck, light_terms[base + 1u + 2u * TERM_QUADS + q]);
+    }
+//#if PTM_LOGISTIC
+    let v = max(g.x * g.x * cov.x + 2.0 * g.x * g.y * cov.y + g.y * g.y * cov.z, 0.0);
+    let k = ptm_sigmoid(m / sqrt(1.0 + 0.39269908169872414 * v));
+//#else
+    let k = m;
+//#endif
+    return clamp(k, 0.0, 1.0);
+}
+//#endif
 //#endif
 
 fn albedo_at(p: vec2<f32>) -> vec3<f32> {
@@ -612,13 +653,21 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
     let n = vec3<f32>(0.0, -frame.caster_sin_tilt, frame.caster_cos_tilt);
     let e2 = vec3<f32>(0.0, frame.caster_cos_tilt, frame.caster_sin_tilt);
     let pp = vec3<f32>(p, 0.0);
-    let ray = l.position - pp;
+    var ray = l.position - pp;
+    var beyond = 1.0;
+//#if DISTANT
+    // A distant light: along its unit direction (s is then a distance), always beyond.
+    if (l.shape == LIGHT_DISTANT) {
+        ray = l.position;
+        beyond = 3.4e38;
+    }
+//#endif
     let denom = dot(n, ray);
     if (denom == 0.0) {
         return vec4<f32>(0.0);
     }
     let s = dot(n, centre - pp) / denom;
-    if (!(s >= 0.0 && s < 1.0)) {
+    if (!(s >= 0.0 && s < beyond)) {
         return vec4<f32>(0.0);
     }
     let off = pp + s * ray - centre;
@@ -667,7 +716,7 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
 //#endif
     let w = l.radius * s;
     let wt = max(vec2<f32>(w, w * stretch) / texel, vec2<f32>(0.5));
-    if (l.shape == 0u || l.shape == 4u) {
+    if (l.shape == 0u || l.shape == 4u || l.shape == LIGHT_DISTANT) {
         let e = sphere_ellipse(ray, s, l.radius, texel, l.shape == 4u);
         if (e.ok) {
             return blur_lookup(li, t + e.centre, e.radii, e.shear, KERNEL_DISC);
@@ -1001,15 +1050,30 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
     var radiance = vec3<f32>(0.0);
     for (var i = 0u; i < frame.light_count; i++) {
         let light = lights[i];
-        let to_light = vec3<f32>(light.position.xy - p, light.position.z);
-        let d2 = dot(to_light, to_light);
+        var to_light = vec3<f32>(light.position.xy - p, light.position.z);
+        var d2 = dot(to_light, to_light);
+//#if DISTANT
+        // A distant light: its unit direction, the same everywhere, and no falloff.
+        if (light.shape == LIGHT_DISTANT) {
+            to_light = light.position;
+            d2 = 1.0;
+        }
+//#endif
         if (d2 <= 0.0 || to_light.z <= 0.0) {
             continue;
         }
         let l = to_light / sqrt(d2);
         var visible = vec3<f32>(1.0);
 //#if PTM
+//#if DISTANT
+        if (light.shape == LIGHT_DISTANT) {
+            visible *= 1.0 - distant_k(c, i);
+        } else {
+            visible *= 1.0 - ptm_k_area(c, l, ptm_footprint(l, to_light, sqrt(d2), light));
+        }
+//#else
         visible *= 1.0 - ptm_k_area(c, l, ptm_footprint(l, to_light, sqrt(d2), light));
+//#endif
 //#endif
 //#if CASTER
         // Clamped: f32 texel coordinates make box weights sum to 1 ± ulp(t)/(2w).

@@ -26,6 +26,7 @@ pub fn light(position: [f32; 3], radius: f32, intensity: f32) -> Light {
         square_box: false,
         rect_angle_deg: 0.0,
         gaussian: None,
+        distant: false,
         intensity,
         color: [1.0, 1.0, 1.0],
     }
