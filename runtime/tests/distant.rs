@@ -99,7 +99,7 @@ fn k_from_the_per_frame_terms_equals_the_per_pixel_footprint_and_follows_monte_c
                 let rms = (rms / n).sqrt();
                 let what = format!("{name:>14} ρ {rho:.2} elevation {elevation:>2}°");
                 eprintln!("{what}: |terms − per pixel| ≤ {same:.1e}, RMS K − MC {rms:.4}");
-                if same > 2e-5 || rms > bound as f64 {
+                if same > 2e-5 || rms > bound {
                     failures.push(format!("{what}: {same:.1e}, {rms:.4} (bound {bound})"));
                 }
             }

@@ -1123,7 +1123,7 @@ pub fn distant_terms(p: &SceneBuffers) -> Vec<[f32; 4]> {
     let mut out = vec![[0f32; 4]; stride * p.lights.len()];
     for (light, block) in p.lights.iter().zip(out.chunks_exact_mut(stride)) {
         let l = light.position;
-        if light.shape != LightGpu::DISTANT || !(l[2] > 0.0) {
+        if light.shape != LightGpu::DISTANT || l[2].is_nan() || l[2] <= 0.0 {
             continue;
         }
         let f = twin.ptm_footprint(l, l, 1.0, light);
