@@ -27,6 +27,8 @@ pub struct Renderer {
     gaussian: bool,
     /// Its shader has the turned rectangle's code (`Variant::turned_rect`).
     turned_rect: bool,
+    /// Its shader has only distant lights' code (`Variant::distant_only`).
+    distant_only: bool,
     /// The uniform block, and with a caster the blur method with what it prepared (asked
     /// whether moved lights keep it valid).
     frame: Frame,
@@ -173,8 +175,10 @@ impl Renderer {
         }
         // A learned basis's table: a texture of its f32 bits as u32, (G·⌈k/4⌉) × G texels of
         // four terms (`learned_node` in shade.wgsl; the node-major buffer is already in that
-        // texel order).
-        let learned = v.basis.is_some_and(ptm_format::Basis::is_learned).then(|| {
+        // texel order). Not with every light distant: the CPU read the table once per frame
+        // (`SceneBuffers::light_terms`) and no pixel reads it, so the shader binds nothing.
+        let per_pixel_table = v.basis.is_some_and(ptm_format::Basis::is_learned) && !v.distant_only;
+        let learned = per_pixel_table.then(|| {
             let g = v.learned_grid;
             let quads = (p.learned.len() / 4) as u32 / (g * g);
             gpu.device
@@ -373,6 +377,7 @@ impl Renderer {
             light_count: p.lights.len(),
             gaussian: v.gaussian,
             turned_rect: v.turned_rect,
+            distant_only: v.distant_only,
             frame: p.frame,
             blur: v
                 .caster
@@ -458,7 +463,7 @@ impl Renderer {
                     .into(),
             ));
         }
-        if lights.iter().any(|l| l.shape == LightGpu::DISTANT) {
+        if self.distant_only || lights.iter().any(|l| l.shape == LightGpu::DISTANT) {
             return Err(Error::Scene(
                 "a distant light's basis terms are evaluated once per frame from the scene \
                  (SceneBuffers::light_terms), which moving lights in place does not redo: \

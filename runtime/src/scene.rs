@@ -656,6 +656,7 @@ impl Scene {
             glossy: self.glossy.is_some(),
             env_size,
             distant: self.lights.iter().any(|l| l.distant),
+            distant_only: !self.lights.is_empty() && self.lights.iter().all(|l| l.distant),
         };
         // A caster whose shadow misses the orthographic view (a perspective view sees more).
         if let (Some(c), None) = (&self.caster, &self.perspective) {
@@ -920,6 +921,10 @@ pub struct Variant {
     /// Some light is distant ([`Light::distant`]): only then is its code compiled (its
     /// direction, and with a PTM the per-frame basis terms, `distant_k`).
     pub distant: bool,
+    /// Every light is distant: the local lights' code (their direction, footprint and the
+    /// basis's jet per pixel) is left out, and with it the branch between the two, whose
+    /// sides a CPU rasteriser would both run.
+    pub distant_only: bool,
 }
 
 impl Variant {
@@ -982,6 +987,7 @@ impl Variant {
                                 glossy: false,
                                 env_size: 0,
                                 distant: false,
+                                distant_only: false,
                             });
                         }
                     }
@@ -1009,6 +1015,7 @@ impl Variant {
                             glossy: false,
                             env_size: 0,
                             distant: false,
+                            distant_only: false,
                         });
                     }
                 }
@@ -1076,7 +1083,16 @@ impl Variant {
                 ..*v
             })
             .collect();
+        // … and with every light distant.
+        let only: Vec<Variant> = distant
+            .iter()
+            .map(|v| Variant {
+                distant_only: true,
+                ..*v
+            })
+            .collect();
         out.extend(distant);
+        out.extend(only);
         out
     }
 
@@ -1128,7 +1144,9 @@ impl Variant {
         if self.env_size > 0 {
             parts.push(format!("env{}", self.env_size));
         }
-        if self.distant {
+        if self.distant_only {
+            parts.push("distant-only".into());
+        } else if self.distant {
             parts.push("distant".into());
         }
         parts.join("+")

@@ -214,15 +214,24 @@ fn the_suns_penumbra_follows_the_monte_carlo_reference() {
 fn gpu_matches_twin_under_distant_and_local_lights() {
     let g = gpu();
     for (name, ptm) in files() {
-        for blur in [Blur::Sat, Blur::Separable] {
-            let lights = vec![
+        // Mixed with a local light (both paths, a branch), and every light distant (the
+        // distant path alone, `Variant::distant_only`).
+        for (blur, local) in [
+            (Blur::Sat, true),
+            (Blur::Separable, true),
+            (Blur::Mip, false),
+        ] {
+            let mut lights = vec![
                 distant(40.0, 0.3, 0.05, 1.0),
                 distant(12.0, 2.5, 0.0, 0.8),
-                light([0.5, 1.5, 0.9], 0.1, 2.0),
                 distant(70.0, 4.0, 0.2, 0.5),
             ];
+            if local {
+                lights.insert(2, light([0.5, 1.5, 0.9], 0.1, 2.0));
+            }
             let s = shaded(Some(ptm.clone()), lights, blur);
             let p = s.prepare().unwrap();
+            assert_eq!(p.variant.distant_only, !local);
             let (gi, _) = gpu::render(&g, &p).unwrap();
             let ci = cpu::render(&p);
             let d = gi.max_abs_diff(&ci).unwrap();

@@ -2,7 +2,7 @@
 //! remove bindings, so what a scene lacks is cut out of the text), and naga validation.
 //!
 //! Directives are whole lines `//#if NAME`, `//#else`, `//#endif` (nestable); placeholders
-//! `{{NC}}`, `{{PTM_EVAL}}`, `{{PTM_JET}}` (its value and derivatives), `{{GRID}}` (a learned basis's grid side), `{{ENV_SIZE}}` (a background image's prefiltered map side), `{{BLUR}}` (the blur
+//! `{{NC}}`, `{{PTM_EVAL}}`, `{{PTM_JET}}` (its value and derivatives), `{{GRID}}` (a learned basis's grid side), `{{ENV_SIZE}}` (a background image's prefiltered map side), `{{DISTANT_DOTS}}` (a distant light's dot products), `{{BLUR}}` (the blur
 //! method's file), `{{CHANNELS}}` (its image's channels). The PTM polynomial is generated from
 //! the format crate's monomial table, so the shader and `Basis::eval` cannot disagree on the
 //! order; a learned basis replaces it by the bilinear read of its table (`learned_eval`).
@@ -66,6 +66,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.distant && !v.mesh {
         d.push("DISTANT");
     }
+    if v.distant && v.distant_only && !v.mesh {
+        d.push("DISTANT_ONLY");
+    }
     d
 }
 
@@ -91,6 +94,36 @@ pub fn ptm_eval_expr(basis: Basis) -> String {
         })
         .collect();
     terms.join(" + ")
+}
+
+/// `distant_k`'s three dot products of the coefficients with a distant light's per-frame terms
+/// (`{{DISTANT_DOTS}}`), unrolled with constant indices: per vec4 q of the terms (its lanes
+/// past the last coefficient 0), `m += dot(ck, m_q)` and the gradient's u and v parts likewise,
+/// in the twin's order (`Twin::distant_k`).
+pub fn distant_dots(nc: usize) -> String {
+    let quads = nc.div_ceil(4);
+    let mut out = String::new();
+    for q in 0..quads {
+        let lane = |l: usize| match 4 * q + l < nc {
+            true => format!("c[{}]", 4 * q + l),
+            false => "0.0".into(),
+        };
+        let ck = format!(
+            "vec4<f32>({}, {}, {}, {})",
+            lane(0),
+            lane(1),
+            lane(2),
+            lane(3)
+        );
+        out += &format!("    let c{q} = {ck};\n");
+        for (var, run) in [("m", 0), ("g.x", 1), ("g.y", 2)] {
+            out += &format!(
+                "    {var} += dot(c{q}, light_terms[base + {}u]);\n",
+                1 + run * quads + q
+            );
+        }
+    }
+    out
 }
 
 /// The WGSL expression of the predictor's jet at (u, v) (`{{PTM_JET}}`, a `PtmJet` of p, its
@@ -203,6 +236,7 @@ pub fn shade_source(v: &Variant) -> Result<String> {
     let eval = v.basis.map(ptm_eval_expr).unwrap_or_default();
     let jet = v.basis.map(ptm_jet_expr).unwrap_or_default();
     Ok(src
+        .replace("{{DISTANT_DOTS}}", &distant_dots(nc))
         .replace("{{NC}}", &nc.to_string())
         .replace("{{PTM_EVAL}}", &eval)
         .replace("{{PTM_JET}}", &jet)
@@ -243,14 +277,15 @@ mod tests {
         // turned rectangle, likewise, with a per-pixel method (3) and either channel count; and
         // with a glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3),
         // with a background colour or image; and with a distant light, without albedo, MIP
-        // chain or coverage, with no caster or any method (4) and either channel count.
+        // chain or coverage, with no caster or any method (4) and either channel count, and
+        // with every light distant.
         assert_eq!(
             all.len(),
             (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4)
                 + (1 + 2 * 2 * 2 + 2) * (9 + 4)
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
-                + (1 + 2 * 2 * 2 + 2) * (1 + 4 * 2)
+                + (1 + 2 * 2 * 2 + 2) * (1 + 4 * 2) * 2
         );
         for v in all {
             let src = shade_source(&v).unwrap();
@@ -295,6 +330,7 @@ mod tests {
             glossy: false,
             env_size: 0,
             distant: false,
+            distant_only: false,
         };
         let src = shade_source(&v).unwrap();
         for name in [

@@ -587,9 +587,8 @@ fn ptm_k_area(c: array<f32, {{NC}}>, l: vec3<f32>, f: Footprint) -> f32 {
 // values: p̄ = c·m (the mean, ½·tr(H·C) included), g = (c·g_u, c·g_v). That is the cost of a
 // PTM with its monomials precomputed, whatever the basis (tables included).
 // Per light TERM_STRIDE vec4s: the footprint's covariance (uu, uv, vv, 0), then m, g_u, g_v in
-// TERM_QUADS vec4s each (zeros past NC); zeros for a light that is not distant.
-const TERM_QUADS: u32 = (NC + 3u) / 4u;
-const TERM_STRIDE: u32 = 1u + 3u * TERM_QUADS;
+// ⌈NC/4⌉ vec4s each (zeros past NC); zeros for a light that is not distant.
+const TERM_STRIDE: u32 = 1u + 3u * ((NC + 3u) / 4u);
 @group(0) @binding(17) var<storage, read> light_terms: array<vec4<f32>>;
 
 // K under distant light `li`, as `ptm_k_area` from the precomputed terms.
@@ -598,14 +597,9 @@ fn distant_k(c: array<f32, {{NC}}>, li: u32) -> f32 {
     let cov = light_terms[base].xyz;
     var m = 0.0;
     var g = vec2<f32>(0.0);
-    for (var q = 0u; q < TERM_QUADS; q++) {
-        let k = vec4<u32>(4u * q) + vec4<u32>(0u, 1u, 2u, 3u);
-        let i = min(k, vec4<u32>(NC - 1u));
-        let ck = select(vec4<f32>(0.0), vec4<f32>(c[i.x], c[i.y], c[i.z], c[i.w]), k < vec4<u32>(NC));
-        m += dot(ck, light_terms[base + 1u + q]);
-        g.x += dot(ck, light_terms[base + 1u + TERM_QUADS + q]);
-        g.y += dot(ck, light_terms[base + 1u + 2u * TERM_QUADS + q]);
-    }
+    // Per vec4 q of the terms: m += dot(c_q, m_q), g.x, g.y likewise (shader/mod.rs,
+    // `distant_dots`: unrolled, constant indices).
+{{DISTANT_DOTS}}
 //#if PTM_LOGISTIC
     let v = max(g.x * g.x * cov.x + 2.0 * g.x * g.y * cov.y + g.y * g.y * cov.z, 0.0);
     let k = ptm_sigmoid(m / sqrt(1.0 + 0.39269908169872414 * v));
@@ -653,6 +647,11 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
     let n = vec3<f32>(0.0, -frame.caster_sin_tilt, frame.caster_cos_tilt);
     let e2 = vec3<f32>(0.0, frame.caster_cos_tilt, frame.caster_sin_tilt);
     let pp = vec3<f32>(p, 0.0);
+//#if DISTANT_ONLY
+    // Every light is distant: along its unit direction (s is then a distance), always beyond.
+    let ray = l.position;
+    let beyond = 3.4e38;
+//#else
     var ray = l.position - pp;
     var beyond = 1.0;
 //#if DISTANT
@@ -661,6 +660,7 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
         ray = l.position;
         beyond = 3.4e38;
     }
+//#endif
 //#endif
     let denom = dot(n, ray);
     if (denom == 0.0) {
@@ -1050,6 +1050,11 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
     var radiance = vec3<f32>(0.0);
     for (var i = 0u; i < frame.light_count; i++) {
         let light = lights[i];
+//#if DISTANT_ONLY
+        // Every light is distant: its unit direction, the same everywhere, and no falloff.
+        let to_light = light.position;
+        let d2 = 1.0;
+//#else
         var to_light = vec3<f32>(light.position.xy - p, light.position.z);
         var d2 = dot(to_light, to_light);
 //#if DISTANT
@@ -1059,12 +1064,17 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
             d2 = 1.0;
         }
 //#endif
+//#endif
         if (d2 <= 0.0 || to_light.z <= 0.0) {
             continue;
         }
         let l = to_light / sqrt(d2);
         var visible = vec3<f32>(1.0);
 //#if PTM
+//#if DISTANT_ONLY
+        // (No branch: on a CPU rasteriser both sides of one would run.)
+        visible *= 1.0 - distant_k(c, i);
+//#else
 //#if DISTANT
         if (light.shape == LIGHT_DISTANT) {
             visible *= 1.0 - distant_k(c, i);
@@ -1073,6 +1083,7 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
         }
 //#else
         visible *= 1.0 - ptm_k_area(c, l, ptm_footprint(l, to_light, sqrt(d2), light));
+//#endif
 //#endif
 //#endif
 //#if CASTER
