@@ -335,6 +335,94 @@ fn gaussian_lights_render_and_compare_against_monte_carlo() {
 }
 
 #[test]
+fn distant_lights_render_compare_and_refuse_what_they_cannot_do() {
+    // The sun (and a second distant light) over a PTM and a caster: the distant-only variant,
+    // its shadow against the Monte Carlo reference over its cone; mixed with a local light
+    // the variant has both paths.
+    let dir = tempfile::tempdir().unwrap();
+    let ptm_path = write_ptm(dir.path());
+    let caster = write_caster(dir.path());
+    let png = dir.path().join("sun.png");
+    let common = [
+        "--ptm",
+        p(&ptm_path),
+        "-o",
+        p(&png),
+        "--size",
+        "48,48",
+        "--caster",
+        p(&caster),
+        "--caster-height",
+        "0.4",
+    ];
+    let j = run_json(
+        &[
+            &common[..],
+            &[
+                "--light-distant",
+                "50,120,2",
+                "--light-distant=20,-30",
+                "--compare-blur",
+                "--mc-samples",
+                "256",
+            ],
+        ]
+        .concat(),
+    );
+    assert!(png.exists());
+    assert_eq!(j["lights"], 2);
+    assert!(
+        j["variant"].as_str().unwrap().ends_with("distant-only"),
+        "{j}"
+    );
+    let rows = j["compare_blur"].as_array().unwrap();
+    let sat = rows.iter().find(|r| r["method"] == "sat").unwrap();
+    let e = sat["mean_abs_error"].as_f64().unwrap();
+    assert!(e.is_finite() && e < 0.01, "{sat}");
+    let j = run_json(
+        &[
+            &common[..],
+            &["--light-distant", "50,120", "--light", "0,0,2"],
+        ]
+        .concat(),
+    );
+    assert_eq!(j["lights"], 2);
+    assert!(j["variant"].as_str().unwrap().ends_with("+distant"), "{j}");
+    for (bad, says) in [
+        ("--light-distant=0,10", "the elevation must be above 0°"),
+        ("--light-distant=95,10", "the elevation must be above 0°"),
+        ("--light-distant=30,inf", "the azimuth must be"),
+        (
+            "--light-distant=30,10,50",
+            "the angular radius must be 0 to 45",
+        ),
+        ("--light-distant=30", "expected ELEV,AZ or ELEV,AZ,RADIUS"),
+    ] {
+        let out = ptm(["preview", bad, "-o", p(&png)], dir.path());
+        assert!(
+            !out.ok && out.stderr.contains(says),
+            "{bad}: {}",
+            out.stderr
+        );
+    }
+    let out = ptm(
+        [
+            "preview",
+            "--light-distant=30,10",
+            "--window",
+            "--window-frames",
+            "1",
+        ],
+        dir.path(),
+    );
+    assert!(
+        !out.ok && out.stderr.contains("not with --mesh or --window"),
+        "{}",
+        out.stderr
+    );
+}
+
+#[test]
 fn preview_errors_name_the_problem() {
     let dir = tempfile::tempdir().unwrap();
     let png = dir.path().join("x.png");
