@@ -284,3 +284,16 @@ fn distant_lights_out_of_range_or_where_they_cannot_go_are_refused() {
     let e = r.set_lights(&p.lights).unwrap_err().to_string();
     assert!(e.contains("rebuild the renderer"), "{e}");
 }
+
+#[test]
+fn a_turntable_turns_a_distant_lights_direction_about_the_vertical() {
+    // A local light turns about the view's centre; a direction turns about the vertical
+    // itself, keeping its elevation, wherever the view is.
+    let mut s = Scene::without_ptm();
+    s.view = [5.0, 5.0, 7.0, 7.0];
+    s.lights = vec![distant(30.0, 0.0, 0.01, 1.0)];
+    let t = s.with_lights_turned(std::f32::consts::FRAC_PI_2);
+    let [x, y, z] = t.lights[0].position;
+    let e = 30f32.to_radians();
+    assert!(x.abs() < 1e-6 && (y - e.cos()).abs() < 1e-6 && (z - e.sin()).abs() < 1e-6);
+}
