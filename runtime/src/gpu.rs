@@ -210,10 +210,18 @@ impl Renderer {
             ));
         }
         if v.distant && v.basis.is_some() {
-            entries.push((
-                b::LIGHT_TERMS.index,
-                gpu.storage("light terms", bytemuck::cast_slice(&p.light_terms)),
-            ));
+            // The shader's uniform array is MAX_LIGHT_TERMS vec4s long (`prepare` keeps the
+            // scene's within it): the buffer is padded to that.
+            let mut terms = p.light_terms.clone();
+            terms.resize(crate::scene::MAX_LIGHT_TERMS, [0.0; 4]);
+            let buffer = gpu
+                .device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some("light terms"),
+                    contents: bytemuck::cast_slice(&terms),
+                    usage: wgpu::BufferUsages::UNIFORM,
+                });
+            entries.push((b::LIGHT_TERMS.index, buffer));
         }
         if v.glossy && v.env_size > 0 {
             entries.push((

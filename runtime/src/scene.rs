@@ -24,6 +24,11 @@ pub const MAX_IMAGE_SIDE: u32 = 8192;
 /// its cone would not meet a caster plane in a closed ellipse at moderate elevations.
 pub const MAX_DISTANT_RADIUS: f32 = std::f32::consts::FRAC_PI_4;
 
+/// vec4s of [`SceneBuffers::light_terms`] the shader's uniform block holds: 64 KiB, the
+/// smallest `max_uniform_buffer_binding_size` GPUs are required to offer (409 lights over an
+/// 11-term basis, 315 over 16 terms).
+pub const MAX_LIGHT_TERMS: usize = 4096;
+
 /// `v` scaled to unit length (a zero vector stays zero; `prepare` refuses it for a light).
 fn normalize3(v: [f32; 3]) -> [f32; 3] {
     let n = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
@@ -391,6 +396,20 @@ impl Scene {
                         "light {i} is both a rectangle and a Gaussian: give it one shape"
                     )));
                 }
+            }
+        }
+        if let (Some(ptm), true) = (&self.ptm, self.lights.iter().any(|l| l.distant)) {
+            let stride = light_term_stride(ptm.basis.len());
+            if self.lights.len() * stride > MAX_LIGHT_TERMS {
+                return Err(Error::Scene(format!(
+                    "{} lights with a distant one over a {}-term basis need {} vec4s of \
+                     per-frame terms, more than the {MAX_LIGHT_TERMS} (64 KiB) a uniform block \
+                     holds on every GPU: use at most {} lights",
+                    self.lights.len(),
+                    ptm.basis.len(),
+                    self.lights.len() * stride,
+                    MAX_LIGHT_TERMS / stride
+                )));
             }
         }
         if let Some(g) = &self.glossy {

@@ -276,6 +276,10 @@ fn distant_lights_out_of_range_or_where_they_cannot_go_are_refused() {
         let e = s.prepare().unwrap_err().to_string();
         assert!(e.contains(want), "{e}");
     }
+    // More lights than the per-frame terms' uniform block holds (6 terms: 7 vec4s a light).
+    s.lights = vec![distant(30.0, 0.0, 0.1, 1.0); 4096 / 7 + 1];
+    let e = s.prepare().unwrap_err().to_string();
+    assert!(e.contains("use at most 585 lights"), "{e}");
     // Moving lights in place does not redo the per-frame terms: refused, so a caller rebuilds.
     s.lights = vec![distant(30.0, 0.0, 0.1, 1.0)];
     let p = s.prepare().unwrap();

@@ -2,7 +2,7 @@
 //! remove bindings, so what a scene lacks is cut out of the text), and naga validation.
 //!
 //! Directives are whole lines `//#if NAME`, `//#else`, `//#endif` (nestable); placeholders
-//! `{{NC}}`, `{{PTM_EVAL}}`, `{{PTM_JET}}` (its value and derivatives), `{{GRID}}` (a learned basis's grid side), `{{ENV_SIZE}}` (a background image's prefiltered map side), `{{DISTANT_DOTS}}` (a distant light's dot products), `{{BLUR}}` (the blur
+//! `{{NC}}`, `{{PTM_EVAL}}`, `{{PTM_JET}}` (its value and derivatives), `{{GRID}}` (a learned basis's grid side), `{{ENV_SIZE}}` (a background image's prefiltered map side), `{{DISTANT_DOTS}}` (a distant light's dot products), `{{LIGHT_TERMS_LEN}}` (their uniform array's length), `{{BLUR}}` (the blur
 //! method's file), `{{CHANNELS}}` (its image's channels). The PTM polynomial is generated from
 //! the format crate's monomial table, so the shader and `Basis::eval` cannot disagree on the
 //! order; a learned basis replaces it by the bilinear read of its table (`learned_eval`).
@@ -237,6 +237,10 @@ pub fn shade_source(v: &Variant) -> Result<String> {
     let jet = v.basis.map(ptm_jet_expr).unwrap_or_default();
     Ok(src
         .replace("{{DISTANT_DOTS}}", &distant_dots(nc))
+        .replace(
+            "{{LIGHT_TERMS_LEN}}",
+            &crate::scene::MAX_LIGHT_TERMS.to_string(),
+        )
         .replace("{{NC}}", &nc.to_string())
         .replace("{{PTM_EVAL}}", &eval)
         .replace("{{PTM_JET}}", &jet)
@@ -375,7 +379,7 @@ mod tests {
                 v.name()
             );
             let terms = v.distant && v.basis.is_some();
-            for name in ["fn distant_k", "var<storage, read> light_terms"] {
+            for name in ["fn distant_k", "var<uniform> light_terms"] {
                 assert_eq!(src.contains(name), terms, "{}: {name}", v.name());
             }
             assert_eq!(src.contains("fn rect_slabs"), v.turned_rect, "{}", v.name());

@@ -589,7 +589,10 @@ fn ptm_k_area(c: array<f32, {{NC}}>, l: vec3<f32>, f: Footprint) -> f32 {
 // Per light TERM_STRIDE vec4s: the footprint's covariance (uu, uv, vv, 0), then m, g_u, g_v in
 // ⌈NC/4⌉ vec4s each (zeros past NC); zeros for a light that is not distant.
 const TERM_STRIDE: u32 = 1u + 3u * ((NC + 3u) / 4u);
-@group(0) @binding(17) var<storage, read> light_terms: array<vec4<f32>>;
+// A uniform block: every pixel reads the same address (the light's), which a GPU's constant
+// cache broadcasts and llvmpipe reads once, where a storage buffer cost a gather per lane
+// (1.2× the frame's time on lavapipe, more than a local light's per-pixel jet).
+@group(0) @binding(17) var<uniform> light_terms: array<vec4<f32>, {{LIGHT_TERMS_LEN}}>;
 
 // K under distant light `li`, as `ptm_k_area` from the precomputed terms.
 fn distant_k(c: array<f32, {{NC}}>, li: u32) -> f32 {
