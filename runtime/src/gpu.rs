@@ -212,7 +212,7 @@ impl Renderer {
         if v.distant && v.basis.is_some() {
             // The shader's uniform array is MAX_LIGHT_TERMS vec4s long (`prepare` keeps the
             // scene's within it): the buffer is padded to that.
-            let mut terms = p.light_terms.clone();
+            let mut terms = crate::cpu::shade::light_terms(p).to_vec();
             terms.resize(crate::scene::MAX_LIGHT_TERMS, [0.0; 4]);
             let buffer = gpu
                 .device

@@ -714,9 +714,8 @@ impl Scene {
             warnings,
             mesh_vertices: Vec::new(),
             normal_map: Vec::new(),
-            light_terms: Vec::new(),
-        }
-        .with_light_terms())
+            light_terms: std::sync::OnceLock::new(),
+        })
     }
 }
 
@@ -1271,25 +1270,17 @@ pub struct SceneBuffers {
     /// The tangent-space normal map's texels (see `mesh_vertices`).
     pub normal_map: Vec<[f32; 4]>,
     /// With a PTM, per light, what a distant light's K needs at every pixel, evaluated once
-    /// ([`crate::cpu::shade::distant_terms`]): [`LIGHT_TERM_STRIDE`]`(k)` vec4s per light, the
-    /// footprint's covariance (uu, uv, vv, 0), then per basis term k (whole vec4s, zeros past
-    /// the last) the predictor's mean weight p_k + ½·tr(H_k·C), and its gradient's u and v
-    /// parts, all at the footprint's mean; zeros for a light that is not distant. Empty
-    /// without a distant light or a PTM.
-    pub light_terms: Vec<[f32; 4]>,
+    /// per frame on first use (`cpu::shade::light_terms`, which both the GPU upload and the
+    /// twin call): [`light_term_stride`]`(k)` vec4s per light, the footprint's covariance (uu,
+    /// uv, vv, 0), then per basis term k (whole vec4s, zeros past the last) the predictor's
+    /// mean weight p_k + ½·tr(H_k·C), and its gradient's u and v parts, all at the footprint's
+    /// mean; zeros for a light that is not distant. Empty without a distant light or a PTM.
+    /// Filled from the buffers as they are then: change `lights` before rendering, not after.
+    pub light_terms: std::sync::OnceLock<Vec<[f32; 4]>>,
 }
 
 /// vec4s per light in [`SceneBuffers::light_terms`] for a basis of `terms` terms: the
 /// covariance, then three runs of ⌈terms/4⌉.
 pub fn light_term_stride(terms: usize) -> usize {
     1 + 3 * terms.div_ceil(4)
-}
-
-impl SceneBuffers {
-    /// Fills [`SceneBuffers::light_terms`] from the lights, the basis and its map (what the
-    /// shader's `distant_k` reads).
-    pub fn with_light_terms(mut self) -> SceneBuffers {
-        self.light_terms = crate::cpu::shade::distant_terms(&self);
-        self
-    }
 }

@@ -513,7 +513,7 @@ impl Twin<'_> {
     pub fn distant_k(&self, c: &[f32], li: usize) -> f32 {
         let n = self.p.variant.basis.map_or(0, |b| b.len());
         let quads = n.div_ceil(4);
-        let t = &self.p.light_terms[li * crate::scene::light_term_stride(n)..];
+        let t = &light_terms(self.p)[li * crate::scene::light_term_stride(n)..];
         let cov = t[0];
         let dot4 = |a: [f32; 4], b: [f32; 4]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
         let (mut m, mut g) = (0f32, [0f32; 2]);
@@ -1096,6 +1096,11 @@ pub fn env_bilinear(n: usize, texels: &[[f32; 4]], t: [f32; 2]) -> [f32; 4] {
 pub fn env_lookup(n: usize, texels: &[[f32; 4]], r: [f32; 3]) -> [f32; 3] {
     let c = crate::environment::read(n, texels, r);
     [c[0], c[1], c[2]]
+}
+
+/// [`SceneBuffers::light_terms`], computed on first use ([`distant_terms`]).
+pub fn light_terms(p: &SceneBuffers) -> &[[f32; 4]] {
+    p.light_terms.get_or_init(|| distant_terms(p))
 }
 
 /// What a distant light's K needs at every pixel, evaluated once per frame
