@@ -54,6 +54,16 @@ fn run_json(args: &[&str]) -> Value {
     common::json([&["preview"][..], args].concat(), Path::new("."))
 }
 
+/// `ptm preview ARGS…` fails and its error says `says`.
+fn assert_refused(dir: &Path, args: &[&str], says: &str) {
+    let out = ptm([&["preview"][..], args].concat(), dir);
+    assert!(
+        !out.ok && out.stderr.contains(says),
+        "{args:?}: {}",
+        out.stderr
+    );
+}
+
 fn png_size(path: &Path) -> (usize, usize) {
     let (w, h, _) = ptm_runtime::output::read_rgba8(path).unwrap();
     (w, h)
@@ -310,27 +320,17 @@ fn gaussian_lights_render_and_compare_against_monte_carlo() {
             "--light-gaussian NaN,0.1: both standard deviations",
         ),
     ] {
-        let out = ptm(["preview", bad, "-o", p(&png)], dir.path());
-        assert!(
-            !out.ok && out.stderr.contains(says),
-            "{bad}: {}",
-            out.stderr
-        );
+        assert_refused(dir.path(), &[bad, "-o", p(&png)], says);
     }
-    let out = ptm(
-        [
-            "preview",
+    assert_refused(
+        dir.path(),
+        &[
             "--light-gaussian=0.1,0.1",
             "--light-rect=0.1,0.1",
             "-o",
             p(&png),
         ],
-        dir.path(),
-    );
-    assert!(
-        !out.ok && out.stderr.contains("choose one"),
-        "{}",
-        out.stderr
+        "choose one",
     );
 }
 
@@ -398,27 +398,12 @@ fn distant_lights_render_compare_and_refuse_what_they_cannot_do() {
         ),
         ("--light-distant=30", "expected ELEV,AZ or ELEV,AZ,RADIUS"),
     ] {
-        let out = ptm(["preview", bad, "-o", p(&png)], dir.path());
-        assert!(
-            !out.ok && out.stderr.contains(says),
-            "{bad}: {}",
-            out.stderr
-        );
+        assert_refused(dir.path(), &[bad, "-o", p(&png)], says);
     }
-    let out = ptm(
-        [
-            "preview",
-            "--light-distant=30,10",
-            "--window",
-            "--window-frames",
-            "1",
-        ],
+    assert_refused(
         dir.path(),
-    );
-    assert!(
-        !out.ok && out.stderr.contains("not with --mesh or --window"),
-        "{}",
-        out.stderr
+        &["--light-distant=30,10", "--window", "--window-frames", "1"],
+        "not with --mesh or --window",
     );
 }
 

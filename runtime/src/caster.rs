@@ -33,37 +33,19 @@ impl Caster {
     /// light's centre, widened by the widest penumbra. `None` when the light is not above every
     /// corner (the caster does not shadow it).
     pub fn shadow_rect(&self, position: [f32; 3], radius: f32) -> Option<[f32; 4]> {
-        let [x0, y0, x1, y1] = self.rect;
-        let (cy, hh) = (0.5 * (y0 + y1), 0.5 * (y1 - y0));
-        let (s, c) = self.tilt_deg.to_radians().sin_cos();
-        let mut out = [
-            f32::INFINITY,
-            f32::INFINITY,
-            f32::NEG_INFINITY,
-            f32::NEG_INFINITY,
-        ];
-        for x in [x0, x1] {
-            for side in [-1.0f32, 1.0] {
-                let (y, z) = (cy + side * hh * c, self.elevation + side * hh * s);
-                let above = position[2] - z;
-                if above.is_nan() || above <= 0.0 {
-                    return None;
-                }
-                let t = position[2] / above;
-                let spread = radius.max(0.0) * z.max(0.0) / above;
-                let hit = [
-                    position[0] + (x - position[0]) * t,
-                    position[1] + (y - position[1]) * t,
-                ];
-                out = [
-                    out[0].min(hit[0] - spread),
-                    out[1].min(hit[1] - spread),
-                    out[2].max(hit[0] + spread),
-                    out[3].max(hit[1] + spread),
-                ];
+        self.corner_bounds(|x, y, z| {
+            let above = position[2] - z;
+            if above.is_nan() || above <= 0.0 {
+                return None;
             }
-        }
-        Some(out)
+            let t = position[2] / above;
+            let spread = radius.max(0.0) * z.max(0.0) / above;
+            let hit = [
+                position[0] + (x - position[0]) * t,
+                position[1] + (y - position[1]) * t,
+            ];
+            Some((hit, spread))
+        })
     }
 
     /// As [`Caster::shadow_rect`] for a distant light in unit direction `dir` whose angular
@@ -74,6 +56,20 @@ impl Caster {
         if dir[2].is_nan() || dir[2] <= 0.0 {
             return None;
         }
+        self.corner_bounds(|x, y, z| {
+            let along = z.max(0.0) / dir[2];
+            let spread = sin_radius.max(0.0) * along / dir[2];
+            Some(([x - along * dir[0], y - along * dir[1]], spread))
+        })
+    }
+
+    /// The bounds of the caster's four (tilted) corners' shadows: `shadow(x, y, z)` gives a
+    /// corner's point on the cloth and its spread, or `None` when it casts none (then so does
+    /// the caster).
+    fn corner_bounds(
+        &self,
+        shadow: impl Fn(f32, f32, f32) -> Option<([f32; 2], f32)>,
+    ) -> Option<[f32; 4]> {
         let [x0, y0, x1, y1] = self.rect;
         let (cy, hh) = (0.5 * (y0 + y1), 0.5 * (y1 - y0));
         let (s, c) = self.tilt_deg.to_radians().sin_cos();
@@ -86,9 +82,7 @@ impl Caster {
         for x in [x0, x1] {
             for side in [-1.0f32, 1.0] {
                 let (y, z) = (cy + side * hh * c, self.elevation + side * hh * s);
-                let along = z.max(0.0) / dir[2];
-                let spread = sin_radius.max(0.0) * along / dir[2];
-                let hit = [x - along * dir[0], y - along * dir[1]];
+                let (hit, spread) = shadow(x, y, z)?;
                 out = [
                     out[0].min(hit[0] - spread),
                     out[1].min(hit[1] - spread),

@@ -8,36 +8,12 @@
 mod common;
 
 use common::*;
-use ptm_format::{Basis, Link, Ptm, UvMap};
+use ptm_format::Ptm;
 use ptm_runtime::cpu::shade::{cap_moments, Twin};
 use ptm_runtime::layout::LightGpu;
 use ptm_runtime::reference::mc_k;
 use ptm_runtime::scene::SceneBuffers;
 use ptm_runtime::{cpu, gpu, Light, Scene};
-
-/// The three fitted files: (name, PTM).
-fn files() -> Vec<(&'static str, Ptm)> {
-    vec![
-        (
-            "learned6",
-            fitted(
-                Basis::Learned(6),
-                Link::Logistic,
-                UvMap::Hemispherical,
-                8,
-                false,
-            ),
-        ),
-        (
-            "logistic ptm11",
-            fitted(Basis::Ptm11, Link::Logistic, UvMap::Hemispherical, 8, false),
-        ),
-        (
-            "identity ptm6",
-            fitted(Basis::Ptm6, Link::Identity, UvMap::Projected, 8, false),
-        ),
-    ]
-}
 
 /// The scene buffers of `ptm` seen 1:1 (level 0 only), no lights.
 fn buffers(ptm: &Ptm) -> SceneBuffers {
@@ -128,7 +104,7 @@ fn k_over_a_gaussian_footprint_follows_monte_carlo() {
     // expansion about the mean errs more: 0.065 measured for logistic ptm11 at 20°), and at
     // most ¾ of the error of K at the centre wherever that is visible.
     let mut failures = Vec::new();
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         let p = buffers(&ptm);
         let twin = Twin {
             p: &p,
@@ -163,7 +139,7 @@ fn k_under_a_turned_rectangle_follows_monte_carlo() {
     // spare, or the square's bound, against the reference that samples the turned rectangle;
     // and at most ¾ of the error of K at the centre wherever that is visible.
     let mut failures = Vec::new();
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         let p = buffers(&ptm);
         let twin = Twin {
             p: &p,
@@ -206,7 +182,7 @@ fn k_over_the_footprint_follows_monte_carlo_where_k_at_the_centre_does_not() {
     // Angular radii: small (a bulb across the room), medium, large (a softbox close by); the
     // synthetic horizons lie between 3° and 37°.
     let mut failures = Vec::new();
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         let p = buffers(&ptm);
         let twin = Twin {
             p: &p,
@@ -236,7 +212,7 @@ fn k_over_the_footprint_follows_monte_carlo_where_k_at_the_centre_does_not() {
 
 #[test]
 fn a_point_light_keeps_k_at_its_centre_bit_for_bit() {
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         let p = buffers(&ptm);
         let twin = Twin {
             p: &p,
@@ -261,7 +237,7 @@ fn a_point_light_keeps_k_at_its_centre_bit_for_bit() {
 
 #[test]
 fn k_stays_finite_and_in_range_at_the_extremes() {
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         let p = buffers(&ptm);
         let twin = Twin {
             p: &p,
@@ -339,7 +315,7 @@ fn cap_moments_are_those_of_the_clipped_weighted_disc() {
 #[test]
 fn gpu_matches_twin_under_large_and_grazing_area_lights() {
     let g = gpu();
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         let mut s = Scene::over_ptm(ptm, 3, [72, 48]);
         s.lights = vec![
             // Large, low: its cap is clipped by the horizon.

@@ -8,36 +8,12 @@
 mod common;
 
 use common::*;
-use ptm_format::{Basis, Link, Ptm, UvMap};
+use ptm_format::{Basis, Ptm};
 use ptm_runtime::compare::mean_abs_diff;
 use ptm_runtime::cpu::shade::Twin;
 use ptm_runtime::reference::{mc_k, render_reference};
 use ptm_runtime::synthetic::leaves;
 use ptm_runtime::{cpu, gpu, Blur, Light, Scene};
-
-/// The three fitted files: (name, PTM).
-fn files() -> Vec<(&'static str, Ptm)> {
-    vec![
-        (
-            "learned6",
-            fitted(
-                Basis::Learned(6),
-                Link::Logistic,
-                UvMap::Hemispherical,
-                8,
-                false,
-            ),
-        ),
-        (
-            "logistic ptm11",
-            fitted(Basis::Ptm11, Link::Logistic, UvMap::Hemispherical, 8, false),
-        ),
-        (
-            "identity ptm6",
-            fitted(Basis::Ptm6, Link::Identity, UvMap::Projected, 8, false),
-        ),
-    ]
-}
 
 /// A white distant light `elevation_deg` above the horizon at azimuth `azimuth` (radians),
 /// of angular radius `rho` (radians).
@@ -66,7 +42,7 @@ fn k_from_the_per_frame_terms_equals_the_per_pixel_footprint_and_follows_monte_c
     // (per pixel, as a local light's): the same expansion, so equal to f32 rounding; and both
     // against the Monte Carlo mean over the cone. A point light (ρ 0) is K at its direction.
     let mut failures = Vec::new();
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         for (rho, bound) in [(0.0f32, 2e-5), (0.03, 0.003), (0.1, 0.015), (0.3, 0.06)] {
             for elevation in [60.0f32, 30.0, 10.0, 4.0] {
                 let mut s = Scene::over_ptm(ptm.clone(), 1, [8, 8]);
@@ -151,7 +127,7 @@ fn a_distant_light_renders_as_a_sphere_so_far_away_its_direction_does_not_change
     // The same frame lit by the sun and by the far sphere: K, shadow and shading agree to what
     // the sphere's direction varies over the view (≈ 1e-3 rad), each part alone and together.
     let mut failures = Vec::new();
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         let sun = distant(35.0, 2.2, 0.05, 1.0);
         let full = shaded(Some(ptm), vec![sun], Blur::Sat);
         let mut k_only = full.clone();
@@ -213,7 +189,7 @@ fn the_suns_penumbra_follows_the_monte_carlo_reference() {
 #[test]
 fn gpu_matches_twin_under_distant_and_local_lights() {
     let g = gpu();
-    for (name, ptm) in files() {
+    for (name, ptm) in fitted_files() {
         // Mixed with a local light (both paths, a branch), and every light distant (the
         // distant path alone, `Variant::distant_only`).
         for (blur, local) in [

@@ -137,3 +137,29 @@ pub fn mean3(a: &[[f32; 3]]) -> f64 {
         .sum::<f64>()
         / (3 * a.len()) as f64
 }
+
+/// Three files fitted to the same synthetic bake (8², [`fitted`]): learned6 (logistic,
+/// hemispherical), logistic ptm11 (hemispherical) and identity ptm6 (projected), named.
+pub fn fitted_files() -> Vec<(&'static str, ptm_format::Ptm)> {
+    use ptm_format::{Basis, Link, UvMap};
+    vec![
+        (
+            "learned6",
+            fitted(
+                Basis::Learned(6),
+                Link::Logistic,
+                UvMap::Hemispherical,
+                8,
+                false,
+            ),
+        ),
+        (
+            "logistic ptm11",
+            fitted(Basis::Ptm11, Link::Logistic, UvMap::Hemispherical, 8, false),
+        ),
+        (
+            "identity ptm6",
+            fitted(Basis::Ptm6, Link::Identity, UvMap::Projected, 8, false),
+        ),
+    ]
+}
