@@ -277,3 +277,45 @@ fn a_turntable_turns_a_distant_lights_direction_about_the_vertical() {
     let e = 30f32.to_radians();
     assert!(x.abs() < 1e-6 && (y - e.cos()).abs() < 1e-6 && (z - e.sin()).abs() < 1e-6);
 }
+
+#[test]
+fn grazing_wide_and_hard_suns_render_finite_and_in_range() {
+    // The sun at 0.1° and 89.9°, with no radius, the sun's and the widest (45°, its cone half
+    // under the horizon at the lowest elevation): K in [0, 1], every pixel finite and ≥ 0,
+    // GPU = twin, through every blur method.
+    let g = gpu();
+    let ptm = fitted_files().remove(0).1;
+    for (elevation, rho) in [(0.1f32, 0.0f32), (0.1, 0.785), (89.9, 0.785), (3.0, 0.0047)] {
+        for blur in [Blur::Sat, Blur::Mip, Blur::Explicit, Blur::Separable] {
+            let s = shaded(
+                Some(ptm.clone()),
+                vec![distant(elevation, 1.0, rho, 1.0)],
+                blur,
+            );
+            let p = s.prepare().unwrap();
+            let twin = Twin {
+                p: &p,
+                blur: None,
+                opacity: None,
+            };
+            for y in 0..ptm.height {
+                for x in 0..ptm.width {
+                    let k = twin.distant_k(&twin.ptm_coeffs(texel_centre(&ptm, x, y), 0.0), 0);
+                    assert!((0.0..=1.0).contains(&k), "{elevation}° ρ {rho}: K {k}");
+                }
+            }
+            let ci = cpu::render(&p);
+            let what = format!("{elevation}° ρ {rho} {}", blur.name());
+            assert!(
+                ci.pixels
+                    .iter()
+                    .flatten()
+                    .all(|v| v.is_finite() && *v >= 0.0),
+                "{what}: a pixel is not finite or negative"
+            );
+            let (gi, _) = gpu::render(&g, &p).unwrap();
+            let d = gi.max_abs_diff(&ci).unwrap();
+            assert!(d <= 1e-3, "{what}: GPU and twin differ by {d}");
+        }
+    }
+}
