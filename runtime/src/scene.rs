@@ -940,8 +940,8 @@ pub struct Variant {
     /// direction, and with a PTM the per-frame basis terms, `distant_k`).
     pub distant: bool,
     /// Every light is distant: the local lights' code (their direction, footprint and the
-    /// basis's jet per pixel) is left out, and with it the branch between the two, whose
-    /// sides a CPU rasteriser would both run.
+    /// basis's jet per pixel) is left out, with the branch between the two and, for a
+    /// learned basis, the table's binding (no pixel reads it).
     pub distant_only: bool,
 }
 

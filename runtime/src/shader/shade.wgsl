@@ -590,8 +590,8 @@ fn ptm_k_area(c: array<f32, {{NC}}>, l: vec3<f32>, f: Footprint) -> f32 {
 // ⌈NC/4⌉ vec4s each (zeros past NC); zeros for a light that is not distant.
 const TERM_STRIDE: u32 = 1u + 3u * ((NC + 3u) / 4u);
 // A uniform block: every pixel reads the same address (the light's), which a GPU's constant
-// cache broadcasts and llvmpipe reads once, where a storage buffer cost a gather per lane
-// (1.2× the frame's time on lavapipe, more than a local light's per-pixel jet).
+// cache broadcasts; from a storage buffer lavapipe took 1.3–1.4× the frame's time (ptm11, one
+// and four lights), more than a local light's per-pixel jet, from this block no more.
 @group(0) @binding(17) var<uniform> light_terms: array<vec4<f32>, {{LIGHT_TERMS_LEN}}>;
 
 // K under distant light `li`, as `ptm_k_area` from the precomputed terms.
@@ -1075,7 +1075,7 @@ fn shade(p: vec2<f32>, lod: f32) -> vec3<f32> {
         var visible = vec3<f32>(1.0);
 //#if PTM
 //#if DISTANT_ONLY
-        // (No branch: on a CPU rasteriser both sides of one would run.)
+        // (No local light: no branch between the two paths.)
         visible *= 1.0 - distant_k(c, i);
 //#else
 //#if DISTANT
