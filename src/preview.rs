@@ -810,7 +810,8 @@ fn diagnose(scene: &Scene, prepared: &SceneBuffers, report: &mut json::Render) {
                 "ptm preview: light {i} is not above the cloth (z = {}); it adds nothing",
                 l.position[2]
             );
-        } else if let Some(c) = &scene.caster {
+        } else if let (Some(c), false) = (&scene.caster, l.distant) {
+            // (A distant light's z is its direction's: it is always beyond the caster.)
             if l.position[2] <= c.elevation {
                 eprintln!(
                     "ptm preview: light {i} is on or below the caster plane; the caster does not \

@@ -48,17 +48,24 @@ impl Caster {
         })
     }
 
-    /// As [`Caster::shadow_rect`] for a distant light in unit direction `dir` whose angular
-    /// radius has sine `sin_radius`: the corners projected along `dir`, widened by the cone's
-    /// spread (its radius s·sin ρ at distance s along `dir`, stretched by up to 1/dir.z on the
-    /// cloth). `None` when the light is not above the horizon.
+    /// As [`Caster::shadow_rect`] for a distant light in unit direction `dir` at elevation e
+    /// whose angular radius ρ has sine `sin_radius`: each corner projected along `dir`, widened
+    /// by how far its cone's other directions reach on the cloth, z·(cot(e − ρ) − cot e) down
+    /// the slope plus z·cot(e − ρ) times the widest azimuth turn, asin(sin ρ/cos e), across.
+    /// `None` when the light is not above the horizon, or its cone reaches within a degree of
+    /// it (the shadow then has no useful bound).
     pub fn shadow_rect_distant(&self, dir: [f32; 3], sin_radius: f32) -> Option<[f32; 4]> {
-        if dir[2].is_nan() || dir[2] <= 0.0 {
+        let e = dir[2].clamp(-1.0, 1.0).asin();
+        let rho = sin_radius.clamp(0.0, 1.0).asin();
+        if e.is_nan() || e - rho < 1f32.to_radians() {
             return None;
         }
+        let cot = |a: f32| a.cos() / a.sin();
+        let turn = (sin_radius.max(0.0) / e.cos().max(1e-6)).min(1.0).asin();
         self.corner_bounds(|x, y, z| {
-            let along = z.max(0.0) / dir[2];
-            let spread = sin_radius.max(0.0) * along / dir[2];
+            let z = z.max(0.0);
+            let along = z / dir[2];
+            let spread = z * (cot(e - rho) - cot(e)) + z * cot(e - rho) * turn;
             Some(([x - along * dir[0], y - along * dir[1]], spread))
         })
     }

@@ -213,6 +213,15 @@ impl Renderer {
             // The shader's uniform array is MAX_LIGHT_TERMS vec4s long (`prepare` keeps the
             // scene's within it): the buffer is padded to that.
             let mut terms = crate::cpu::shade::light_terms(p).to_vec();
+            if terms.len() > crate::scene::MAX_LIGHT_TERMS {
+                return Err(Error::Scene(format!(
+                    "{} lights' per-frame terms ({} vec4s) exceed the shader's uniform block of \
+                     {}: use fewer lights (Scene::prepare says how many fit)",
+                    p.lights.len(),
+                    terms.len(),
+                    crate::scene::MAX_LIGHT_TERMS
+                )));
+            }
             terms.resize(crate::scene::MAX_LIGHT_TERMS, [0.0; 4]);
             let buffer = gpu
                 .device

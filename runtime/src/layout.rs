@@ -159,22 +159,13 @@ impl LightGpu {
 
     /// The vector from cloth point p (z = 0) towards the light: to its centre, or for a
     /// [`LightGpu::DISTANT`] light its unit direction. Its length is the distance d of the
-    /// `cos/d²` falloff (1 for a distant light).
+    /// `cos/d²` falloff (a distant light's is 1: the shader takes d² = 1).
     pub fn to_light(&self, p: [f32; 2]) -> [f32; 3] {
         if self.shape == LightGpu::DISTANT {
             return self.position;
         }
         let lp = self.position;
         [lp[0] - p[0], lp[1] - p[1], lp[2]]
-    }
-
-    /// A sphere's kernel and footprint (a sphere, a distant light's disc, a glossy lobe), not
-    /// a planar light's.
-    pub fn is_round(&self) -> bool {
-        matches!(
-            self.shape,
-            LightGpu::SPHERE | LightGpu::SPHERE_SQUARE_BOX | LightGpu::LOBE | LightGpu::DISTANT
-        )
     }
 }
 

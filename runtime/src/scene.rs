@@ -71,7 +71,7 @@ pub struct Light {
     pub gaussian: Option<[f32; 2]>,
     /// A distant light (the sun, a key light far away): `position` is then the direction
     /// towards it (normalised; z > 0), the same at every point of the cloth, `radius` its
-    /// angular radius in radians (0: a hard shadow; below 45°), and the irradiance it gives a
+    /// angular radius in radians (0: a hard shadow; at most 45°), and the irradiance it gives a
     /// surface facing it is `intensity · color` (no falloff). Its penumbra kernel is the ellipse
     /// its cone cuts from the caster plane, as a sphere's; not a rectangle or a Gaussian, and
     /// not on the mesh path. K under it is the same at every point for given coefficients, so
@@ -1094,7 +1094,7 @@ impl Variant {
                     && !v.coverage
                     && !v.gaussian
                     && !v.turned_rect
-                    && !v.glossy
+                    && v.env_size == 0
             })
             .map(|v| Variant {
                 distant: true,

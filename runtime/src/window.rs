@@ -303,6 +303,14 @@ fn mean_rgb(image: &Image) -> [f32; 3] {
 /// The scene's first light follows the mouse; its PTM (if any) can be toggled. Needs a display
 /// (X11 or Wayland); errors name what failed.
 pub fn run(scene: Scene, options: WindowOptions) -> Result<WindowReport> {
+    // A drag places the first light at the cursor, and moved lights only rewrite the light
+    // buffer: a distant light has no place and per-frame terms that would need a rebuild.
+    if let Some(i) = scene.lights.iter().position(|l| l.distant) {
+        return Err(Error::Scene(format!(
+            "light {i} is distant: the window moves lights by placing them under the cursor; \
+             preview distant lights offscreen (ptm preview without --window)"
+        )));
+    }
     run_session(Session::new(scene), options)
 }
 
@@ -918,6 +926,19 @@ mod tests {
         let f = Letterbox::new([100, 50], [200, 200]);
         assert_eq!(f.size, [200.0, 100.0]);
         assert_eq!(f.offset, [0.0, 50.0]);
+    }
+
+    #[test]
+    fn a_distant_light_is_refused_before_any_window_opens() {
+        // No display needed: the refusal comes first.
+        let mut scene = smoke_scene();
+        scene.lights[0].distant = true;
+        let options = WindowOptions {
+            exposure: 0.0,
+            exit_after_frames: Some(1),
+        };
+        let e = run(scene, options).unwrap_err().to_string();
+        assert!(e.contains("light 0 is distant"), "{e}");
     }
 
     /// A 64×48 view of a constant-K PTM under one light with an opaque square caster.

@@ -227,6 +227,43 @@ fn gpu_matches_twin_under_distant_and_local_lights() {
 }
 
 #[test]
+fn a_glossy_cloth_under_distant_lights_alone_matches_its_twin() {
+    // Every light distant (the distant-only variant) with a glossy receiver: its reflection's
+    // imaginary light is a point, which the distant path must not take for a direction.
+    let g = gpu();
+    let ptm = fitted_files().remove(1).1;
+    for blur in [Blur::Sat, Blur::Explicit, Blur::Mip] {
+        let mut s = shaded(
+            Some(ptm.clone()),
+            vec![distant(40.0, 0.3, 0.05, 1.0), distant(65.0, 2.0, 0.0, 0.5)],
+            blur,
+        );
+        s.glossy = Some(ptm_runtime::scene::Glossy {
+            roughness: 0.2,
+            background: [0.2, 0.25, 0.35],
+            f0: 0.5,
+            environment: None,
+        });
+        let p = s.prepare().unwrap();
+        assert!(p.variant.distant_only && p.variant.glossy);
+        let (gi, _) = gpu::render(&g, &p).unwrap();
+        let ci = cpu::render(&p);
+        let d = gi.max_abs_diff(&ci).unwrap();
+        let peak = ci.pixels.iter().map(|p| p[0]).fold(0f32, f32::max);
+        eprintln!(
+            "glossy, {}: max |gpu − cpu| = {d:.2e} (peak {peak:.3})",
+            blur.name()
+        );
+        assert!(peak > 0.1, "too dark to test anything");
+        assert!(
+            d <= 1e-3,
+            "glossy, {}: GPU and CPU twin differ by {d}",
+            blur.name()
+        );
+    }
+}
+
+#[test]
 fn distant_lights_out_of_range_or_where_they_cannot_go_are_refused() {
     let ptm = random_ptm(Basis::Ptm6, 8, 8, 1);
     let mut s = Scene::over_ptm(ptm, 1, [16, 16]);

@@ -750,8 +750,13 @@ impl Twin<'_> {
             .enumerate()
         {
             let to_light = light.to_light(p);
-            let d2 =
-                to_light[0] * to_light[0] + to_light[1] * to_light[1] + to_light[2] * to_light[2];
+            // A distant light's d² is 1 exactly, as in WGSL (its normalised direction's |·|²
+            // is 1 only to a few ulp).
+            let d2 = if light.shape == LightGpu::DISTANT {
+                1.0
+            } else {
+                to_light[0] * to_light[0] + to_light[1] * to_light[1] + to_light[2] * to_light[2]
+            };
             if d2 <= 0.0 || to_light[2] <= 0.0 {
                 continue;
             }
@@ -1139,7 +1144,7 @@ pub fn distant_terms(p: &SceneBuffers) -> Vec<[f32; 4]> {
         };
         block[0] = [cov[0], cov[1], cov[2], 0.0];
         for k in 0..n {
-            let mut e = [0f32; 16];
+            let mut e = [0f32; ptm_format::basis::MAX_LEARNED_TERMS];
             e[k] = 1.0;
             let j = twin.ptm_jet(&e[..n], centre);
             let (q, lane) = (k / 4, k % 4);

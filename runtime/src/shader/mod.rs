@@ -281,7 +281,8 @@ mod tests {
         // turned rectangle, likewise, with a per-pixel method (3) and either channel count; and
         // with a glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3),
         // with a background colour or image; and with a distant light, without albedo, MIP
-        // chain or coverage, with no caster or any method (4) and either channel count, and
+        // chain or coverage, with no caster or any method (4) and either channel count or a
+        // glossy receiver over a per-pixel method (3), and
         // with every light distant.
         assert_eq!(
             all.len(),
@@ -289,7 +290,7 @@ mod tests {
                 + (1 + 2 * 2 * 2 + 2) * (9 + 4)
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
-                + (1 + 2 * 2 * 2 + 2) * (1 + 4 * 2) * 2
+                + (1 + 2 * 2 * 2 + 2) * (1 + 4 * 2 + 3) * 2
         );
         for v in all {
             let src = shade_source(&v).unwrap();

@@ -650,20 +650,16 @@ fn light_blur(p: vec2<f32>, l: Light, li: u32) -> vec4<f32> {
     let n = vec3<f32>(0.0, -frame.caster_sin_tilt, frame.caster_cos_tilt);
     let e2 = vec3<f32>(0.0, frame.caster_cos_tilt, frame.caster_sin_tilt);
     let pp = vec3<f32>(p, 0.0);
-//#if DISTANT_ONLY
-    // Every light is distant: along its unit direction (s is then a distance), always beyond.
-    let ray = l.position;
-    let beyond = 3.4e38;
-//#else
     var ray = l.position - pp;
     var beyond = 1.0;
 //#if DISTANT
-    // A distant light: along its unit direction (s is then a distance), always beyond.
+    // A distant light: along its unit direction (s is then a distance), always beyond. (A
+    // test of the shape even with every light distant: a glossy lobe's imaginary light is a
+    // point.)
     if (l.shape == LIGHT_DISTANT) {
         ray = l.position;
         beyond = 3.4e38;
     }
-//#endif
 //#endif
     let denom = dot(n, ray);
     if (denom == 0.0) {
