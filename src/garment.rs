@@ -90,10 +90,40 @@ pub struct View<'a> {
     pub light: &'a [[f32; 3]],
     /// `--light-radius`, per light (the last repeats).
     pub light_radius: &'a [f32],
+    /// `--light-distant` (elevation, azimuth, angular radius; degrees).
+    pub light_distant: &'a [(f32, f32, f32)],
     /// `--intensity`, per light.
     pub intensity: &'a [f32],
     /// `--color`, per light.
     pub color: &'a [[f32; 3]],
+}
+
+/// The `--light-distant` lights, numbered from `first` for `--intensity` and `--color` (the
+/// last value repeats): each a unit direction from its elevation and azimuth, its angular
+/// radius in radians, and where no intensity is given `default(sin elevation)`.
+pub fn distant_lights(view: &View, first: usize, default: impl Fn(f32) -> f32) -> Vec<Light> {
+    let nth = |v: &[f32], i: usize| v.get(i).or(v.last()).copied();
+    view.light_distant
+        .iter()
+        .enumerate()
+        .map(|(j, &(elev, az, r))| {
+            let i = first + j;
+            let (e, a) = (elev.to_radians(), az.to_radians());
+            Light {
+                position: [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()],
+                radius: r.to_radians(),
+                distant: true,
+                intensity: nth(view.intensity, i).unwrap_or_else(|| default(e.sin())),
+                color: view
+                    .color
+                    .get(i)
+                    .or(view.color.last())
+                    .copied()
+                    .unwrap_or([1.0; 3]),
+                ..Light::default()
+            }
+        })
+        .collect()
 }
 
 /// The mesh scene and what it was made of.
@@ -245,7 +275,9 @@ pub fn build(
         target: view.look_at.unwrap_or(c),
         fov_y_deg: view.fov,
     });
-    let positions = if view.light.is_empty() {
+    let positions = if view.light.is_empty() && !view.light_distant.is_empty() {
+        Vec::new()
+    } else if view.light.is_empty() {
         vec![[c[0] - 1.6 * r, c[1] - 1.9 * r, c[2] + 2.4 * r]]
     } else {
         view.light.to_vec()
@@ -275,6 +307,9 @@ pub fn build(
             }
         })
         .collect();
+    let local = scene.lights.len();
+    // Irradiance 1 on a surface facing the sun, as the local lights' at the mesh's centre.
+    scene.lights.extend(distant_lights(view, local, |_| 1.0));
     Ok(Garment {
         scene: MeshScene {
             scene: scene.clone(),

@@ -57,8 +57,9 @@ pub struct Args {
     /// repeat for several. Its direction is the same at every point, and so is K's footprint:
     /// the PTM's basis (monomials or learned tables) is evaluated once per frame and each
     /// pixel only dots it with its coefficients. Irradiance on a surface facing it: I ·
-    /// colour. Numbered after the --light lights for --intensity and --color; only the plane
-    /// preview (not --mesh or --window).
+    /// colour. Numbered after the --light lights for --intensity and --color. On a --mesh its
+    /// direction turns with the surface, so K is evaluated per pixel, and the macro shadow is
+    /// rendered from a stand-in 100 box diagonals away. Not with --window.
     #[arg(long, value_name = "ELEV,AZ[,RADIUS]", value_parser = parse_distant, allow_hyphen_values = true)]
     pub light_distant: Vec<(f32, f32, f32)>,
     /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen
@@ -254,6 +255,7 @@ fn view_of(args: &Args) -> crate::garment::View<'_> {
         look_at: args.look_at,
         light: &args.light,
         light_radius: &args.light_radius,
+        light_distant: &args.light_distant,
         intensity: &args.intensity,
         color: &args.color,
     }
@@ -360,23 +362,14 @@ fn build_scene(args: &Args) -> anyhow::Result<Scene> {
         })
         .collect();
     let local = scene.lights.len();
-    scene.lights.extend(
-        args.light_distant
-            .iter()
-            .enumerate()
-            .map(|(j, &(elev, az, r))| {
-                let i = local + j;
-                let (e, a) = (elev.to_radians(), az.to_radians());
-                Light {
-                    position: [e.cos() * a.cos(), e.cos() * a.sin(), e.sin()],
-                    radius: r.to_radians(),
-                    distant: true,
-                    intensity: nth(&args.intensity, i, 0.8 / e.sin().max(0.05)),
-                    color: nth(&args.color, i, [1.0, 1.0, 1.0]),
-                    ..Light::default()
-                }
-            }),
-    );
+    scene.lights.extend(crate::garment::distant_lights(
+        &view_of(args),
+        local,
+        |sin_e| {
+            // Irradiance 0.8 on the cloth (headroom below white), as the default light's.
+            0.8 / sin_e.max(0.05)
+        },
+    ));
 
     if let Some(path) = &args.caster {
         let (w, h, rgba) = match builtin_caster(path)? {
@@ -709,10 +702,10 @@ fn check_exposure(args: &Args) -> anyhow::Result<()> {
                  --light-rect or --light-gaussian"
             );
         }
-        if args.garment.mesh.is_some() || args.window {
+        if args.window {
             bail!(
-                "--light-distant lights the plane preview only: not with --mesh or --window \
-                 (place a --light far away instead)"
+                "--light-distant: not with --window, whose drags place a light under the cursor \
+                 (render offscreen, or place a --light far away)"
             );
         }
     }

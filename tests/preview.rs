@@ -403,7 +403,32 @@ fn distant_lights_render_compare_and_refuse_what_they_cannot_do() {
     assert_refused(
         dir.path(),
         &["--light-distant=30,10", "--window", "--window-frames", "1"],
-        "not with --mesh or --window",
+        "not with --window",
+    );
+    // On a mesh: K per pixel in the tangent frame and the macro shadow from the stand-in.
+    let obj = write_floor_and_square(dir.path());
+    let j = run_json(&[
+        "--ptm",
+        p(&ptm_path),
+        "--mesh",
+        p(&obj),
+        "--size",
+        "48,36",
+        "--shadow-size",
+        "256",
+        "--camera",
+        "0,-3.5,4.5",
+        "--light-distant",
+        "55,20,1",
+        "-o",
+        p(&png),
+    ]);
+    assert!(
+        j["variant"]
+            .as_str()
+            .unwrap()
+            .ends_with("mesh+shadow+distant"),
+        "{j}"
     );
 }
 

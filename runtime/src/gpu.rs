@@ -209,7 +209,7 @@ impl Renderer {
                 gpu.storage("albedo", bytemuck::cast_slice(&p.albedo)),
             ));
         }
-        if v.distant && v.basis.is_some() {
+        if v.distant && v.basis.is_some() && !v.mesh {
             // The shader's uniform array is MAX_LIGHT_TERMS vec4s long (`prepare` keeps the
             // scene's within it): the buffer is padded to that.
             let mut terms = crate::cpu::shade::light_terms(p).to_vec();

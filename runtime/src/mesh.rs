@@ -548,12 +548,7 @@ impl MeshScene {
         if self.mesh.corners.is_empty() {
             return Err(Error::Scene("the mesh has no triangles".into()));
         }
-        if let Some(i) = self.scene.lights.iter().position(|l| l.distant) {
-            return Err(Error::Scene(format!(
-                "light {i} is distant: the mesh path lights with local lights only (its shadow \
-                 maps are perspective); place a light far away instead, or preview the plane"
-            )));
-        }
+
         let roughness_ok = self.sheen_roughness > 0.0 && self.sheen_roughness <= 1.0;
         let colours_ok = self
             .sheen_color
@@ -640,6 +635,9 @@ impl MeshScene {
             p.variant.shadow = true;
         }
         p.variant.mesh = true;
+        // A distant light's direction turns with the surface's tangent frame: K is evaluated
+        // per pixel (MESH_DISTANT), with no per-frame terms and every path compiled.
+        p.variant.distant_only = false;
         p.variant.normal_map = self.normal_map.is_some();
         Ok(p)
     }

@@ -73,10 +73,12 @@ pub struct Light {
     /// towards it (normalised; z > 0), the same at every point of the cloth, `radius` its
     /// angular radius in radians (0: a hard shadow; at most 45°), and the irradiance it gives a
     /// surface facing it is `intensity · color` (no falloff). Its penumbra kernel is the ellipse
-    /// its cone cuts from the caster plane, as a sphere's; not a rectangle or a Gaussian, and
-    /// not on the mesh path. K under it is the same at every point for given coefficients, so
-    /// its basis terms (monomials or learned tables) are evaluated once per frame
-    /// ([`SceneBuffers::light_terms`]) and each pixel only dots them with its coefficients.
+    /// its cone cuts from the caster plane, as a sphere's; not a rectangle or a Gaussian. On
+    /// the plane K under it is the same at every point for given coefficients, so its basis
+    /// terms (monomials or learned tables) are evaluated once per frame
+    /// ([`SceneBuffers::light_terms`]) and each pixel only dots them with its coefficients; on
+    /// a mesh the direction turns with the tangent frame and K is evaluated per pixel, and the
+    /// macro shadow is rendered from a stand-in `cpu::mesh::SHADOW_FAR` box diagonals away.
     pub distant: bool,
     /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
     pub intensity: f32,
@@ -1111,6 +1113,17 @@ impl Variant {
             .collect();
         out.extend(distant);
         out.extend(only);
+        // A distant light on the mesh path (K per pixel in the tangent frame, the macro
+        // shadow's stand-in light), with and without a normal map and the shadow.
+        let mesh: Vec<Variant> = out
+            .iter()
+            .filter(|v| v.mesh && !v.albedo_texture && !v.ptm_mip && !v.coverage && !v.gaussian)
+            .map(|v| Variant {
+                distant: true,
+                ..*v
+            })
+            .collect();
+        out.extend(mesh);
         out
     }
 

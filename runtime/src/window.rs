@@ -303,14 +303,7 @@ fn mean_rgb(image: &Image) -> [f32; 3] {
 /// The scene's first light follows the mouse; its PTM (if any) can be toggled. Needs a display
 /// (X11 or Wayland); errors name what failed.
 pub fn run(scene: Scene, options: WindowOptions) -> Result<WindowReport> {
-    // A drag places the first light at the cursor, and moved lights only rewrite the light
-    // buffer: a distant light has no place and per-frame terms that would need a rebuild.
-    if let Some(i) = scene.lights.iter().position(|l| l.distant) {
-        return Err(Error::Scene(format!(
-            "light {i} is distant: the window moves lights by placing them under the cursor; \
-             preview distant lights offscreen (ptm preview without --window)"
-        )));
-    }
+    refuse_distant(&scene)?;
     run_session(Session::new(scene), options)
 }
 
@@ -318,7 +311,21 @@ pub fn run(scene: Scene, options: WindowOptions) -> Result<WindowReport> {
 /// mouse over the mesh's footprint (`scene.view`), the right button or the arrow keys orbit
 /// the camera, `P` toggles the PTM.
 pub fn run_mesh(scene: MeshScene, options: WindowOptions) -> Result<WindowReport> {
+    refuse_distant(&scene.scene)?;
     run_session(Session::with_mesh(scene), options)
+}
+
+/// A drag places the first light at the cursor, and moved lights only rewrite the light
+/// buffer: a distant light has no place and (on the plane) per-frame terms that would need a
+/// rebuild.
+fn refuse_distant(scene: &Scene) -> Result<()> {
+    match scene.lights.iter().position(|l| l.distant) {
+        Some(i) => Err(Error::Scene(format!(
+            "light {i} is distant: the window moves lights by placing them under the cursor; \
+             preview distant lights offscreen (ptm preview without --window)"
+        ))),
+        None => Ok(()),
+    }
 }
 
 fn run_session(session: Session, options: WindowOptions) -> Result<WindowReport> {

@@ -9,7 +9,7 @@ use common::*;
 use ptm_format::{Basis, Link, Ptm, UvMap};
 use ptm_runtime::mesh::{Corner, Mesh, MeshScene};
 use ptm_runtime::scene::{Perspective, SceneBuffers};
-use ptm_runtime::{cpu, gpu, Image, Scene};
+use ptm_runtime::{cpu, gpu, Image, Light, Scene};
 
 /// The twin tolerance of the plane path (`gpu_twin.rs`): linear radiance.
 const TWIN: f32 = 1e-3;
@@ -147,19 +147,31 @@ fn sphere_scene(basis: Basis, normal_map: bool) -> MeshScene {
 #[test]
 fn gpu_matches_the_cpu_twin_on_the_mesh_path() {
     let g = gpu();
-    // The third: Gaussian lights (K over their footprint, the GAUSSIAN variant).
-    for (basis, normal_map, gaussian) in [
-        (Basis::Ptm6, false, false),
-        (Basis::Ptm11, true, false),
-        (Basis::Ptm6, false, true),
+    // The third: Gaussian lights (K over their footprint, the GAUSSIAN variant); the fourth
+    // a distant light (K per pixel in the tangent frame, MESH_DISTANT) beside a sphere.
+    for (basis, normal_map, gaussian, distant) in [
+        (Basis::Ptm6, false, false, false),
+        (Basis::Ptm11, true, false, false),
+        (Basis::Ptm6, false, true, false),
+        (Basis::Ptm11, true, false, true),
     ] {
         let mut m = sphere_scene(basis, normal_map);
         if gaussian {
             m.scene.lights[0].gaussian = Some([0.3, 0.1]);
             m.scene.lights[1].gaussian = Some([0.05, 0.2]);
         }
+        if distant {
+            m.scene.lights[1] = Light {
+                position: [0.6, -0.3, 0.5],
+                radius: 0.08,
+                distant: true,
+                intensity: 0.8,
+                ..Light::default()
+            };
+        }
         let (p, _) = m.prepare().unwrap();
         assert_eq!(p.variant.gaussian, gaussian);
+        assert_eq!(p.variant.distant, distant);
         let (gi, _) = gpu::render(&g, &p).unwrap();
         let ci = cpu::render(&p);
         let (worst, one, both) = covered_diff(&gi, &ci);
@@ -393,6 +405,104 @@ fn a_gaussian_lights_macro_shadow_is_that_of_the_disc_of_its_variance() {
     let d = ci.max_abs_diff(&cpu::render(&sphere)).unwrap();
     assert!(d < 1e-5, "Gaussian vs its variance's sphere: {d}");
     twin_with_shadow(&r, &p, &gi, &ci, "floating square, Gaussian light");
+}
+
+#[test]
+fn a_distant_lights_macro_shadow_is_its_cones_and_matches_the_twin() {
+    // The sun 60° up over the floating square (ρ 0.05): its shadow is the square moved by
+    // h·cot e down the azimuth, with a penumbra of half-width ≈ sin ρ·h/sin e across each
+    // edge: dark in the umbra, lit outside, about half lit on the edges' middle lines; the
+    // GPU matches the twin; a sphere at the shadow map's stand-in (SHADOW_FAR diagonals
+    // away, subtending the same cone) renders the same frame.
+    let g = gpu();
+    let (e, az, rho) = (60f32.to_radians(), 0.6f32, 0.05f32);
+    let dir = [e.cos() * az.cos(), e.cos() * az.sin(), e.sin()];
+    let mut m = floating_square_scene(512);
+    m.scene.lights = vec![Light {
+        position: dir,
+        radius: rho,
+        distant: true,
+        intensity: 1.0,
+        ..Light::default()
+    }];
+    let (p, _) = m.prepare().unwrap();
+    assert!(p.variant.distant && p.variant.mesh && p.variant.shadow);
+    let mut open = m.clone();
+    open.shadow_size = 0;
+    let (lit_scene, _) = open.prepare().unwrap();
+    let unshadowed = cpu::render(&lit_scene);
+    let frags = cpu::mesh::rasterise(&p);
+    let ci = cpu::render(&p);
+    let r = gpu::Renderer::new(&g, &p).unwrap();
+    r.frame().unwrap();
+    let gi = r.readback().unwrap();
+    let h = 1.0f32;
+    let (mut umbra, mut lit, mut mid) = (0, 0, 0);
+    let (mut worst_umbra, mut worst_lit, mut worst_mid) = (0f32, 0f32, 0f32);
+    for (i, f) in frags.iter().enumerate() {
+        let Some(f) = f else { continue };
+        if f.world[2].abs() > 1e-4 || unshadowed.pixels[i][0] < 0.05 {
+            continue;
+        }
+        let s = h / dir[2];
+        let q = [f.world[0] + s * dir[0], f.world[1] + s * dir[1]];
+        let (dx, dy, w) = (0.5 - q[0].abs(), 0.5 - q[1].abs(), rho.sin() * s);
+        let clear = 1.3 * w / e.sin() + 0.03;
+        let class = if dx.min(dy) > clear {
+            0
+        } else if dx.min(dy) < -clear {
+            1
+        } else if (dx.abs() < 0.1 * w && dy > clear) || (dy.abs() < 0.1 * w && dx > clear) {
+            2
+        } else {
+            continue;
+        };
+        let base = unshadowed.pixels[i][0];
+        for img in [&ci, &gi] {
+            let v = img.pixels[i][0] / base;
+            match class {
+                0 => worst_umbra = worst_umbra.max(v),
+                1 => worst_lit = worst_lit.max((1.0 - v).abs()),
+                _ => worst_mid = worst_mid.max((v - 0.5).abs()),
+            }
+        }
+        match class {
+            0 => umbra += 1,
+            1 => lit += 1,
+            _ => mid += 1,
+        }
+    }
+    eprintln!(
+        "sun over the floating square: umbra ≤ {worst_umbra:.2e} over {umbra} pixels, lit off 1 \
+         by ≤ {worst_lit:.2e} over {lit}, penumbra's middle off ½ by ≤ {worst_mid:.3} over {mid}"
+    );
+    assert!(umbra > 100 && lit > 1000 && mid > 5, "{umbra} {lit} {mid}");
+    assert!(worst_umbra < 0.01, "light in the umbra: {worst_umbra}");
+    assert!(worst_lit < 1e-4, "shadow outside the penumbra: {worst_lit}");
+    assert!(worst_mid < 0.2, "penumbra's middle at {worst_mid} from ½");
+    twin_with_shadow(&r, &p, &gi, &ci, "floating square, distant light");
+    // The stand-in sphere: the same shadow computations; the shading's direction varies by at
+    // most half a diagonal over SHADOW_FAR diagonals (0.3°), the Lambert term by under 1 %.
+    let f = &p.frame;
+    let diag = (0..3)
+        .map(|k| (f.shadow_hi[k] - f.shadow_lo[k]).powi(2))
+        .sum::<f32>()
+        .sqrt();
+    let far = cpu::mesh::SHADOW_FAR * diag;
+    let mut sphere = m.clone();
+    sphere.scene.lights = vec![Light {
+        position: std::array::from_fn(|k| 0.5 * (f.shadow_lo[k] + f.shadow_hi[k]) + far * dir[k]),
+        radius: far * rho.sin(),
+        intensity: far * far,
+        ..Light::default()
+    }];
+    let (ps, _) = sphere.prepare().unwrap();
+    let d = ci.max_abs_diff(&cpu::render(&ps)).unwrap();
+    eprintln!(
+        "sun vs its stand-in sphere: max {d:.2e} (peak {:.3})",
+        peak(&ci)
+    );
+    assert!(d < 1e-2 * peak(&ci), "sun vs its stand-in sphere: {d}");
 }
 
 /// The macro shadow on the GPU against the twin, in two parts: the depth maps (rasterised by

@@ -201,8 +201,13 @@ pub fn shade_mesh(t: &Twin, shadow: Option<&ShadowMaps>, m: &MeshOut) -> V3 {
     let v = normalize(sub(f.eye, world));
     let mut radiance = [0f32; 3];
     for (li, light) in t.p.lights[..f.light_count as usize].iter().enumerate() {
-        let to_light = sub(light.position, world);
-        let d2 = dot(to_light, to_light);
+        // A distant light: its unit direction, the same everywhere, and no falloff.
+        let (to_light, d2) = if light.shape == LightGpu::DISTANT {
+            (light.position, 1.0)
+        } else {
+            let v = sub(light.position, world);
+            (v, dot(v, v))
+        };
         if d2 <= 0.0 {
             continue;
         }
@@ -321,7 +326,7 @@ pub fn shadow_clip(sv: &ShadowView, lp: V3, q: V3) -> [f32; 4] {
 /// The depth pass's vertex stage for light `li` (clipped away for a light at the box's
 /// centre).
 pub fn vs_shadow(f: &Frame, lights: &[LightGpu], v: &MeshVertex, li: usize) -> [f32; 4] {
-    let lp = lights[li].position;
+    let lp = shadow_source(f, &lights[li]).0;
     let sv = shadow_view(f, lp);
     if !sv.ok {
         return [0.0, 0.0, -1.0, 1.0];
@@ -407,6 +412,23 @@ pub const SHADOW_NORMAL_OFFSET: f32 = 1.0;
 /// See [`SHADOW_NORMAL_OFFSET`].
 pub const SHADOW_BIAS: f32 = 1.5;
 
+/// A distant light's shadow map is rendered from a stand-in this many box diagonals away
+/// (`SHADOW_FAR` in WGSL).
+pub const SHADOW_FAR: f32 = 100.0;
+
+/// Where light `l`'s shadow map is rendered from and the disc radius it is filtered as there
+/// (see `shadow_source` in WGSL): a distant light's stand-in [`SHADOW_FAR`] box diagonals from
+/// the box's centre along its direction, of radius far · sin ρ.
+pub fn shadow_source(f: &Frame, l: &LightGpu) -> (V3, f32) {
+    if l.shape == LightGpu::DISTANT {
+        let far = SHADOW_FAR * length(sub(f.shadow_hi, f.shadow_lo));
+        let centre: V3 = std::array::from_fn(|k| 0.5 * (f.shadow_lo[k] + f.shadow_hi[k]));
+        let lp: V3 = std::array::from_fn(|k| centre[k] + far * l.position[k]);
+        return (lp, far * l.radius);
+    }
+    (l.position, shadow_light_radius(l))
+}
+
 /// The disc radius a light is filtered as.
 pub fn shadow_light_radius(l: &LightGpu) -> f32 {
     if l.shape == 1 {
@@ -428,7 +450,7 @@ pub fn shadow_visibility(
     n: V3,
 ) -> f32 {
     let light = &lights[li];
-    let lp = light.position;
+    let (lp, radius) = shadow_source(f, light);
     let sv = shadow_view(f, lp);
     if !sv.ok {
         return 1.0;
@@ -446,7 +468,6 @@ pub fn shadow_visibility(
     ];
     let scale_ = 0.5 * size / tan_half;
     let cap = size / 16.0;
-    let radius = shadow_light_radius(light);
     let search = (radius * (wr - sv.near).max(0.0) / (wr * sv.near) * scale_).min(cap);
     let (mut blocked, mut dist) = (0f32, 0f32);
     for d in &SHADOW_DISC {
@@ -630,7 +651,11 @@ pub fn tangent_light(p: &SceneBuffers, light: usize) -> Vec<Option<[f32; 3]>> {
         .map(|m| {
             let m = m?;
             let tbn = tangent_frame(m.front, m.normal, m.tangent);
-            let l = normalize(sub(p.lights[light].position, m.world));
+            let lg = &p.lights[light];
+            let l = match lg.shape == LightGpu::DISTANT {
+                true => lg.position,
+                false => normalize(sub(lg.position, m.world)),
+            };
             Some([dot(l, tbn[0]), dot(l, tbn[1]), dot(l, tbn[2])])
         })
         .collect()

@@ -69,6 +69,9 @@ pub fn defines(v: &Variant) -> Vec<&'static str> {
     if v.distant && v.distant_only && !v.mesh {
         d.push("DISTANT_ONLY");
     }
+    if v.distant && v.mesh {
+        d.push("MESH_DISTANT");
+    }
     d
 }
 
@@ -282,8 +285,8 @@ mod tests {
         // with a glossy receiver, likewise, over a grey caster blurred by a per-pixel method (3),
         // with a background colour or image; and with a distant light, without albedo, MIP
         // chain or coverage, with no caster or any method (4) and either channel count or a
-        // glossy receiver over a per-pixel method (3), and
-        // with every light distant.
+        // glossy receiver over a per-pixel method (3), and with every light distant; and on
+        // the mesh path (4).
         assert_eq!(
             all.len(),
             (1 + 2 * 2 * 2 * 2 * 2 + 2 * 2 * 2) * 2 * (9 + 4)
@@ -291,6 +294,7 @@ mod tests {
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
                 + (1 + 2 * 2 * 2 + 2) * 3 * 2
                 + (1 + 2 * 2 * 2 + 2) * (1 + 4 * 2 + 3) * 2
+                + (1 + 2 * 2 * 2 + 2) * 4
         );
         for v in all {
             let src = shade_source(&v).unwrap();
@@ -379,7 +383,7 @@ mod tests {
                 "{}",
                 v.name()
             );
-            let terms = v.distant && v.basis.is_some();
+            let terms = v.distant && v.basis.is_some() && !v.mesh;
             for name in ["fn distant_k", "var<uniform> light_terms"] {
                 assert_eq!(src.contains(name), terms, "{}: {name}", v.name());
             }
