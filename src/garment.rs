@@ -98,6 +98,15 @@ pub struct View<'a> {
     pub color: &'a [[f32; 3]],
 }
 
+/// `--color` of light `i` (the last repeats; white without one).
+fn nth_color(view: &View, i: usize) -> [f32; 3] {
+    view.color
+        .get(i)
+        .or(view.color.last())
+        .copied()
+        .unwrap_or([1.0; 3])
+}
+
 /// The `--light-distant` lights, numbered from `first` for `--intensity` and `--color` (the
 /// last value repeats): each a unit direction from its elevation and azimuth, its angular
 /// radius in radians, and where no intensity is given `default(sin elevation)`.
@@ -114,12 +123,7 @@ pub fn distant_lights(view: &View, first: usize, default: impl Fn(f32) -> f32) -
                 radius: r.to_radians(),
                 distant: true,
                 intensity: nth(view.intensity, i).unwrap_or_else(|| default(e.sin())),
-                color: view
-                    .color
-                    .get(i)
-                    .or(view.color.last())
-                    .copied()
-                    .unwrap_or([1.0; 3]),
+                color: nth_color(view, i),
                 ..Light::default()
             }
         })
@@ -298,12 +302,7 @@ pub fn build(
                 distant: false,
                 // Irradiance 1 at the mesh's centre, facing the light.
                 intensity: nth(view.intensity, i).unwrap_or(d2),
-                color: view
-                    .color
-                    .get(i)
-                    .or(view.color.last())
-                    .copied()
-                    .unwrap_or([1.0; 3]),
+                color: nth_color(view, i),
             }
         })
         .collect();

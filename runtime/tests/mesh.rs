@@ -325,6 +325,45 @@ fn square_shadow(p: [f32; 2], l: [f32; 3], r: f32, h: f32) -> ([f32; 2], f32) {
     ([0.5 - q[0].abs(), 0.5 - q[1].abs()], r * s)
 }
 
+/// The floor pixels of the floating-square scene sorted by where they stand in the square's
+/// shadow, and each image's visibility there (its radiance over `unshadowed`'s): `shadow(floor
+/// point)` gives the signed distances to the shadow's edges across x and y (> 0 inside), the
+/// penumbra's half-width w and how far from an edge a pixel is clear of it. Returns the counts
+/// (umbra, lit, the middle line of an edge's penumbra away from the corners) and the worst
+/// visibility in the umbra, distance from 1 where lit and from ½ on the middle lines.
+fn square_shadow_classes(
+    frags: &[Option<cpu::mesh::MeshOut>],
+    unshadowed: &Image,
+    images: [&Image; 2],
+    shadow: impl Fn([f32; 2]) -> ([f32; 2], f32, f32),
+) -> ([usize; 3], [f32; 3]) {
+    let (mut n, mut worst) = ([0usize; 3], [0f32; 3]);
+    for (i, f) in frags.iter().enumerate() {
+        let Some(f) = f else { continue };
+        if f.world[2].abs() > 1e-4 || unshadowed.pixels[i][0] < 0.05 {
+            continue; // the square itself, or a floor point the light barely reaches
+        }
+        let ([dx, dy], w, clear) = shadow([f.world[0], f.world[1]]);
+        let class = if dx.min(dy) > clear {
+            0 // umbra
+        } else if dx.min(dy) < -clear {
+            1 // lit
+        } else if (dx.abs() < 0.1 * w && dy > clear) || (dy.abs() < 0.1 * w && dx > clear) {
+            2 // the middle of the penumbra
+        } else {
+            continue;
+        };
+        let base = unshadowed.pixels[i][0];
+        for img in images {
+            let v = img.pixels[i][0] / base;
+            let off = [v, (1.0 - v).abs(), (v - 0.5).abs()][class];
+            worst[class] = worst[class].max(off);
+        }
+        n[class] += 1;
+    }
+    (n, worst)
+}
+
 #[test]
 fn the_macro_shadow_of_a_floating_square_is_dark_in_its_umbra_and_lit_outside() {
     let g = gpu();
@@ -338,41 +377,12 @@ fn the_macro_shadow_of_a_floating_square_is_dark_in_its_umbra_and_lit_outside() 
     r.frame().unwrap();
     let gi = r.readback().unwrap();
     let (l, radius) = (p.lights[0].position, p.lights[0].radius);
-    let (mut umbra, mut lit, mut mid) = (0, 0, 0);
-    let (mut worst_umbra, mut worst_lit, mut worst_mid) = (0f32, 0f32, 0f32);
-    for (i, f) in frags.iter().enumerate() {
-        let Some(f) = f else { continue };
-        if f.world[2].abs() > 1e-4 || unshadowed.pixels[i][0] < 0.05 {
-            continue; // the square itself, or a floor point the light barely reaches
-        }
-        let ([dx, dy], w) = square_shadow([f.world[0], f.world[1]], l, radius, 1.0);
-        // Clear of the penumbra (its half-width < 1.3 w, and a margin of a few map texels), or
-        // on the middle line of an edge's penumbra away from the corners (half the light hidden).
-        let clear = 1.3 * w + 0.03;
-        let class = if dx.min(dy) > clear {
-            0 // umbra
-        } else if dx.min(dy) < -clear {
-            1 // lit
-        } else if (dx.abs() < 0.1 * w && dy > clear) || (dy.abs() < 0.1 * w && dx > clear) {
-            2 // the middle of the penumbra
-        } else {
-            continue;
-        };
-        let base = unshadowed.pixels[i][0];
-        for img in [&ci, &gi] {
-            let v = img.pixels[i][0] / base;
-            match class {
-                0 => worst_umbra = worst_umbra.max(v),
-                1 => worst_lit = worst_lit.max((1.0 - v).abs()),
-                _ => worst_mid = worst_mid.max((v - 0.5).abs()),
-            }
-        }
-        match class {
-            0 => umbra += 1,
-            1 => lit += 1,
-            _ => mid += 1,
-        }
-    }
+    // Clear of the penumbra: its half-width < 1.3 w, and a margin of a few map texels.
+    let ([umbra, lit, mid], [worst_umbra, worst_lit, worst_mid]) =
+        square_shadow_classes(&frags, &unshadowed, [&ci, &gi], |q| {
+            let (d, w) = square_shadow(q, l, radius, 1.0);
+            (d, w, 1.3 * w + 0.03)
+        });
     eprintln!(
         "floating square: umbra visibility ≤ {worst_umbra:.2e} over {umbra} pixels, lit region \
          off 1 by ≤ {worst_lit:.2e} over {lit}, penumbra's middle off ½ by ≤ {worst_mid:.3} over \
@@ -437,41 +447,19 @@ fn a_distant_lights_macro_shadow_is_its_cones_and_matches_the_twin() {
     r.frame().unwrap();
     let gi = r.readback().unwrap();
     let h = 1.0f32;
-    let (mut umbra, mut lit, mut mid) = (0, 0, 0);
-    let (mut worst_umbra, mut worst_lit, mut worst_mid) = (0f32, 0f32, 0f32);
-    for (i, f) in frags.iter().enumerate() {
-        let Some(f) = f else { continue };
-        if f.world[2].abs() > 1e-4 || unshadowed.pixels[i][0] < 0.05 {
-            continue;
-        }
-        let s = h / dir[2];
-        let q = [f.world[0] + s * dir[0], f.world[1] + s * dir[1]];
-        let (dx, dy, w) = (0.5 - q[0].abs(), 0.5 - q[1].abs(), rho.sin() * s);
-        let clear = 1.3 * w / e.sin() + 0.03;
-        let class = if dx.min(dy) > clear {
-            0
-        } else if dx.min(dy) < -clear {
-            1
-        } else if (dx.abs() < 0.1 * w && dy > clear) || (dy.abs() < 0.1 * w && dx > clear) {
-            2
-        } else {
-            continue;
-        };
-        let base = unshadowed.pixels[i][0];
-        for img in [&ci, &gi] {
-            let v = img.pixels[i][0] / base;
-            match class {
-                0 => worst_umbra = worst_umbra.max(v),
-                1 => worst_lit = worst_lit.max((1.0 - v).abs()),
-                _ => worst_mid = worst_mid.max((v - 0.5).abs()),
-            }
-        }
-        match class {
-            0 => umbra += 1,
-            1 => lit += 1,
-            _ => mid += 1,
-        }
-    }
+    // The square's shadow: each floor point's ray along dir crosses the square's plane at q; the
+    // cone's radius there is sin ρ·s, stretched by up to 1/sin e on the floor.
+    let ([umbra, lit, mid], [worst_umbra, worst_lit, worst_mid]) =
+        square_shadow_classes(&frags, &unshadowed, [&ci, &gi], |pt| {
+            let s = h / dir[2];
+            let q = [pt[0] + s * dir[0], pt[1] + s * dir[1]];
+            let w = rho.sin() * s;
+            (
+                [0.5 - q[0].abs(), 0.5 - q[1].abs()],
+                w,
+                1.3 * w / e.sin() + 0.03,
+            )
+        });
     eprintln!(
         "sun over the floating square: umbra ≤ {worst_umbra:.2e} over {umbra} pixels, lit off 1 \
          by ≤ {worst_lit:.2e} over {lit}, penumbra's middle off ½ by ≤ {worst_mid:.3} over {mid}"
