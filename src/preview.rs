@@ -58,8 +58,8 @@ pub struct Args {
     /// the PTM's basis (monomials or learned tables) is evaluated once per frame and each
     /// pixel only dots it with its coefficients. Irradiance on a surface facing it: I ·
     /// colour. Numbered after the --light lights for --intensity and --color. On a --mesh its
-    /// direction turns with the surface, so K is evaluated per pixel, and the macro shadow is
-    /// rendered from a stand-in 100 box diagonals away. Not with --window.
+    /// direction turns with the surface, so K is evaluated per pixel, and the macro shadow's
+    /// map is orthographic along it. Not with --window.
     #[arg(long, value_name = "ELEV,AZ[,RADIUS]", value_parser = parse_distant, allow_hyphen_values = true)]
     pub light_distant: Vec<(f32, f32, f32)>,
     /// Intensity per light (last repeats): irradiance = I · colour · cos/d². Default: chosen

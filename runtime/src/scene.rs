@@ -78,7 +78,7 @@ pub struct Light {
     /// terms (monomials or learned tables) are evaluated once per frame
     /// ([`SceneBuffers::light_terms`]) and each pixel only dots them with its coefficients; on
     /// a mesh the direction turns with the tangent frame and K is evaluated per pixel, and the
-    /// macro shadow is rendered from a stand-in `cpu::mesh::SHADOW_FAR` box diagonals away.
+    /// macro shadow's map is orthographic along the direction (`cpu::mesh::shadow_view_ortho`).
     pub distant: bool,
     /// Radiant intensity scale: irradiance at distance d is `intensity · color · cos / d²`.
     pub intensity: f32,

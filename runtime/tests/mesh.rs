@@ -422,8 +422,8 @@ fn a_distant_lights_macro_shadow_is_its_cones_and_matches_the_twin() {
     // The sun 60° up over the floating square (ρ 0.05): its shadow is the square moved by
     // h·cot e down the azimuth, with a penumbra of half-width ≈ sin ρ·h/sin e across each
     // edge: dark in the umbra, lit outside, about half lit on the edges' middle lines; the
-    // GPU matches the twin; a sphere at the shadow map's stand-in (SHADOW_FAR diagonals
-    // away, subtending the same cone) renders the same frame.
+    // GPU matches the twin (the orthographic shadow map and its PCSS); a far sphere subtending
+    // the same cone renders nearly the same frame.
     let g = gpu();
     let (e, az, rho) = (60f32.to_radians(), 0.6f32, 0.05f32);
     let dir = [e.cos() * az.cos(), e.cos() * az.sin(), e.sin()];
@@ -467,16 +467,17 @@ fn a_distant_lights_macro_shadow_is_its_cones_and_matches_the_twin() {
     assert!(umbra > 100 && lit > 1000 && mid > 5, "{umbra} {lit} {mid}");
     assert!(worst_umbra < 0.01, "light in the umbra: {worst_umbra}");
     assert!(worst_lit < 1e-4, "shadow outside the penumbra: {worst_lit}");
-    assert!(worst_mid < 0.2, "penumbra's middle at {worst_mid} from ½");
+    assert!(worst_mid < 0.15, "penumbra's middle at {worst_mid} from ½");
     twin_with_shadow(&r, &p, &gi, &ci, "floating square, distant light");
-    // The stand-in sphere: the same shadow computations; the shading's direction varies by at
-    // most half a diagonal over SHADOW_FAR diagonals (0.3°), the Lambert term by under 1 %.
+    // A sphere 1000 box diagonals away in its direction, subtending its cone: its shadow map
+    // is perspective (the rays within 0.03° of parallel), so they agree but for the odd edge
+    // texel, on average to 0.5 % of the peak.
     let f = &p.frame;
     let diag = (0..3)
         .map(|k| (f.shadow_hi[k] - f.shadow_lo[k]).powi(2))
         .sum::<f32>()
         .sqrt();
-    let far = cpu::mesh::SHADOW_FAR * diag;
+    let far = 1000.0 * diag;
     let mut sphere = m.clone();
     sphere.scene.lights = vec![Light {
         position: std::array::from_fn(|k| 0.5 * (f.shadow_lo[k] + f.shadow_hi[k]) + far * dir[k]),
@@ -485,12 +486,9 @@ fn a_distant_lights_macro_shadow_is_its_cones_and_matches_the_twin() {
         ..Light::default()
     }];
     let (ps, _) = sphere.prepare().unwrap();
-    let d = ci.max_abs_diff(&cpu::render(&ps)).unwrap();
-    eprintln!(
-        "sun vs its stand-in sphere: max {d:.2e} (peak {:.3})",
-        peak(&ci)
-    );
-    assert!(d < 1e-2 * peak(&ci), "sun vs its stand-in sphere: {d}");
+    let d = ptm_runtime::compare::mean_abs_diff(&ci, &cpu::render(&ps));
+    eprintln!("sun vs a far sphere: mean {d:.2e} (peak {:.3})", peak(&ci));
+    assert!(d < 5e-3 * peak(&ci), "sun vs a far sphere: {d}");
 }
 
 /// The macro shadow on the GPU against the twin, in two parts: the depth maps (rasterised by

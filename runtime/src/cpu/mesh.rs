@@ -263,6 +263,8 @@ pub struct ShadowView {
     pub far: f32,
     /// The light is not at the box's centre (else it casts no macro shadow).
     pub ok: bool,
+    /// A distant light's orthographic view ([`shadow_view_ortho`]).
+    pub ortho: bool,
 }
 
 /// The widest half-angle's tangent of a shadow map (`SHADOW_MAX_TAN`, tan 76°).
@@ -278,6 +280,7 @@ pub fn shadow_view(f: &Frame, lp: V3) -> ShadowView {
         near: 0.0,
         far: 0.0,
         ok: false,
+        ortho: false,
     };
     let (lo, hi) = (f.shadow_lo, f.shadow_hi);
     let to_c: V3 = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]) - lp[k]);
@@ -319,15 +322,61 @@ pub fn shadow_clip(sv: &ShadowView, lp: V3, q: V3) -> [f32; 4] {
     let w = dot(d, sv.forward);
     let x = dot(d, sv.right) / dot(sv.right, sv.right);
     let y = dot(d, sv.up) / dot(sv.up, sv.up);
+    if sv.ortho {
+        return [x, y, (w - sv.near) / (sv.far - sv.near), 1.0];
+    }
     let z = (w - sv.near) * sv.far / (sv.far - sv.near);
     [x, y, z, w]
+}
+
+/// A distant light's orthographic shadow view along `dir`, from the box's centre (see
+/// `shadow_view_ortho` in WGSL).
+pub fn shadow_view_ortho(f: &Frame, dir: V3) -> ShadowView {
+    let (lo, hi) = (f.shadow_lo, f.shadow_hi);
+    let c: V3 = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
+    let diag = length(sub(hi, lo));
+    let fw = scale(dir, -1.0);
+    let world_up = if fw[2].abs() > 0.999 {
+        [0.0, 1.0, 0.0]
+    } else {
+        [0.0, 0.0, 1.0]
+    };
+    let right = normalize(cross(fw, world_up));
+    let up = cross(right, fw);
+    let (mut h, mut near, mut far) = (0f32, 3.4e38f32, -3.4e38f32);
+    for k in 0..8 {
+        let q: V3 = std::array::from_fn(|a| if k >> a & 1 == 1 { hi[a] } else { lo[a] });
+        let v = sub(q, c);
+        let w = dot(v, fw);
+        near = near.min(w);
+        far = far.max(w);
+        h = h.max(dot(v, right).abs().max(dot(v, up).abs()));
+    }
+    let eps = 1e-3 * diag;
+    ShadowView {
+        right: scale(right, (1.01 * h).max(eps)),
+        up: scale(up, (1.01 * h).max(eps)),
+        forward: fw,
+        near: near - eps,
+        far: far + eps,
+        ok: diag > 0.0,
+        ortho: true,
+    }
+}
+
+/// Light `l`'s shadow view: perspective from its centre, or a distant light's orthographic one.
+pub fn light_shadow_view(f: &Frame, l: &LightGpu) -> ShadowView {
+    if l.shape == LightGpu::DISTANT {
+        return shadow_view_ortho(f, l.position);
+    }
+    shadow_view(f, l.position)
 }
 
 /// The depth pass's vertex stage for light `li` (clipped away for a light at the box's
 /// centre).
 pub fn vs_shadow(f: &Frame, lights: &[LightGpu], v: &MeshVertex, li: usize) -> [f32; 4] {
     let lp = shadow_source(f, &lights[li]).0;
-    let sv = shadow_view(f, lp);
+    let sv = light_shadow_view(f, &lights[li]);
     if !sv.ok {
         return [0.0, 0.0, -1.0, 1.0];
     }
@@ -336,11 +385,17 @@ pub fn vs_shadow(f: &Frame, lights: &[LightGpu], v: &MeshVertex, li: usize) -> [
 
 /// Forward distance of a stored depth.
 pub fn shadow_distance(sv: &ShadowView, z: f32) -> f32 {
+    if sv.ortho {
+        return sv.near + z * (sv.far - sv.near);
+    }
     sv.near * sv.far / (sv.far - z * (sv.far - sv.near))
 }
 
 /// The stored depth of forward distance w.
 pub fn shadow_depth(sv: &ShadowView, w: f32) -> f32 {
+    if sv.ortho {
+        return (w - sv.near) / (sv.far - sv.near);
+    }
     (w - sv.near) * sv.far / ((sv.far - sv.near) * w)
 }
 
@@ -412,19 +467,14 @@ pub const SHADOW_NORMAL_OFFSET: f32 = 1.0;
 /// See [`SHADOW_NORMAL_OFFSET`].
 pub const SHADOW_BIAS: f32 = 1.5;
 
-/// A distant light's shadow map is rendered from a stand-in this many box diagonals away
-/// (`SHADOW_FAR` in WGSL).
-pub const SHADOW_FAR: f32 = 100.0;
-
-/// Where light `l`'s shadow map is rendered from and the disc radius it is filtered as there
-/// (see `shadow_source` in WGSL): a distant light's stand-in [`SHADOW_FAR`] box diagonals from
-/// the box's centre along its direction, of radius far · sin ρ.
+/// Where light `l`'s shadow view starts and how its disc spreads (see `shadow_source` in
+/// WGSL): a local light's centre and [`shadow_light_radius`]; for a distant light the box's
+/// centre and tan ρ.
 pub fn shadow_source(f: &Frame, l: &LightGpu) -> (V3, f32) {
     if l.shape == LightGpu::DISTANT {
-        let far = SHADOW_FAR * length(sub(f.shadow_hi, f.shadow_lo));
+        let tan_rho = l.radius / (1.0 - l.radius * l.radius).max(1e-12).sqrt();
         let centre: V3 = std::array::from_fn(|k| 0.5 * (f.shadow_lo[k] + f.shadow_hi[k]));
-        let lp: V3 = std::array::from_fn(|k| centre[k] + far * l.position[k]);
-        return (lp, far * l.radius);
+        return (centre, tan_rho);
     }
     (l.position, shadow_light_radius(l))
 }
@@ -451,16 +501,27 @@ pub fn shadow_visibility(
 ) -> f32 {
     let light = &lights[li];
     let (lp, radius) = shadow_source(f, light);
-    let sv = shadow_view(f, lp);
+    let sv = light_shadow_view(f, light);
     if !sv.ok {
         return 1.0;
     }
     let size = f.shadow_size as f32;
     let tan_half = length(sv.right);
-    let footprint = 2.0 * tan_half * dot(sub(world, lp), sv.forward) / size;
+    // Orthographic (a distant light): a texel spans the same length at every distance, and
+    // the cone widens by tan ρ a unit of distance (see the WGSL).
+    let footprint = if sv.ortho {
+        2.0 * tan_half / size
+    } else {
+        2.0 * tan_half * dot(sub(world, lp), sv.forward) / size
+    };
     let moved: V3 = std::array::from_fn(|k| world[k] + n[k] * (SHADOW_NORMAL_OFFSET * footprint));
     let clip = shadow_clip(&sv, lp, moved);
-    let wr = clip[3] - SHADOW_BIAS * footprint;
+    let fwd = if sv.ortho {
+        dot(sub(moved, lp), sv.forward)
+    } else {
+        clip[3]
+    };
+    let wr = fwd - SHADOW_BIAS * footprint;
     let zr = shadow_depth(&sv, wr);
     let t = [
         (clip[0] / clip[3] + 1.0) * (0.5 * size),
@@ -468,7 +529,12 @@ pub fn shadow_visibility(
     ];
     let scale_ = 0.5 * size / tan_half;
     let cap = size / 16.0;
-    let search = (radius * (wr - sv.near).max(0.0) / (wr * sv.near) * scale_).min(cap);
+    let search = if sv.ortho {
+        radius * (wr - sv.near).max(0.0) * scale_
+    } else {
+        radius * (wr - sv.near).max(0.0) / (wr * sv.near) * scale_
+    }
+    .min(cap);
     let (mut blocked, mut dist) = (0f32, 0f32);
     for d in &SHADOW_DISC {
         let b = shadow_taps(
@@ -488,7 +554,12 @@ pub fn shadow_visibility(
         return 0.0;
     }
     let wb = dist / blocked;
-    let penumbra = (radius * (wr - wb).max(0.0) / (wr * wb) * scale_).min(cap);
+    let penumbra = if sv.ortho {
+        radius * (wr - wb).max(0.0) * scale_
+    } else {
+        radius * (wr - wb).max(0.0) / (wr * wb) * scale_
+    }
+    .min(cap);
     let mut occluded = 0f32;
     for d in &SHADOW_DISC {
         occluded += shadow_taps(

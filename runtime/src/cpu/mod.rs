@@ -191,7 +191,8 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             mesh::sheen_visibility, mesh::sheen_brdf, mesh::shade_mesh, mesh::fs_mesh,
             mesh::shadow_view, mesh::shadow_clip, mesh::vs_shadow, mesh::shadow_distance,
             mesh::shadow_depth,
-            mesh::shadow_taps, mesh::shadow_light_radius, mesh::shadow_source,
+            mesh::shadow_taps, mesh::shadow_light_radius, mesh::shadow_source, mesh::shadow_view_ortho,
+            mesh::light_shadow_view,
             mesh::shadow_visibility;
     }
 }

@@ -60,6 +60,9 @@ struct ShadowView {
     near: f32,
     far: f32,
     ok: bool,
+    // A distant light's view (`shadow_view_ortho`): parallel rays, right and up scaled by the
+    // half-extent instead of a tangent, depths linear in the forward distance.
+    ortho: bool,
 }
 
 // tan 76°: the widest half-angle of a shadow map.
@@ -109,27 +112,73 @@ fn shadow_clip(sv: ShadowView, lp: vec3<f32>, q: vec3<f32>) -> vec4<f32> {
     let w = dot(d, sv.forward);
     let x = dot(d, sv.right) / dot(sv.right, sv.right);
     let y = dot(d, sv.up) / dot(sv.up, sv.up);
+//#if MESH_DISTANT
+    if (sv.ortho) {
+        return vec4<f32>(x, y, (w - sv.near) / (sv.far - sv.near), 1.0);
+    }
+//#endif
     let z = (w - sv.near) * sv.far / (sv.far - sv.near);
     return vec4<f32>(x, y, z, w);
 }
 
 //#if MESH_DISTANT
-// A distant light's shadow map is rendered from a stand-in this many box diagonals from the
-// box's centre along its direction: its rays cross the box within 1/(2·SHADOW_FAR) rad (0.3°)
-// of parallel. Farther costs f32 precision: at 1000 diagonals the depths' cancellation made
-// the GPU and its twin shade the same maps 5e-3 apart (6e-4 at 100).
-const SHADOW_FAR: f32 = 100.0;
+// A distant light's shadow view: orthographic along its direction, from the box's centre, the
+// square that bounds the box's corners across it, near and far planes just around them.
+fn shadow_view_ortho(dir: vec3<f32>) -> ShadowView {
+    var s: ShadowView;
+    let lo = frame.shadow_lo;
+    let hi = frame.shadow_hi;
+    let c = 0.5 * (lo + hi);
+    let diag = length(hi - lo);
+    let f = -dir;
+    var world_up = vec3<f32>(0.0, 0.0, 1.0);
+    if (abs(f.z) > 0.999) {
+        world_up = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let right = normalize(cross(f, world_up));
+    let up = cross(right, f);
+    var h = 0.0;
+    var near = 3.4e38;
+    var far = -3.4e38;
+    for (var k = 0u; k < 8u; k++) {
+        let q = select(lo, hi, vec3<bool>((k & 1u) != 0u, (k & 2u) != 0u, (k & 4u) != 0u));
+        let v = q - c;
+        let w = dot(v, f);
+        near = min(near, w);
+        far = max(far, w);
+        h = max(h, max(abs(dot(v, right)), abs(dot(v, up))));
+    }
+    let eps = 1e-3 * diag;
+    s.ok = diag > 0.0;
+    s.ortho = true;
+    s.right = right * max(1.01 * h, eps);
+    s.up = up * max(1.01 * h, eps);
+    s.forward = f;
+    s.near = near - eps;
+    s.far = far + eps;
+    return s;
+}
 //#endif
 
-// Where light `l`'s shadow map is rendered from (xyz) and the radius of the disc it is
-// filtered as there (w): a local light's centre and `shadow_light_radius`; a distant light's
-// stand-in SHADOW_FAR box diagonals away along its direction, of the radius that subtends its
-// cone (far · sin ρ).
+// Light `l`'s shadow view: the perspective one from its centre, or a distant light's
+// orthographic one.
+fn light_shadow_view(l: Light) -> ShadowView {
+//#if MESH_DISTANT
+    if (l.shape == LIGHT_DISTANT) {
+        return shadow_view_ortho(l.position);
+    }
+//#endif
+    return shadow_view(l.position);
+}
+
+// Where light `l`'s shadow view starts (xyz) and how its disc spreads (w): a local light's
+// centre and the radius `shadow_light_radius`; a distant light's view is centred on the box,
+// and its cone widens by tan ρ per unit of distance.
 fn shadow_source(l: Light) -> vec4<f32> {
 //#if MESH_DISTANT
     if (l.shape == LIGHT_DISTANT) {
-        let far = SHADOW_FAR * length(frame.shadow_hi - frame.shadow_lo);
-        return vec4<f32>(0.5 * (frame.shadow_lo + frame.shadow_hi) + far * l.position, far * l.radius);
+        let tan_rho = l.radius / sqrt(max(1.0 - l.radius * l.radius, 1e-12));
+        return vec4<f32>(0.5 * (frame.shadow_lo + frame.shadow_hi), tan_rho);
     }
 //#endif
     return vec4<f32>(l.position, shadow_light_radius(l));
@@ -139,7 +188,7 @@ fn shadow_source(l: Light) -> vec4<f32> {
 @vertex
 fn vs_shadow(v: MeshIn, @builtin(instance_index) li: u32) -> @builtin(position) vec4<f32> {
     let lp = shadow_source(lights[li]).xyz;
-    let sv = shadow_view(lp);
+    let sv = light_shadow_view(lights[li]);
     if (!sv.ok) {
         return vec4<f32>(0.0, 0.0, -1.0, 1.0); // clipped: the layer stays clear
     }
@@ -149,12 +198,22 @@ fn vs_shadow(v: MeshIn, @builtin(instance_index) li: u32) -> @builtin(position) 
 // Forward distance from the light of a stored depth (the inverse of shadow_clip's z/w; a clear
 // texel, 1, is the far plane: never a blocker).
 fn shadow_distance(sv: ShadowView, z: f32) -> f32 {
+//#if MESH_DISTANT
+    if (sv.ortho) {
+        return sv.near + z * (sv.far - sv.near);
+    }
+//#endif
     return sv.near * sv.far / (sv.far - z * (sv.far - sv.near));
 }
 
 // The stored depth z/w of forward distance w (shadow_clip's): taps compare depths, so only a
 // blocker's depth is turned back into a distance.
 fn shadow_depth(sv: ShadowView, w: f32) -> f32 {
+//#if MESH_DISTANT
+    if (sv.ortho) {
+        return (w - sv.near) / (sv.far - sv.near);
+    }
+//#endif
     return (w - sv.near) * sv.far / ((sv.far - sv.near) * w);
 }
 
@@ -246,21 +305,43 @@ fn shadow_visibility(li: u32, world: vec3<f32>, n: vec3<f32>) -> f32 {
     let light = lights[li];
     let source = shadow_source(light);
     let lp = source.xyz;
-    let sv = shadow_view(lp);
+    let sv = light_shadow_view(light);
     if (!sv.ok) {
         return 1.0;
     }
     let size = f32(frame.shadow_size);
     let tan_half = length(sv.right);
-    let footprint = 2.0 * tan_half * dot(world - lp, sv.forward) / size;
-    let clip = shadow_clip(sv, lp, world + n * (SHADOW_NORMAL_OFFSET * footprint));
-    let wr = clip.w - SHADOW_BIAS * footprint;
+    var footprint = 2.0 * tan_half * dot(world - lp, sv.forward) / size;
+//#if MESH_DISTANT
+    // Orthographic: a texel spans the same length at every distance (tan_half is then the
+    // half-extent), a lateral length ℓ spans ℓ·size/(2·half) texels, and the cone from a point
+    // to a distant light widens by tan ρ (`source.w`) per unit of distance, so the radii below
+    // lose their 1/(wr·near) and 1/(wr·wb).
+    if (sv.ortho) {
+        footprint = 2.0 * tan_half / size;
+    }
+//#endif
+    let moved = world + n * (SHADOW_NORMAL_OFFSET * footprint);
+    let clip = shadow_clip(sv, lp, moved);
+    var fwd = clip.w;
+//#if MESH_DISTANT
+    if (sv.ortho) {
+        fwd = dot(moved - lp, sv.forward);
+    }
+//#endif
+    let wr = fwd - SHADOW_BIAS * footprint;
     let zr = shadow_depth(sv, wr);
     let t = vec2<f32>(clip.x / clip.w + 1.0, 1.0 - clip.y / clip.w) * (0.5 * size);
     let scale = 0.5 * size / tan_half;
     let cap = size / 16.0;
     let radius = source.w;
-    let search = min(radius * max(wr - sv.near, 0.0) / (wr * sv.near) * scale, cap);
+    var search = radius * max(wr - sv.near, 0.0) / (wr * sv.near) * scale;
+//#if MESH_DISTANT
+    if (sv.ortho) {
+        search = radius * max(wr - sv.near, 0.0) * scale;
+    }
+//#endif
+    search = min(search, cap);
     // A local copy: indexed by a loop counter, the array needs an address.
     var disc = SHADOW_DISC;
     var blocked = 0.0;
@@ -278,7 +359,13 @@ fn shadow_visibility(li: u32, world: vec3<f32>, n: vec3<f32>) -> f32 {
         return 0.0;
     }
     let wb = dist / blocked;
-    let penumbra = min(radius * max(wr - wb, 0.0) / (wr * wb) * scale, cap);
+    var penumbra = radius * max(wr - wb, 0.0) / (wr * wb) * scale;
+//#if MESH_DISTANT
+    if (sv.ortho) {
+        penumbra = radius * max(wr - wb, 0.0) * scale;
+    }
+//#endif
+    penumbra = min(penumbra, cap);
     var occluded = 0.0;
     for (var k = 0u; k < SHADOW_SAMPLES; k++) {
         occluded += shadow_taps(li, sv, t + disc[k] * penumbra, zr).x;

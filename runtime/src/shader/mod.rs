@@ -383,6 +383,13 @@ mod tests {
                 "{}",
                 v.name()
             );
+            // A distant light's orthographic shadow view only on a mesh with one and a shadow.
+            assert_eq!(
+                src.contains("fn shadow_view_ortho"),
+                v.distant && v.mesh && v.shadow,
+                "{}",
+                v.name()
+            );
             let terms = v.distant && v.basis.is_some() && !v.mesh;
             for name in ["fn distant_k", "var<uniform> light_terms"] {
                 assert_eq!(src.contains(name), terms, "{}: {name}", v.name());
