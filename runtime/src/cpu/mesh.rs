@@ -270,6 +270,18 @@ pub struct ShadowView {
 /// The widest half-angle's tangent of a shadow map (`SHADOW_MAX_TAN`, tan 76°).
 pub const SHADOW_MAX_TAN: f32 = 4.0;
 
+/// A shadow view's unit right and up axes across the unit forward direction (see
+/// `shadow_axes` in WGSL).
+pub fn shadow_axes(f: V3) -> [V3; 2] {
+    let world_up = if f[2].abs() > 0.999 {
+        [0.0, 1.0, 0.0]
+    } else {
+        [0.0, 0.0, 1.0]
+    };
+    let right = normalize(cross(f, world_up));
+    [right, cross(right, f)]
+}
+
 /// The shadow view of the light at `lp`: the square frustum from it through the outermost
 /// corner of the mesh's bounding box (see the WGSL).
 pub fn shadow_view(f: &Frame, lp: V3) -> ShadowView {
@@ -291,13 +303,7 @@ pub fn shadow_view(f: &Frame, lp: V3) -> ShadowView {
         return s;
     }
     let fw = scale(to_c, 1.0 / d);
-    let world_up = if fw[2].abs() > 0.999 {
-        [0.0, 1.0, 0.0]
-    } else {
-        [0.0, 0.0, 1.0]
-    };
-    let right = normalize(cross(fw, world_up));
-    let up = cross(right, fw);
+    let [right, up] = shadow_axes(fw);
     let (mut t, mut near, mut far) = (0f32, 3.4e38f32, 0f32);
     for k in 0..8 {
         let q: V3 = std::array::from_fn(|a| if k >> a & 1 == 1 { hi[a] } else { lo[a] });
@@ -336,13 +342,7 @@ pub fn shadow_view_ortho(f: &Frame, dir: V3) -> ShadowView {
     let c: V3 = std::array::from_fn(|k| 0.5 * (lo[k] + hi[k]));
     let diag = length(sub(hi, lo));
     let fw = scale(dir, -1.0);
-    let world_up = if fw[2].abs() > 0.999 {
-        [0.0, 1.0, 0.0]
-    } else {
-        [0.0, 0.0, 1.0]
-    };
-    let right = normalize(cross(fw, world_up));
-    let up = cross(right, fw);
+    let [right, up] = shadow_axes(fw);
     let (mut h, mut near, mut far) = (0f32, 3.4e38f32, -3.4e38f32);
     for k in 0..8 {
         let q: V3 = std::array::from_fn(|a| if k >> a & 1 == 1 { hi[a] } else { lo[a] });

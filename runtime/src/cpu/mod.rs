@@ -192,7 +192,7 @@ pub fn twins() -> Vec<(&'static str, &'static str)> {
             mesh::shadow_view, mesh::shadow_clip, mesh::vs_shadow, mesh::shadow_distance,
             mesh::shadow_depth,
             mesh::shadow_taps, mesh::shadow_light_radius, mesh::shadow_source, mesh::shadow_view_ortho,
-            mesh::light_shadow_view,
+            mesh::light_shadow_view, mesh::shadow_axes,
             mesh::shadow_visibility;
     }
 }

@@ -68,6 +68,17 @@ struct ShadowView {
 // tan 76°: the widest half-angle of a shadow map.
 const SHADOW_MAX_TAN: f32 = 4.0;
 
+// A shadow view's unit right and up axes across the unit forward direction f (up from the
+// world's Z, or Y when f is nearly vertical).
+fn shadow_axes(f: vec3<f32>) -> array<vec3<f32>, 2> {
+    var world_up = vec3<f32>(0.0, 0.0, 1.0);
+    if (abs(f.z) > 0.999) {
+        world_up = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let right = normalize(cross(f, world_up));
+    return array<vec3<f32>, 2>(right, cross(right, f));
+}
+
 fn shadow_view(lp: vec3<f32>) -> ShadowView {
     var s: ShadowView;
     let lo = frame.shadow_lo;
@@ -80,12 +91,9 @@ fn shadow_view(lp: vec3<f32>) -> ShadowView {
         return s;
     }
     let f = to_c / d;
-    var world_up = vec3<f32>(0.0, 0.0, 1.0);
-    if (abs(f.z) > 0.999) {
-        world_up = vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let right = normalize(cross(f, world_up));
-    let up = cross(right, f);
+    let axes = shadow_axes(f);
+    let right = axes[0];
+    let up = axes[1];
     var t = 0.0;
     var near = 3.4e38;
     var far = 0.0;
@@ -131,12 +139,9 @@ fn shadow_view_ortho(dir: vec3<f32>) -> ShadowView {
     let c = 0.5 * (lo + hi);
     let diag = length(hi - lo);
     let f = -dir;
-    var world_up = vec3<f32>(0.0, 0.0, 1.0);
-    if (abs(f.z) > 0.999) {
-        world_up = vec3<f32>(0.0, 1.0, 0.0);
-    }
-    let right = normalize(cross(f, world_up));
-    let up = cross(right, f);
+    let axes = shadow_axes(f);
+    let right = axes[0];
+    let up = axes[1];
     var h = 0.0;
     var near = 3.4e38;
     var far = -3.4e38;
