@@ -163,33 +163,38 @@ pub struct Args {
 
 /// `A,B` or `A,B,DEG` (DEG 0 when left out).
 fn parse_rect(s: &str) -> Result<(f32, f32, f32), String> {
-    let number = |x: &str| {
-        x.trim()
-            .parse::<f32>()
-            .map_err(|_| format!("`{x}` is not a number"))
-    };
-    match s.split(',').collect::<Vec<_>>()[..] {
-        [a, b] => Ok((number(a)?, number(b)?, 0.0)),
-        [a, b, d] => Ok((number(a)?, number(b)?, number(d)?)),
-        _ => Err(format!(
-            "expected A,B or A,B,DEG (sides, and the turn of side A from X in degrees), got `{s}`"
-        )),
-    }
+    parse_two_or_three(
+        s,
+        0.0,
+        "A,B or A,B,DEG (sides, and the turn of side A from X in degrees)",
+    )
 }
 
+/// `ELEV,AZ` or `ELEV,AZ,RADIUS` (the sun's radius when left out).
 fn parse_distant(s: &str) -> Result<(f32, f32, f32), String> {
-    let number = |x: &str| {
-        x.trim()
-            .parse::<f32>()
-            .map_err(|_| format!("`{x}` is not a number"))
-    };
-    match s.split(',').collect::<Vec<_>>()[..] {
-        [e, a] => Ok((number(e)?, number(a)?, SUN_RADIUS_DEG)),
-        [e, a, r] => Ok((number(e)?, number(a)?, number(r)?)),
-        _ => Err(format!(
-            "expected ELEV,AZ or ELEV,AZ,RADIUS (degrees: elevation above the cloth, azimuth \
-             from +X towards +Y, angular radius), got `{s}`"
-        )),
+    parse_two_or_three(
+        s,
+        SUN_RADIUS_DEG,
+        "ELEV,AZ or ELEV,AZ,RADIUS (degrees: elevation above the cloth, azimuth from +X \
+         towards +Y, angular radius)",
+    )
+}
+
+/// Two or three comma-separated numbers, the third `third` when left out; an error names a
+/// part that is not a number, or says `expected` for another count.
+fn parse_two_or_three(s: &str, third: f32, expected: &str) -> Result<(f32, f32, f32), String> {
+    let parts: Vec<f32> = s
+        .split(',')
+        .map(|x| {
+            x.trim()
+                .parse::<f32>()
+                .map_err(|_| format!("`{x}` is not a number"))
+        })
+        .collect::<Result<_, _>>()?;
+    match parts[..] {
+        [a, b] => Ok((a, b, third)),
+        [a, b, c] => Ok((a, b, c)),
+        _ => Err(format!("expected {expected}, got `{s}`")),
     }
 }
 

@@ -186,6 +186,18 @@ fn the_suns_penumbra_follows_the_monte_carlo_reference() {
     assert!(failures.is_empty(), "{failures:#?}");
 }
 
+/// The GPU's image of `p` equals the twin's to 1e-3, and is bright enough (peak > 0.1) for
+/// that to test anything.
+fn gpu_matches_twin(g: &ptm_runtime::Gpu, p: &ptm_runtime::scene::SceneBuffers, what: &str) {
+    let (gi, _) = gpu::render(g, p).unwrap();
+    let ci = cpu::render(p);
+    let d = gi.max_abs_diff(&ci).unwrap();
+    let peak = ci.pixels.iter().map(|p| p[0]).fold(0f32, f32::max);
+    eprintln!("{what}: max |gpu − cpu| = {d:.2e} (peak {peak:.3})");
+    assert!(peak > 0.1, "{what}: too dark to test anything");
+    assert!(d <= 1e-3, "{what}: GPU and CPU twin differ by {d}");
+}
+
 #[test]
 fn gpu_matches_twin_under_distant_and_local_lights() {
     let g = gpu();
@@ -208,20 +220,7 @@ fn gpu_matches_twin_under_distant_and_local_lights() {
             let s = shaded(Some(ptm.clone()), lights, blur);
             let p = s.prepare().unwrap();
             assert_eq!(p.variant.distant_only, !local);
-            let (gi, _) = gpu::render(&g, &p).unwrap();
-            let ci = cpu::render(&p);
-            let d = gi.max_abs_diff(&ci).unwrap();
-            let peak = ci.pixels.iter().map(|p| p[0]).fold(0f32, f32::max);
-            eprintln!(
-                "{name}, {}: max |gpu − cpu| = {d:.2e} (peak {peak:.3})",
-                blur.name()
-            );
-            assert!(peak > 0.1, "{name}: too dark to test anything");
-            assert!(
-                d <= 1e-3,
-                "{name}, {}: GPU and CPU twin differ by {d}",
-                blur.name()
-            );
+            gpu_matches_twin(&g, &p, &format!("{name}, {}", blur.name()));
         }
     }
 }
@@ -246,20 +245,7 @@ fn a_glossy_cloth_under_distant_lights_alone_matches_its_twin() {
         });
         let p = s.prepare().unwrap();
         assert!(p.variant.distant_only && p.variant.glossy);
-        let (gi, _) = gpu::render(&g, &p).unwrap();
-        let ci = cpu::render(&p);
-        let d = gi.max_abs_diff(&ci).unwrap();
-        let peak = ci.pixels.iter().map(|p| p[0]).fold(0f32, f32::max);
-        eprintln!(
-            "glossy, {}: max |gpu − cpu| = {d:.2e} (peak {peak:.3})",
-            blur.name()
-        );
-        assert!(peak > 0.1, "too dark to test anything");
-        assert!(
-            d <= 1e-3,
-            "glossy, {}: GPU and CPU twin differ by {d}",
-            blur.name()
-        );
+        gpu_matches_twin(&g, &p, &format!("glossy, {}", blur.name()));
     }
 }
 
