@@ -1,14 +1,18 @@
 //! Benchmark: the baker against a bare Embree loop, in one process, on the same scene, dome and
 //! sample positions. The bare loop is what the issue describes: one `rtcIntersect1` per
-//! footprint sample, then per light one coherent packet per 16 samples (a 4×4 texel block),
-//! every covered sample traced (no facing test), `tfar` = ∞, rayon over blocks, FTZ/DAZ on.
+//! footprint sample, then per light one coherent packet per `W` consecutive samples of an image
+//! row (16: 4 texels at spp 4), every covered sample traced (no facing test), `tfar` = ∞,
+//! rayon over rows, FTZ/DAZ on.
 //! It traces against the baker's own per-light scenes of copies (so both count the same
 //! shadows) and keeps its samples as structures of arrays, ready for packets: no bookkeeping.
 //!
 //! Loops (`--loops=a,b,…`, each run alternates their order; default `ours,bare,bare16`):
 //! - `ours`: `Baker::new` + `Baker::trace` at the CPU's native packet width; wall time from
-//!   the device and scene builds to the last K plane (the bare loops reuse those scenes free).
+//!   the device and scene builds to the last K plane (the bare loops reuse those scenes free),
+//!   less the time its sink spends counting occluded samples for the check (printed).
 //! - `oursN` (N = 1, 4, 8, 16): the baker with N lanes per Embree call.
+//! - `ours-portable` (or `oursN-portable`): the baker with its portable facing test and
+//!   compaction instead of the SIMD build this CPU has (`Baker::set_simd`).
 //! - `bare`: the bare loop at the native packet width; `bare16` / `bare8` / `bare4`: at that
 //!   width (`bare16` is the issue's C loop: `rtcOccluded16`, one by one inside Embree on a CPU
 //!   without AVX-512); `bareclip`: native width with `tfar` at the baker's clamp plane;
@@ -35,6 +39,9 @@ struct Timing {
     shadow: f64,
     /// Process CPU seconds of the shadow pass (all threads).
     cpu_shadow: f64,
+    /// Seconds the baker's sink spent counting occluded samples (the benchmark's own check,
+    /// on the calling thread between passes), left out of `whole`, `shadow` and `cpu_shadow`.
+    sink: f64,
     /// Shadow rays traced, occluded among them, and samples counted occluded in all.
     traced: u64,
     occluded: u64,
@@ -90,9 +97,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let native = scenes_owner.packet_width();
     println!(
-        "cpu: {}; {} threads; Embree native packet width {native}",
+        "cpu: {}; {} threads; Embree native packet width {native}; facing test {}",
         cpu_name(),
-        pool.current_num_threads()
+        pool.current_num_threads(),
+        scenes_owner.simd()
     );
     println!(
         "scene: {spec}: {} triangles, tile {:?}, {res}² texels, {n_lights} Fibonacci lights above {min_elev}°, spp {spp}; loops {}",
@@ -124,8 +132,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let i = (k + rep) % loops.len();
             let name = loops[i].as_str();
             row[i] = if let Some(w) = name.strip_prefix("ours") {
+                let (w, simd) = match w.strip_suffix("-portable") {
+                    Some(w) => (w, false),
+                    None => (w, true),
+                };
                 let width = if w.is_empty() { None } else { Some(w.parse()?) };
-                ours(&swatch, &lights, &cfg, width)?
+                ours(&swatch, &lights, &cfg, width, simd)?
             } else if let Some(w) = name.strip_prefix("bare") {
                 match w {
                     "" => bare.run(native, false, false),
@@ -147,6 +159,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 t.cpu_shadow,
                 t.rays_per_s() / 1e6
             );
+            if t.sink > 0.0 {
+                print!(" (sink's count {:.3} s left out)", t.sink);
+            }
         }
         println!();
         runs.push(row);
@@ -203,29 +218,36 @@ fn ours(
     lights: &ptm_format::LightSet,
     cfg: &BakeConfig,
     width: Option<usize>,
+    simd: bool,
 ) -> Result<Timing, ptm_bake::Error> {
     let t0 = Instant::now();
     let mut baker = Baker::new(swatch, cfg)?;
+    baker.set_simd(simd);
     if let Some(w) = width {
         baker.set_packet_width(w)?;
     }
     let spp = cfg.spp as f64;
     let covered: Vec<f64> = baker.coverage().iter().map(|&c| c as f64 * spp).collect();
     let mut counted = 0.0f64;
+    let mut in_sink = 0.0f64;
     let cpu0 = cpu_seconds();
     let rep = baker.trace(lights, &mut |_, k, _| {
+        let t = Instant::now();
         counted += k
             .iter()
             .zip(&covered)
             .map(|(&v, &c)| v as f64 * c)
             .sum::<f64>();
+        in_sink += t.elapsed().as_secs_f64();
         Ok(())
     })?;
+
     Ok(Timing {
-        whole: t0.elapsed().as_secs_f64(),
+        whole: t0.elapsed().as_secs_f64() - in_sink,
         primary: rep.seconds_primary,
-        shadow: rep.seconds_shadow,
-        cpu_shadow: cpu_seconds() - cpu0,
+        shadow: rep.seconds_shadow - in_sink,
+        cpu_shadow: cpu_seconds() - cpu0 - in_sink,
+        sink: in_sink,
         traced: rep.shadow_rays,
         occluded: (counted.round() as u64).saturating_sub(rep.shadow_rays_skipped),
         counted: counted.round() as u64,
@@ -388,6 +410,7 @@ impl Bare<'_> {
             primary: t_primary,
             shadow,
             cpu_shadow: cpu_seconds() - cpu0,
+            sink: 0.0,
             traced: traced.load(Ordering::Relaxed),
             occluded,
             counted: occluded,

@@ -12,6 +12,7 @@
 
 pub mod dome;
 pub mod embree;
+mod facing;
 pub mod maps;
 pub mod swatch;
 pub mod tiling;

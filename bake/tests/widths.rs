@@ -1,8 +1,10 @@
 //! The shadow stage's layout does not reach the output: every packet width (1, 4, 8, 16 lanes
-//! per Embree call, native or traced one by one inside Embree), thread count, grouping of lights
-//! into passes and split of the rows into shards gives K, (u, v) and coverage bit for bit equal
-//! to single rays, one light per pass, on one thread, on swatches with overhangs (knit loops),
-//! holes (the open weave) and pile, under distant and point lights.
+//! per Embree call, native or traced one by one inside Embree), build of the facing test and
+//! compaction (SIMD where the CPU has it, portable), thread count, grouping of lights into
+//! passes and split of the rows into shards gives K, (u, v) and coverage bit for bit equal to
+//! single rays, one light per pass, on one thread, on swatches with overhangs (knit loops),
+//! holes (the open weave) and pile, under distant and point lights, at 4 samples per texel and
+//! at 9 (a block's samples then fill more than one run of the compaction).
 use ptm_bake::{BakeConfig, BakeReport, Baker, PreparedMesh};
 use ptm_format::LightSet;
 
@@ -16,11 +18,11 @@ struct Out {
     skipped: u64,
 }
 
-fn cfg(light_distance: Option<f64>, threads: usize) -> BakeConfig {
+fn cfg(light_distance: Option<f64>, threads: usize, spp: u32) -> BakeConfig {
     BakeConfig {
         // Not a multiple of 4 either way: partial texel blocks at the right and bottom.
         res: [30, 26],
-        spp: 4,
+        spp,
         seed: 7,
         light_distance,
         packets: true,
@@ -56,8 +58,8 @@ fn empty() -> Out {
 
 /// The reference: rays one by one (`rtcOccluded1`), one thread, each light in its own
 /// `trace` call (a pass of one light).
-fn reference(s: &PreparedMesh, lights: &LightSet, r: Option<f64>) -> Out {
-    let mut baker = Baker::new(s, &cfg(r, 1)).unwrap();
+fn reference(s: &PreparedMesh, lights: &LightSet, r: Option<f64>, spp: u32) -> Out {
+    let mut baker = Baker::new(s, &cfg(r, 1, spp)).unwrap();
     baker.set_packet_width(1).unwrap();
     let mut out = empty();
     for (i, &d) in lights.dirs.iter().enumerate() {
@@ -74,22 +76,33 @@ fn reference(s: &PreparedMesh, lights: &LightSet, r: Option<f64>) -> Out {
     out
 }
 
+/// How [`bake`] traces: lanes per call (0: the CPU's native width), workers, and whether the
+/// facing test and compaction run their SIMD build (where the CPU has one).
+#[derive(Clone, Copy, Debug)]
+struct Layout {
+    width: usize,
+    threads: usize,
+    simd: bool,
+}
+
 /// All lights in one `trace` call (passes of several lights) over shards of the rows between
-/// consecutive `cuts`, `width` lanes per call (0: the CPU's native width), `threads` workers.
+/// consecutive `cuts`, traced as `layout` says.
 fn bake(
     s: &PreparedMesh,
     lights: &LightSet,
     r: Option<f64>,
-    width: usize,
-    threads: usize,
+    spp: u32,
+    layout: Layout,
     cuts: &[usize],
 ) -> Out {
     let mut out = empty();
     for rows in cuts.windows(2) {
-        let mut baker = Baker::new_rows(s, &cfg(r, threads), rows[0]..rows[1]).unwrap();
-        if width != 0 {
-            baker.set_packet_width(width).unwrap();
+        let c = cfg(r, layout.threads, spp);
+        let mut baker = Baker::new_rows(s, &c, rows[0]..rows[1]).unwrap();
+        if layout.width != 0 {
+            baker.set_packet_width(layout.width).unwrap();
         }
+        baker.set_simd(layout.simd);
         let rep = baker
             .trace(lights, &mut |i, k, uv| {
                 collect(&mut out, i, k, uv);
@@ -108,8 +121,8 @@ fn check(spec: &str) {
     // 11 lights: more than one pass at 30×26 (8 per pass), some low enough to need copies.
     let lights = ptm_bake::dome::fibonacci(11, 8.0).unwrap();
     let far = 4.0 * s.tile[0].max(s.tile[1]);
-    for r in [None, Some(far)] {
-        let want = reference(&s, &lights, r);
+    for (r, spp) in [(None, 4), (Some(far), 4), (None, 9)] {
+        let want = reference(&s, &lights, r, spp);
         assert_eq!(want.k.len(), lights.dirs.len());
         assert_eq!(want.uv.iter().all(|p| p.is_empty()), r.is_none());
         // Not a trivial scene: partly occluded texels, and rays both traced and skipped.
@@ -121,16 +134,31 @@ fn check(spec: &str) {
         assert!(want.traced > 0 && want.skipped > 0, "{spec}");
         for width in [1, 4, 8, 16, 0] {
             for threads in [1, 2] {
-                let got = bake(&s, &lights, r, width, threads, &[0, 26]);
-                assert!(
-                    got == want,
-                    "{spec}, light distance {r:?}, width {width}, {threads} threads"
-                );
+                for simd in [true, false] {
+                    let layout = Layout {
+                        width,
+                        threads,
+                        simd,
+                    };
+                    let got = bake(&s, &lights, r, spp, layout, &[0, 26]);
+                    assert!(
+                        got == want,
+                        "{spec}, light distance {r:?}, spp {spp}, {layout:?}"
+                    );
+                }
             }
         }
         // Shards of a farm bake (row starts on multiples of 4), native width.
-        let got = bake(&s, &lights, r, 0, 2, &[0, 8, 20, 26]);
-        assert!(got == want, "{spec}, light distance {r:?}, shards");
+        let layout = Layout {
+            width: 0,
+            threads: 2,
+            simd: true,
+        };
+        let got = bake(&s, &lights, r, spp, layout, &[0, 8, 20, 26]);
+        assert!(
+            got == want,
+            "{spec}, light distance {r:?}, spp {spp}, shards"
+        );
     }
 }
 

@@ -1,0 +1,243 @@
+//! A distant light's shadow rays of one texel block, compacted for packets: of a run of a
+//! block's samples, the origins and texel lanes of those whose normal faces the light (the
+//! others are occluded without a ray), one after another, so that every packet but a block's
+//! last is full.
+//!
+//! Two builds of the one kernel, chosen at run time ([`Isa::detect`]): AVX-512F, which tests
+//! 16 samples at a time and compresses the facing ones into place (`vcompressps`), and portable
+//! Rust, which tests in straight lines (vectorized by the compiler) and compacts without
+//! branches. The facing test is the same sum in the same order in both, `l·n > 0` as
+//! `(lx·nx + ly·ny) + lz·nz` without contraction, so they pick the same samples in the same
+//! order (tested against each other and against the definition).
+
+/// Room for the rays waiting for a packet: fewer than a packet (16) carried over, plus one call's
+/// [`MAX_RUN`] samples, plus the 16-lane store past the end of the AVX-512 build.
+const CAP: usize = 128;
+
+/// The most samples one [`Compact::push_facing`] call takes.
+pub(crate) const MAX_RUN: usize = 64;
+
+/// Which build of the kernel runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Isa {
+    /// Plain Rust, on any CPU.
+    Portable,
+    /// AVX-512F, 16 lanes.
+    Avx512,
+}
+
+impl Isa {
+    /// The widest build this CPU runs.
+    pub(crate) fn detect() -> Isa {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            return Isa::Avx512;
+        }
+        Isa::Portable
+    }
+}
+
+/// The rays waiting for a packet: origins and the texel lane (0..16) of each.
+pub(crate) struct Compact {
+    pub(crate) org: [[f32; CAP]; 3],
+    pub(crate) lane: [u8; CAP],
+    pub(crate) len: usize,
+}
+
+impl Default for Compact {
+    fn default() -> Self {
+        Self {
+            org: [[0.0; CAP]; 3],
+            lane: [0; CAP],
+            len: 0,
+        }
+    }
+}
+
+impl Compact {
+    /// Appends the samples of `org`, `n` (per component) and `lane` whose normal faces the
+    /// light `l` (l·n > 0), in their order, with `isa`'s build; returns how many. At most
+    /// [`MAX_RUN`] samples, onto fewer than 32 waiting.
+    pub(crate) fn push_facing(
+        &mut self,
+        org: [&[f32]; 3],
+        n: [&[f32]; 3],
+        lane: &[u8],
+        l: [f32; 3],
+        isa: Isa,
+    ) -> usize {
+        let m = lane.len();
+        assert!(
+            m <= MAX_RUN && self.len < 32,
+            "a run of {m} onto {}",
+            self.len
+        );
+        assert!(org.iter().chain(&n).all(|c| c.len() == m));
+        let before = self.len;
+        match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 if std::arch::is_x86_feature_detected!("avx512f") => {
+                // SAFETY: the CPU has AVX-512F (checked just above).
+                unsafe { push_avx512(self, org, n, lane, l) }
+            }
+            _ => push_portable(self, org, n, lane, l),
+        }
+        self.len - before
+    }
+
+    /// Drops the first `at` rays.
+    pub(crate) fn shift(&mut self, at: usize) {
+        for a in 0..3 {
+            self.org[a].copy_within(at..self.len, 0);
+        }
+        self.lane.copy_within(at..self.len, 0);
+        self.len -= at;
+    }
+}
+
+/// The facing test in straight lines, then the compaction without branches: each sample is
+/// written at the end, and the end moves past it only if it faces the light.
+fn push_portable(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8], l: [f32; 3]) {
+    let mut up = [0u8; MAX_RUN];
+    let normals = n[0].iter().zip(n[1]).zip(n[2]);
+    for (((&x, &y), &z), up) in normals.zip(&mut up) {
+        *up = (l[0] * x + l[1] * y + l[2] * z > 0.0) as u8;
+    }
+    let origins = org[0].iter().zip(org[1]).zip(org[2]);
+    for ((((&px, &py), &pz), &lane), &up) in origins.zip(lane).zip(&up) {
+        let k = c.len & (CAP - 1);
+        c.org[0][k] = px;
+        c.org[1][k] = py;
+        c.org[2][k] = pz;
+        c.lane[k] = lane;
+        c.len += up as usize;
+    }
+}
+
+/// 16 samples at a time: the test as a lane mask, the facing lanes compressed to the front of
+/// each register and stored at the end (16 lanes wide: the rest is overwritten later).
+///
+/// # Safety
+/// The CPU must have AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8], l: [f32; 3]) {
+    use std::arch::x86_64::*;
+    let m = lane.len();
+    let (lx, ly, lz) = (
+        _mm512_set1_ps(l[0]),
+        _mm512_set1_ps(l[1]),
+        _mm512_set1_ps(l[2]),
+    );
+    for s in (0..m).step_by(16) {
+        let k = (m - s).min(16);
+        let tail: __mmask16 = if k == 16 { !0 } else { (1 << k) - 1 };
+        // SAFETY: masked loads read only the `k` elements from `s` of slices of length `m`;
+        // stores write 16 lanes from `len` < 32 + MAX_RUN, within CAP.
+        unsafe {
+            let load = |v: &[f32]| _mm512_maskz_loadu_ps(tail, v.as_ptr().add(s));
+            let d = _mm512_add_ps(
+                _mm512_add_ps(_mm512_mul_ps(lx, load(n[0])), _mm512_mul_ps(ly, load(n[1]))),
+                _mm512_mul_ps(lz, load(n[2])),
+            );
+            let up = _mm512_mask_cmp_ps_mask::<_CMP_GT_OQ>(tail, d, _mm512_setzero_ps());
+            let at = c.len;
+            for (dst, src) in c.org.iter_mut().zip(org) {
+                let v = _mm512_maskz_compress_ps(up, load(src));
+                _mm512_storeu_ps(dst.as_mut_ptr().add(at), v);
+            }
+            let mut bytes = [0u8; 16];
+            bytes[..k].copy_from_slice(&lane[s..s + k]);
+            let lanes = _mm512_cvtepu8_epi32(_mm_loadu_si128(bytes.as_ptr().cast()));
+            let packed = _mm512_cvtepi32_epi8(_mm512_maskz_compress_epi32(up, lanes));
+            _mm_storeu_si128(c.lane.as_mut_ptr().add(at).cast(), packed);
+            c.len = at + up.count_ones() as usize;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Random runs (lengths 0 to 64, onto 0 to 31 waiting rays) with normals that face the
+    /// light, face away, lie in its plane (n·l = 0 exactly), or are ±0 and NaN: both builds
+    /// keep exactly the samples whose l·n > 0, in order, with their origins and lanes.
+    #[test]
+    fn builds_keep_the_facing_samples_in_order() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut rand = move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        let mut isas = vec![Isa::Portable];
+        if Isa::detect() == Isa::Avx512 {
+            isas.push(Isa::Avx512);
+        } else {
+            eprintln!("no AVX-512 here: the portable build alone is checked");
+        }
+        for round in 0..2000 {
+            let m = (rand() % (MAX_RUN as u64 + 1)) as usize;
+            let waiting = (rand() % 32) as usize;
+            let l = [0.3f32, -0.4, (1.0f32 - 0.25).sqrt()];
+            let special = [0.0f32, -0.0, f32::NAN, 1e-40, -1e-40];
+            let mut n: [Vec<f32>; 3] = Default::default();
+            let mut org: [Vec<f32>; 3] = Default::default();
+            for i in 0..m {
+                let r = rand();
+                let v = match r % 5 {
+                    0 => [special[(r >> 8) as usize % 5]; 3],
+                    // In the light's plane: l·n is 0 exactly for this n.
+                    1 => [0.4, 0.3, 0.0],
+                    _ => [0, 1, 2].map(|a| ((rand() >> (11 + a)) % 2001) as f32 / 1000.0 - 1.0),
+                };
+                for a in 0..3 {
+                    n[a].push(v[a]);
+                    org[a].push(round as f32 + i as f32 * 0.25 + a as f32 * 1e-3);
+                }
+            }
+            let lane: Vec<u8> = (0..m).map(|i| (i % 16) as u8).collect();
+            let expected: Vec<usize> = (0..m)
+                .filter(|&i| l[0] * n[0][i] + l[1] * n[1][i] + l[2] * n[2][i] > 0.0)
+                .collect();
+            for &isa in &isas {
+                let mut c = Compact {
+                    len: waiting,
+                    ..Compact::default()
+                };
+                c.org[0][..waiting].fill(-7.0);
+                let got = c.push_facing(
+                    [&org[0], &org[1], &org[2]],
+                    [&n[0], &n[1], &n[2]],
+                    &lane,
+                    l,
+                    isa,
+                );
+                assert_eq!(got, expected.len(), "{isa:?}, round {round}");
+                assert!(c.org[0][..waiting].iter().all(|&x| x == -7.0));
+                for (j, &i) in expected.iter().enumerate() {
+                    for (got, want) in c.org.iter().zip(&org) {
+                        assert_eq!(got[waiting + j].to_bits(), want[i].to_bits());
+                    }
+                    assert_eq!(c.lane[waiting + j], lane[i], "{isa:?}, round {round}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn shift_keeps_the_rest_in_order() {
+        let mut c = Compact::default();
+        for i in 0..20 {
+            c.org[0][i] = i as f32;
+            c.lane[i] = i as u8;
+        }
+        c.len = 20;
+        c.shift(16);
+        assert_eq!(c.len, 4);
+        assert_eq!(&c.org[0][..4], &[16.0, 17.0, 18.0, 19.0]);
+        assert_eq!(&c.lane[..4], &[16, 17, 18, 19]);
+    }
+}
