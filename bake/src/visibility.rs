@@ -818,13 +818,15 @@ impl Baker {
                                 let r = run.block(&block, &mut queues);
                                 traced += r.traced;
                                 skipped += r.skipped;
-                                for lane in 0..16 {
-                                    let (i, j) = (bi * 4 + lane % 4, lane / 4);
-                                    if i < nx && j * nx < k_rows.len() {
-                                        k_rows[j * nx + i] = r.k[lane];
-                                        if point {
-                                            uv_rows[j * nx + i] = r.uv[lane];
-                                        }
+                                // The block's texels in the task's rows: 4 or fewer of
+                                // each row, and rows while the image has them.
+                                let (i, w) = (bi * 4, 4.min(nx - bi * 4));
+                                let rows_in = k_rows.len() / nx;
+                                for j in 0..rows_in.min(4) {
+                                    let at = j * nx + i;
+                                    k_rows[at..at + w].copy_from_slice(&r.k[j * 4..j * 4 + w]);
+                                    if let Some(uv) = &r.uv {
+                                        uv_rows[at..at + w].copy_from_slice(&uv[j * 4..j * 4 + w]);
                                     }
                                 }
                             }
@@ -890,7 +892,8 @@ enum Light {
 
 struct BlockResult {
     k: [f32; 16],
-    uv: [[f32; 2]; 16],
+    /// Point lights only: each texel's (u, v).
+    uv: Option<[[f32; 2]; 16]>,
     traced: u64,
     skipped: u64,
 }
@@ -1057,7 +1060,7 @@ fn finish(
 ) -> BlockResult {
     let mut out = BlockResult {
         k: [0.0; 16],
-        uv: [[0.0; 2]; 16],
+        uv: None,
         traced,
         skipped,
     };
@@ -1065,15 +1068,15 @@ fn finish(
     for ((k, &lit), &covered) in out.k.iter_mut().zip(lit).zip(covered) {
         *k = (covered - lit) as f32 / covered.max(1) as f32;
     }
-    for lane in 0..16 {
-        if covered[lane] > 0 {
-            if let Some(d) = dir_sum.map(|d| d[lane]) {
-                let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                if len > 0.0 {
-                    out.uv[lane] = [(d[0] / len) as f32, (d[1] / len) as f32];
-                }
+    if let Some(dir_sum) = dir_sum {
+        let mut uv = [[0.0; 2]; 16];
+        for ((uv, d), &covered) in uv.iter_mut().zip(dir_sum).zip(covered) {
+            let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+            if covered > 0 && len > 0.0 {
+                *uv = [(d[0] / len) as f32, (d[1] / len) as f32];
             }
         }
+        out.uv = Some(uv);
     }
     out
 }
