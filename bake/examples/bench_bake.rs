@@ -11,8 +11,9 @@
 //!   the device and scene builds to the last K plane (the bare loops reuse those scenes free),
 //!   less the time its sink spends counting occluded samples for the check (printed).
 //! - `oursN` (N = 1, 4, 8, 16): the baker with N lanes per Embree call.
-//! - `ours-portable` (or `oursN-portable`): the baker with its portable facing test and
-//!   compaction instead of the SIMD build this CPU has (`Baker::set_simd`).
+//! - `ours-BUILD` (or `oursN-BUILD`), BUILD `avx512f`, `avx2` or `portable`: the baker with that
+//!   build of its facing test and compaction instead of the widest this CPU has
+//!   (`Baker::set_simd`).
 //! - `bare`: the bare loop at the native packet width; `bare16` / `bare8` / `bare4`: at that
 //!   width (`bare16` is the C loop: `rtcOccluded16`, one by one inside Embree on a CPU
 //!   without AVX-512); `bareclip`: native width with `tfar` at the baker's clamp plane;
@@ -132,9 +133,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let i = (k + rep) % loops.len();
             let name = loops[i].as_str();
             row[i] = if let Some(w) = name.strip_prefix("ours") {
-                let (w, simd) = match w.strip_suffix("-portable") {
-                    Some(w) => (w, false),
-                    None => (w, true),
+                let (w, simd) = match w.split_once('-') {
+                    Some((w, build)) => (w, build),
+                    None => (w, "auto"),
                 };
                 let width = if w.is_empty() { None } else { Some(w.parse()?) };
                 ours(&swatch, &lights, &cfg, width, simd)?
@@ -218,11 +219,11 @@ fn ours(
     lights: &ptm_format::LightSet,
     cfg: &BakeConfig,
     width: Option<usize>,
-    simd: bool,
+    simd: &str,
 ) -> Result<Timing, ptm_bake::Error> {
     let t0 = Instant::now();
     let mut baker = Baker::new(swatch, cfg)?;
-    baker.set_simd(simd);
+    baker.set_simd(simd)?;
     if let Some(w) = width {
         baker.set_packet_width(w)?;
     }

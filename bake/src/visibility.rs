@@ -556,19 +556,36 @@ impl Baker {
         self.width
     }
 
-    /// Whether distant lights' rays are tested and compacted by the SIMD build this CPU has
-    /// (AVX-512F; the default where present) or by portable code from now on. K is the same
-    /// either way (tested): this is for tests and benchmarks of the fallback.
-    pub fn set_simd(&mut self, simd: bool) {
-        self.isa = if simd { Isa::detect() } else { Isa::Portable };
+    /// Which build tests and compacts distant lights' rays from now on (`bake/src/facing.rs`):
+    /// "auto" (the widest this CPU runs, the default), "avx512f", "avx2" or "portable". K is
+    /// the same with each (tested); this is for tests and benchmarks of the fallbacks. A build
+    /// this CPU lacks is refused.
+    pub fn set_simd(&mut self, build: &str) -> Result<()> {
+        let isa = match build {
+            "auto" => Isa::detect(),
+            "avx512f" => Isa::Avx512,
+            "avx2" => Isa::Avx2,
+            "portable" => Isa::Portable,
+            _ => {
+                return Err(Error::Config(format!(
+                    "SIMD build {build:?}: auto, avx512f, avx2 or portable"
+                )))
+            }
+        };
+        if !isa.supported() {
+            return Err(Error::Config(format!(
+                "SIMD build {build:?}: this CPU does not run it (it runs {:?})",
+                Isa::detect().name()
+            )));
+        }
+        self.isa = isa;
+        Ok(())
     }
 
-    /// The SIMD build in use for distant lights' rays: "avx512f" or "portable".
+    /// The build that tests and compacts distant lights' rays: "avx512f", "avx2" or
+    /// "portable".
     pub fn simd(&self) -> &'static str {
-        match self.isa {
-            Isa::Avx512 => "avx512f",
-            Isa::Portable => "portable",
-        }
+        self.isa.name()
     }
 
     /// Traces shadow rays `width` lanes per Embree call from now on: 16, 8 or 4 (packets,
