@@ -7,9 +7,9 @@
 //! 16 samples at a time and compresses the facing ones into place (`vcompressps`); AVX2, which
 //! tests 8 at a time and moves the facing ones to the front with a permutation looked up by the
 //! 8-bit mask; and portable Rust, which tests in straight lines (vectorized by the compiler) and
-//! compacts without branches. The facing test is the same sum in the same order in both, `l·n > 0` as
-//! `(lx·nx + ly·ny) + lz·nz` without contraction, so they pick the same samples in the same
-//! order (tested against each other and against the definition).
+//! compacts without branches. The facing test is the same sum in the same order in all three,
+//! `l·n > 0` as `(lx·nx + ly·ny) + lz·nz` without contraction, so they pick the same samples in
+//! the same order (tested against each other and against the definition).
 
 /// Room for the rays waiting for a packet: fewer than a packet (16) carried over, plus one call's
 /// [`MAX_RUN`] samples, plus the 16-lane store past the end of the AVX-512 build.
