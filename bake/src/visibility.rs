@@ -958,10 +958,14 @@ impl Run<'_> {
     fn block(&self, block: &BlockView, q: &mut Queues) -> BlockResult {
         match (self.light, self.scene, self.width) {
             (Some(Light::Distant(l)), Some(scene), 16) => {
-                self.distant_w(block, l, scene, &mut q.w16)
+                self.distant_w(block, l, scene, &mut q.w16, &mut q.compact)
             }
-            (Some(Light::Distant(l)), Some(scene), 8) => self.distant_w(block, l, scene, &mut q.w8),
-            (Some(Light::Distant(l)), Some(scene), 4) => self.distant_w(block, l, scene, &mut q.w4),
+            (Some(Light::Distant(l)), Some(scene), 8) => {
+                self.distant_w(block, l, scene, &mut q.w8, &mut q.compact)
+            }
+            (Some(Light::Distant(l)), Some(scene), 4) => {
+                self.distant_w(block, l, scene, &mut q.w4, &mut q.compact)
+            }
             (_, _, 16) => self.block_w(block, &mut q.w16),
             (_, _, 8) => self.block_w(block, &mut q.w8),
             (_, _, 4) => self.block_w(block, &mut q.w4),
@@ -986,6 +990,7 @@ impl Run<'_> {
         l: [f32; 3],
         scene: &Scene,
         queue: &mut Queue<W>,
+        compact: &mut Compact,
     ) -> BlockResult {
         let mut lit = [0u32; 16];
         let mut traced = 0u64;
@@ -994,12 +999,12 @@ impl Run<'_> {
         let len = block.lane.len();
         // The rays to trace, compacted 64 entries at a time, then handed over a packet at a
         // time; fewer than a packet's wait for the next entries.
-        queue.compact.len = 0;
+        compact.len = 0;
         for start in (0..len).step_by(MAX_RUN) {
             let end = (start + MAX_RUN).min(len);
             let r = start..end;
             let ([ox, oy, oz], [nx, ny, nz]) = (block.org, block.n);
-            traced += queue.compact.push_facing(
+            traced += compact.push_facing(
                 [&ox[r.clone()], &oy[r.clone()], &oz[r.clone()]],
                 [&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]],
                 &block.lane[r],
@@ -1007,15 +1012,15 @@ impl Run<'_> {
                 self.isa,
             ) as u64;
             let mut at = 0;
-            while queue.compact.len - at >= W {
-                queue.load(at, W, z_cap, l[2]);
+            while compact.len - at >= W {
+                queue.load(compact, at, W, z_cap, l[2]);
                 queue.trace(scene, &mut lit);
                 at += W;
             }
-            queue.compact.shift(at);
+            compact.shift(at);
         }
-        if queue.compact.len > 0 {
-            queue.load(0, queue.compact.len, z_cap, l[2]);
+        if compact.len > 0 {
+            queue.load(compact, 0, compact.len, z_cap, l[2]);
             queue.trace(scene, &mut lit);
         }
         finish(&lit, block.covered, None, traced, len as u64 - traced)
@@ -1098,8 +1103,9 @@ fn finish(
     out
 }
 
-/// One queue of each packet width, kept by a task across its blocks and lights: a packet
-/// is 1.5 KB, and building one per block and light cost 1 % of a bake in `memmove` alone.
+/// One queue of each packet width and one buffer of compacted rays, kept by a task across its
+/// blocks and lights: a packet is 1.5 KB, and building one per block and light cost 1 % of a
+/// bake in `memmove` alone.
 #[derive(Default)]
 struct Queues {
     w16: Queue<16>,
@@ -1107,6 +1113,8 @@ struct Queues {
     w4: Queue<4>,
     /// Holds nothing: single rays go straight to `rtcOccluded1`.
     w1: Queue<1>,
+    /// A distant light's rays of the block, compacted ([`Run::distant_w`]), whatever the width.
+    compact: Box<Compact>,
 }
 
 /// Shadow rays of one block waiting for a full packet of `W` lanes. The block's rays to be
@@ -1123,8 +1131,6 @@ struct Queue<const W: usize> {
     len: usize,
     /// The lanes `valid` marks active (the first `active`).
     active: usize,
-    /// A distant light's rays of the block, compacted ([`Run::distant_w`]).
-    compact: Box<Compact>,
 }
 
 impl<const W: usize> Default for Queue<W> {
@@ -1141,7 +1147,6 @@ impl<const W: usize> Queue<W> {
             active: 0,
             lane: [0; W],
             len: 0,
-            compact: Box::default(),
         }
     }
 
@@ -1153,10 +1158,10 @@ impl<const W: usize> Queue<W> {
         self.packet.dir_z = [dir[2]; W];
     }
 
-    /// Fills the packet with `n` rays of [`Queue::compact`] from `at`, each ending at the
-    /// clamp plane `z_cap` (`lz`: the light's z).
-    fn load(&mut self, at: usize, n: usize, z_cap: f32, lz: f32) {
-        let (p, c) = (&mut self.packet, &self.compact);
+    /// Fills the packet with `n` rays of `c` from `at`, each ending at the clamp plane `z_cap`
+    /// (`lz`: the light's z).
+    fn load(&mut self, c: &Compact, at: usize, n: usize, z_cap: f32, lz: f32) {
+        let p = &mut self.packet;
         p.org_x[..n].copy_from_slice(&c.org[0][at..at + n]);
         p.org_y[..n].copy_from_slice(&c.org[1][at..at + n]);
         p.org_z[..n].copy_from_slice(&c.org[2][at..at + n]);
