@@ -87,7 +87,10 @@ impl Default for Compact {
 impl Compact {
     /// Appends the samples of `org`, `n` (per component) and `lane` whose normal faces the
     /// light `l` (l·n > 0), in their order, with `isa`'s build; returns how many. At most
-    /// [`MAX_RUN`] samples, onto fewer than 32 waiting.
+    /// [`MAX_RUN`] samples, onto fewer than 32 waiting. `lane` runs on to a whole number of
+    /// 16 entries ([`lanes_room`]): the vector builds load it 16 or 8 bytes at a time without
+    /// a copy of the tail (a copy stalled the load after it on store forwarding), and what
+    /// lies past the samples is never kept.
     pub(crate) fn push_facing(
         &mut self,
         org: [&[f32]; 3],
@@ -96,13 +99,18 @@ impl Compact {
         l: [f32; 3],
         isa: Isa,
     ) -> usize {
-        let m = lane.len();
+        let m = org[0].len();
         assert!(
             m <= MAX_RUN && self.len < 32,
             "a run of {m} onto {}",
             self.len
         );
         assert!(org.iter().chain(&n).all(|c| c.len() == m));
+        assert!(
+            lane.len() >= lanes_room(m),
+            "{} lanes for {m} samples",
+            lane.len()
+        );
         let before = self.len;
         match isa {
             #[cfg(target_arch = "x86_64")]
@@ -120,14 +128,23 @@ impl Compact {
         self.len - before
     }
 
-    /// Drops the first `at` rays.
+    /// Drops the first `at` rays, of which fewer than 16 remain after them. (16 are moved
+    /// whatever remains, in straight lines: a copy of the remainder's length was a `memmove`
+    /// call.)
     pub(crate) fn shift(&mut self, at: usize) {
+        assert!(self.len - at < 16 && at + 16 <= CAP, "{at} of {}", self.len);
         for a in 0..3 {
-            self.org[a].copy_within(at..self.len, 0);
+            self.org[a].copy_within(at..at + 16, 0);
         }
-        self.lane.copy_within(at..self.len, 0);
+        self.lane.copy_within(at..at + 16, 0);
         self.len -= at;
     }
+}
+
+/// The length the texel lanes of `m` samples run on to for [`Compact::push_facing`]: `m` to a
+/// whole number of 16.
+pub(crate) const fn lanes_room(m: usize) -> usize {
+    m.div_ceil(16) * 16
 }
 
 /// The facing test in straight lines, then the compaction without branches: each sample is
@@ -158,7 +175,7 @@ fn push_portable(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8],
 #[target_feature(enable = "avx512f")]
 unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8], l: [f32; 3]) {
     use std::arch::x86_64::*;
-    let m = lane.len();
+    let m = org[0].len();
     let (lx, ly, lz) = (
         _mm512_set1_ps(l[0]),
         _mm512_set1_ps(l[1]),
@@ -167,8 +184,9 @@ unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &
     for s in (0..m).step_by(16) {
         let k = (m - s).min(16);
         let tail: __mmask16 = if k == 16 { !0 } else { (1 << k) - 1 };
-        // SAFETY: masked loads read only the `k` elements from `s` of slices of length `m`;
-        // stores write 16 lanes from `len` < 32 + MAX_RUN, within CAP.
+        // SAFETY: masked loads read only the `k` elements from `s` of slices of length `m`,
+        // the lanes 16 bytes from `s`, a multiple of 16 below `m` (`lane` runs on to
+        // `lanes_room(m)`); stores write 16 lanes from `len` < 32 + MAX_RUN, within CAP.
         unsafe {
             let load = |v: &[f32]| _mm512_maskz_loadu_ps(tail, v.as_ptr().add(s));
             let d = _mm512_add_ps(
@@ -181,9 +199,7 @@ unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &
                 let v = _mm512_maskz_compress_ps(up, load(src));
                 _mm512_storeu_ps(dst.as_mut_ptr().add(at), v);
             }
-            let mut bytes = [0u8; 16];
-            bytes[..k].copy_from_slice(&lane[s..s + k]);
-            let lanes = _mm512_cvtepu8_epi32(_mm_loadu_si128(bytes.as_ptr().cast()));
+            let lanes = _mm512_cvtepu8_epi32(_mm_loadu_si128(lane.as_ptr().add(s).cast()));
             let packed = _mm512_cvtepi32_epi8(_mm512_maskz_compress_epi32(up, lanes));
             _mm_storeu_si128(c.lane.as_mut_ptr().add(at).cast(), packed);
             c.len = at + up.count_ones() as usize;
@@ -230,7 +246,7 @@ static FRONT: [[u32; 8]; 256] = {
 #[target_feature(enable = "avx2")]
 unsafe fn push_avx2(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8], l: [f32; 3]) {
     use std::arch::x86_64::*;
-    let m = lane.len();
+    let m = org[0].len();
     let (lx, ly, lz) = (
         _mm256_set1_ps(l[0]),
         _mm256_set1_ps(l[1]),
@@ -271,14 +287,8 @@ unsafe fn push_avx2(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u
                 let v = _mm256_permutevar8x32_ps(load(src), idx);
                 _mm256_storeu_ps(dst.as_mut_ptr().add(at), v);
             }
-            let lanes = if k == 8 {
-                _mm_loadl_epi64(lane.as_ptr().add(s).cast())
-            } else {
-                let mut bytes = [0u8; 8];
-                bytes[..k].copy_from_slice(&lane[s..s + k]);
-                _mm_loadl_epi64(bytes.as_ptr().cast())
-            };
-            let lanes = _mm256_cvtepu8_epi32(lanes);
+            // 8 bytes from `s`, a multiple of 8 below `m`: within `lanes_room(m)`.
+            let lanes = _mm256_cvtepu8_epi32(_mm_loadl_epi64(lane.as_ptr().add(s).cast()));
             let moved = _mm256_permutevar8x32_epi32(lanes, idx);
             // The low byte of each 32-bit lane, in order: 8 bytes.
             let pick = _mm256_setr_epi8(
@@ -336,7 +346,10 @@ mod tests {
                     org[a].push(round as f32 + i as f32 * 0.25 + a as f32 * 1e-3);
                 }
             }
-            let lane: Vec<u8> = (0..m).map(|i| (i % 16) as u8).collect();
+            // Past the samples, lanes that must never be kept.
+            let lane: Vec<u8> = (0..lanes_room(m))
+                .map(|i| if i < m { (i % 16) as u8 } else { 0xee })
+                .collect();
             let expected: Vec<usize> = (0..m)
                 .filter(|&i| l[0] * n[0][i] + l[1] * n[1][i] + l[2] * n[2][i] > 0.0)
                 .collect();
@@ -361,6 +374,8 @@ mod tests {
                     }
                     assert_eq!(c.lane[waiting + j], lane[i], "{isa:?}, round {round}");
                 }
+                let kept = &c.lane[..waiting + expected.len()];
+                assert!(!kept.contains(&0xee), "{isa:?}, round {round}");
             }
         }
     }

@@ -15,7 +15,7 @@ use ptm_format::LightSet;
 use rayon::prelude::*;
 
 use crate::embree::{self, Device, Packet, Scene, Valid};
-use crate::facing::{Compact, Isa, MAX_RUN};
+use crate::facing::{lanes_room, Compact, Isa, MAX_RUN};
 use crate::maps::{Surface, SurfaceHit};
 use crate::swatch::PreparedMesh;
 use crate::tiling;
@@ -284,6 +284,7 @@ impl Blocks {
             org: [run(0), run(1), run(2)],
             n: [run(3), run(4), run(5)],
             lane: &self.lane[b * cap..b * cap + len],
+            lanes_room: &self.lane[b * cap..(b + 1) * cap],
             covered,
         }
     }
@@ -315,6 +316,9 @@ struct BlockView<'a> {
     org: [&'a [f32]; 3],
     n: [&'a [f32]; 3],
     lane: &'a [u8],
+    /// `lane` and the rest of the block's share (16·spp entries, a whole number of 16), for
+    /// the vector loads of [`Compact::push_facing`].
+    lanes_room: &'a [u8],
     covered: &'a [u32; 16],
 }
 
@@ -1007,7 +1011,7 @@ impl Run<'_> {
             traced += compact.push_facing(
                 [&ox[r.clone()], &oy[r.clone()], &oz[r.clone()]],
                 [&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]],
-                &block.lane[r],
+                &block.lanes_room[start..start + lanes_room(end - start)],
                 l,
                 self.isa,
             ) as u64;
@@ -1159,16 +1163,18 @@ impl<const W: usize> Queue<W> {
     }
 
     /// Fills the packet with `n` rays of `c` from `at`, each ending at the clamp plane `z_cap`
-    /// (`lz`: the light's z).
+    /// (`lz`: the light's z). All `W` lanes are copied, in straight lines (a copy of `n`, known
+    /// only at run time, was a `memmove` call per component): lanes from `n` on hold whatever
+    /// `c` holds there and stay inactive.
     fn load(&mut self, c: &Compact, at: usize, n: usize, z_cap: f32, lz: f32) {
         let p = &mut self.packet;
-        p.org_x[..n].copy_from_slice(&c.org[0][at..at + n]);
-        p.org_y[..n].copy_from_slice(&c.org[1][at..at + n]);
-        p.org_z[..n].copy_from_slice(&c.org[2][at..at + n]);
-        for (t, &z) in p.tfar[..n].iter_mut().zip(&p.org_z[..n]) {
+        p.org_x.copy_from_slice(&c.org[0][at..at + W]);
+        p.org_y.copy_from_slice(&c.org[1][at..at + W]);
+        p.org_z.copy_from_slice(&c.org[2][at..at + W]);
+        for (t, &z) in p.tfar.iter_mut().zip(&p.org_z) {
             *t = ((z_cap - z) / lz).max(0.0);
         }
-        self.lane[..n].copy_from_slice(&c.lane[at..at + n]);
+        self.lane.copy_from_slice(&c.lane[at..at + W]);
         self.len = n;
     }
 
