@@ -23,7 +23,11 @@
 //! shadow rays per second (rays actually traced), then medians over the runs of each ratio
 //! against the first bare loop, taken within each run (min–max), and the load average.
 //!
-//! `cargo run --release -p ptm-bake --example bench_bake -- [SWATCH RES LIGHTS SPP MIN_ELEV REPEATS] [--loops=…] [--threads=N]`
+//! `--embree=CONFIG` gives every loop's Embree device that config as well: `--embree=isa=avx2`
+//! runs Embree's AVX2 kernels (8-ray packets) on a CPU with AVX-512, the code an AVX2-only CPU
+//! runs (with `ours-avx2` for the baker's own part).
+//!
+//! `cargo run --release -p ptm-bake --example bench_bake -- [SWATCH RES LIGHTS SPP MIN_ELEV REPEATS] [--loops=…] [--threads=N] [--embree=CONFIG]`
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
@@ -91,16 +95,22 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .num_threads(threads)
         .start_handler(|_| embree::set_ftz_daz())
         .build()?;
+    let embree_config = flag("embree").unwrap_or_default();
     // The bare loops' scenes: the baker's per-light scenes of copies, built once, untimed.
-    let mut scenes_owner = Baker::new(&swatch, &cfg)?;
+    let mut scenes_owner = Baker::with_embree_config(&swatch, &cfg, &embree_config)?;
     for &l in &lights.dirs {
         scenes_owner.prepare_direction(l)?;
     }
     let native = scenes_owner.packet_width();
     println!(
-        "cpu: {}; {} threads; Embree native packet width {native}; facing test {}",
+        "cpu: {}; {} threads; Embree native packet width {native}{}; facing test {}",
         cpu_name(),
         pool.current_num_threads(),
+        if embree_config.is_empty() {
+            String::new()
+        } else {
+            format!(" (Embree device config {embree_config:?})")
+        },
         scenes_owner.simd()
     );
     println!(
@@ -138,7 +148,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     None => (w, "auto"),
                 };
                 let width = if w.is_empty() { None } else { Some(w.parse()?) };
-                ours(&swatch, &lights, &cfg, width, simd)?
+                ours(&swatch, &lights, &cfg, &embree_config, width, simd)?
             } else if let Some(w) = name.strip_prefix("bare") {
                 match w {
                     "" => bare.run(native, false, false),
@@ -218,11 +228,12 @@ fn ours(
     swatch: &PreparedMesh,
     lights: &ptm_format::LightSet,
     cfg: &BakeConfig,
+    embree: &str,
     width: Option<usize>,
     simd: &str,
 ) -> Result<Timing, ptm_bake::Error> {
     let t0 = Instant::now();
-    let mut baker = Baker::new(swatch, cfg)?;
+    let mut baker = Baker::with_embree_config(swatch, cfg, embree)?;
     baker.set_simd(simd)?;
     if let Some(w) = width {
         baker.set_packet_width(w)?;

@@ -462,6 +462,19 @@ impl Baker {
         Self::build(swatch, cfg, rows, texels.to_vec(), false)
     }
 
+    /// As [`Baker::new`] on an Embree device also given `embree`, an Embree device config
+    /// string (`"isa=avx2"` runs Embree's AVX2 kernels, 8-ray packets, on a CPU with AVX-512):
+    /// for benchmarks and checks of the kernels another CPU would run. Embree checks little
+    /// (4.4 ignores keys it does not know and ran `isa=foo` as SSE): [`Baker::packet_width`]
+    /// says which width it traces.
+    pub fn with_embree_config(
+        swatch: &PreparedMesh,
+        cfg: &BakeConfig,
+        embree: &str,
+    ) -> Result<Self> {
+        Self::build_on(swatch, cfg, 0..cfg.res[1], Vec::new(), false, embree)
+    }
+
     /// As [`Baker::new_rows`], also summing the primary hits per texel for the companion maps
     /// (height and normal, [`Baker::take_surface`]). Tracing is the same: no ray is added.
     pub fn with_surface(
@@ -485,6 +498,17 @@ impl Baker {
         texels: Vec<[usize; 2]>,
         surface: bool,
     ) -> Result<Self> {
+        Self::build_on(swatch, cfg, rows, texels, surface, "")
+    }
+
+    fn build_on(
+        swatch: &PreparedMesh,
+        cfg: &BakeConfig,
+        rows: Range<usize>,
+        texels: Vec<[usize; 2]>,
+        surface: bool,
+        embree: &str,
+    ) -> Result<Self> {
         let nx = if texels.is_empty() { cfg.res[0] } else { 4 };
         // A compact image's rows are its own; the checks of the settings are the same.
         let checked = if texels.is_empty() {
@@ -499,11 +523,10 @@ impl Baker {
             .start_handler(|_| embree::set_ftz_daz())
             .build()
             .map_err(|e| Error::Config(format!("thread pool: {e}")))?;
-        let device = Device::new(&if cfg.threads > 0 {
-            format!("threads={}", cfg.threads)
-        } else {
-            String::new()
-        })?;
+        let threads = (cfg.threads > 0).then(|| format!("threads={}", cfg.threads));
+        let extra = (!embree.is_empty()).then_some(embree);
+        let config: Vec<&str> = threads.as_deref().into_iter().chain(extra).collect();
+        let device = Device::new(&config.join(","))?;
         let frame = Frame::new(swatch);
         let (unit, swatch) = (frame.unit, &*frame.swatch);
         let tile_scene = device.triangle_scene(&swatch.positions, &swatch.triangles)?;
