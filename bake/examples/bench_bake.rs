@@ -3,8 +3,10 @@
 //! footprint sample, then per light one coherent packet per `W` consecutive samples of an image
 //! row (16: 4 texels at spp 4), every covered sample traced (no facing test), `tfar` = ∞,
 //! rayon over rows, FTZ/DAZ on.
-//! It traces against the baker's own per-light scenes of copies (so both count the same
-//! shadows) and keeps its samples as structures of arrays, ready for packets: no bookkeeping.
+//! It traces against the baker's per-light scenes of copies of the tile as instances (the
+//! scenes `Baker::trace` builds where centred ones do not pay: the same hits), built once
+//! and untimed, and keeps its samples as structures of arrays, ready for packets: no
+//! bookkeeping.
 //!
 //! Loops (`--loops=a,b,…`, each run alternates their order; default `ours,bare,bare16`):
 //! - `ours`: `Baker::new` + `Baker::trace` at the CPU's native packet width; wall time from
@@ -14,6 +16,9 @@
 //! - `ours-BUILD` (or `oursN-BUILD`), BUILD `avx512f`, `avx2` or `portable`: the baker with that
 //!   build of its facing test and compaction instead of the widest this CPU has
 //!   (`Baker::set_simd`).
+//! - `ours…@centred`, `ours…@instances`: the baker with its shadow scenes' central copy as
+//!   triangles, or as an instance like every other copy, whatever `centred_pays` says
+//!   (`Baker::set_centred_scenes`).
 //! - `bare`: the bare loop at the native packet width; `bare16` / `bare8` / `bare4`: at that
 //!   width (`bare16` is the C loop: `rtcOccluded16`, one by one inside Embree on a CPU
 //!   without AVX-512); `bareclip`: native width with `tfar` at the baker's clamp plane;
@@ -51,6 +56,8 @@ struct Timing {
     traced: u64,
     occluded: u64,
     counted: u64,
+    /// The baker's scenes of copies built with the central copy as triangles.
+    centred: usize,
 }
 
 impl Timing {
@@ -141,14 +148,20 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         // by its position.
         for k in 0..loops.len() {
             let i = (k + rep) % loops.len();
-            let name = loops[i].as_str();
+            let (name, scenes) = loops[i].split_once('@').unwrap_or((&loops[i], "auto"));
             row[i] = if let Some(w) = name.strip_prefix("ours") {
                 let (w, simd) = match w.split_once('-') {
                     Some((w, build)) => (w, build),
                     None => (w, "auto"),
                 };
                 let width = if w.is_empty() { None } else { Some(w.parse()?) };
-                ours(&swatch, &lights, &cfg, &embree_config, width, simd)?
+                let centred = match scenes {
+                    "auto" => None,
+                    "centred" => Some(true),
+                    "instances" => Some(false),
+                    s => return Err(format!("{s}: @centred or @instances").into()),
+                };
+                ours(&swatch, &lights, &cfg, &embree_config, width, simd, centred)?
             } else if let Some(w) = name.strip_prefix("bare") {
                 match w {
                     "" => bare.run(native, false, false),
@@ -172,6 +185,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             );
             if t.sink > 0.0 {
                 print!(" (sink's count {:.3} s left out)", t.sink);
+            }
+            if t.centred > 0 {
+                print!(" ({} scenes centred)", t.centred);
             }
         }
         println!();
@@ -231,10 +247,12 @@ fn ours(
     embree: &str,
     width: Option<usize>,
     simd: &str,
+    centred: Option<bool>,
 ) -> Result<Timing, ptm_bake::Error> {
     let t0 = Instant::now();
     let mut baker = Baker::with_embree_config(swatch, cfg, embree)?;
     baker.set_simd(simd)?;
+    baker.set_centred_scenes(centred);
     if let Some(w) = width {
         baker.set_packet_width(w)?;
     }
@@ -260,6 +278,7 @@ fn ours(
         shadow: rep.seconds_shadow - in_sink,
         cpu_shadow: cpu_seconds() - cpu0 - in_sink,
         sink: in_sink,
+        centred: rep.centred_scenes,
         traced: rep.shadow_rays,
         occluded: (counted.round() as u64).saturating_sub(rep.shadow_rays_skipped),
         counted: counted.round() as u64,
@@ -423,6 +442,7 @@ impl Bare<'_> {
             shadow,
             cpu_shadow: cpu_seconds() - cpu0,
             sink: 0.0,
+            centred: 0,
             traced: traced.load(Ordering::Relaxed),
             occluded,
             counted: occluded,

@@ -110,6 +110,18 @@ impl Device {
     /// while every farm shard pays the build again. Every bake, whole or sharded, uses this
     /// one quality, so the shards' hits are the whole bake's.
     pub fn triangle_scene(&self, positions: &[[f32; 3]], triangles: &[[u32; 3]]) -> Result<Scene> {
+        let scene = self.new_scene(sys::RTCBuildQuality::MEDIUM)?;
+        self.attach_triangles(&scene, positions, triangles)?;
+        scene.commit(self)
+    }
+
+    /// Attaches a triangle geometry (copies of `positions` and `triangles`) to `scene`.
+    fn attach_triangles(
+        &self,
+        scene: &UncommittedScene,
+        positions: &[[f32; 3]],
+        triangles: &[[u32; 3]],
+    ) -> Result<()> {
         // SAFETY: every handle is checked for null; buffers are sized by Embree for exactly
         // the counts we write (Embree pads vertex buffers for its 16-byte loads itself).
         unsafe {
@@ -142,16 +154,52 @@ impl Device {
             ptr::copy_nonoverlapping(positions.as_ptr(), vb, positions.len());
             ptr::copy_nonoverlapping(triangles.as_ptr(), ib, triangles.len());
             sys::rtcCommitGeometry(geom);
-            let scene = self.new_scene(sys::RTCBuildQuality::MEDIUM)?;
             sys::rtcAttachGeometry(scene.raw, geom);
             sys::rtcReleaseGeometry(geom);
-            scene.commit(self)
         }
+        Ok(())
     }
 
     /// A scene of translated instances of `child` (one per offset), committed.
     pub fn instance_scene(&self, child: &Scene, offsets: &[[f32; 3]]) -> Result<Scene> {
         let scene = self.new_scene(sys::RTCBuildQuality::MEDIUM)?;
+        self.attach_instances(&scene, child, offsets)?;
+        scene.commit(self)
+    }
+
+    /// As [`Device::instance_scene`], but the copy at offset 0 is the triangles of `child`
+    /// (`positions`, `triangles`, as [`Device::triangle_scene`] made it) in the scene itself,
+    /// not an instance: a ray then meets that copy without Embree's instance transform and
+    /// without the top level's walk to it. The same hits: Embree's identity transform leaves
+    /// every origin as it is (up to the sign of a zero coordinate, which no `v − org` sees)
+    /// and turns a direction's −0 into +0, so a caller gives directions without −0
+    /// (`x + 0.0`), and the triangles' BVH is built by the same builder at the same quality
+    /// from the same input as `child`'s. Costs a build of those triangles per scene (about
+    /// 4.6 ms for 47,616 on 2 cores) and memory for them (about 80 bytes a triangle).
+    pub fn centred_instance_scene(
+        &self,
+        child: &Scene,
+        positions: &[[f32; 3]],
+        triangles: &[[u32; 3]],
+        offsets: &[[f32; 3]],
+    ) -> Result<Scene> {
+        let scene = self.new_scene(sys::RTCBuildQuality::MEDIUM)?;
+        let (centre, others): (Vec<[f32; 3]>, Vec<[f32; 3]>) =
+            offsets.iter().partition(|o| **o == [0.0; 3]);
+        if !centre.is_empty() {
+            self.attach_triangles(&scene, positions, triangles)?;
+        }
+        self.attach_instances(&scene, child, &others)?;
+        scene.commit(self)
+    }
+
+    /// Attaches a translated instance of `child` to `scene` per offset.
+    fn attach_instances(
+        &self,
+        scene: &UncommittedScene,
+        child: &Scene,
+        offsets: &[[f32; 3]],
+    ) -> Result<()> {
         for o in offsets {
             // Column-major 3×4 affine transform: identity rotation, translation `o`.
             let xfm: [f32; 12] = [
@@ -176,7 +224,7 @@ impl Device {
                 sys::rtcReleaseGeometry(geom);
             }
         }
-        scene.commit(self)
+        Ok(())
     }
 
     fn new_scene(&self, quality: sys::RTCBuildQuality) -> Result<UncommittedScene> {
@@ -204,17 +252,29 @@ impl Drop for Device {
     }
 }
 
+/// A scene being filled; released if dropped before [`UncommittedScene::commit`] (an error
+/// while attaching).
 struct UncommittedScene {
     raw: sys::RTCScene,
 }
 
 impl UncommittedScene {
     fn commit(self, device: &Device) -> Result<Scene> {
+        let raw = self.raw;
+        // Our reference passes to the `Scene`, which releases it (also on the error below).
+        std::mem::forget(self);
         // SAFETY: valid scene; commit happens before any query.
-        unsafe { sys::rtcCommitScene(self.raw) };
-        let scene = Scene { raw: self.raw };
+        unsafe { sys::rtcCommitScene(raw) };
+        let scene = Scene { raw };
         device.take_error("rtcCommitScene")?;
         Ok(scene)
+    }
+}
+
+impl Drop for UncommittedScene {
+    fn drop(&mut self) {
+        // SAFETY: we own one reference.
+        unsafe { sys::rtcReleaseScene(self.raw) };
     }
 }
 
