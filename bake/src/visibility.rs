@@ -399,6 +399,9 @@ impl Tracer for Baker {
     }
 }
 
+/// A tile's vertex positions and triangles (vertex indices).
+type TileMesh = (Vec<[f32; 3]>, Vec<[u32; 3]>);
+
 /// A scene built once and its primary hits; [`Baker::trace`] then runs any light set.
 pub struct Baker {
     cfg: BakeConfig,
@@ -420,7 +423,7 @@ pub struct Baker {
     tile_scene: Scene,
     /// The tile's triangles as the tile scene has them (baker units), kept for centred scenes
     /// while their count is within [`CENTRED_MAX_TRIANGLES`]; none otherwise.
-    tile_mesh: Option<(Vec<[f32; 3]>, Vec<[u32; 3]>)>,
+    tile_mesh: Option<TileMesh>,
     /// Centred scenes: `None` where [`centred_pays`] decides, else always or never
     /// ([`Baker::set_centred_scenes`]).
     centred: Option<bool>,
