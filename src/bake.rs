@@ -1266,7 +1266,9 @@ fn check_memory(
     // The tracer's host memory: Embree's primary samples, or the GPU bake's pass planes and
     // (with several bands) its samples between passes.
     let baker = match device {
-        ptm_gpubake::Used::Cpu => ptm_bake::baker_bytes(res, args.spp),
+        ptm_gpubake::Used::Cpu => {
+            ptm_bake::baker_bytes(res, args.spp) + ptm_bake::centred_bytes(res, args.spp, lights)
+        }
         ptm_gpubake::Used::Gpu => ptm_gpubake::budget::host_bytes(
             res[0],
             res[1],
@@ -1290,7 +1292,7 @@ fn check_memory(
     if need > 0.9 * available as f64 {
         let gib = |b: f64| b / (1u64 << 30) as f64;
         bail!(
-            "this bake needs about {:.1} GiB ({}×{} texels × {} spp of primary samples: {:.1} GiB; \
+            "this bake needs about {:.1} GiB ({}×{} texels × {} spp of primary samples and scenes: {:.1} GiB; \
              {} lights: {:.1} GiB; {}) but only {:.1} GiB of memory is available: lower \
              --res, --spp or the number of lights{}",
             gib(need),

@@ -175,7 +175,7 @@ impl Device {
     /// and turns a direction's −0 into +0, so a caller gives directions without −0
     /// (`x + 0.0`), and the triangles' BVH is built by the same builder at the same quality
     /// from the same input as `child`'s. Costs a build of those triangles per scene (about
-    /// 4.6 ms for 47,616 on 2 cores) and memory for them (about 80 bytes a triangle).
+    /// 4.6 ms for 47,616 on 2 cores) and memory for them (about 90 bytes a triangle).
     pub fn centred_instance_scene(
         &self,
         child: &Scene,

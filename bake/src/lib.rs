@@ -20,8 +20,8 @@ pub mod visibility;
 
 pub use swatch::{Diagnostic, PreparedMesh};
 pub use visibility::{
-    bake_planes, baker_bytes, check_config, sample_xy, BakeConfig, BakeReport, Baker, Frame,
-    Planes, PrimarySample, Sink, Tracer,
+    bake_planes, baker_bytes, centred_bytes, check_config, sample_xy, BakeConfig, BakeReport,
+    Baker, Frame, Planes, PrimarySample, Sink, Tracer,
 };
 
 /// Errors of the bake crate; messages name the input and the fact, and no command-line flag

@@ -348,8 +348,22 @@ pub fn lights_per_pass(res: [usize; 2]) -> usize {
 }
 
 /// The most triangles, over all centred scenes of a bake, that [`centred_pays`] allows: each
-/// holds its own BVH of the tile (about 80 bytes a triangle: 170 MB at this cap).
+/// holds its own BVH of the tile and a copy of its buffers ([`CENTRED_BYTES_PER_TRIANGLE`]:
+/// 189 MB at this cap).
 pub const CENTRED_MAX_TRIANGLES: usize = 1 << 21;
+
+/// Bytes a centred scene holds per triangle of the tile: Embree's BVH8 of 4-triangle leaves
+/// (70 bytes a triangle in its build statistics, allocation included) and the copied vertex
+/// and index buffers (about 18).
+pub const CENTRED_BYTES_PER_TRIANGLE: f64 = 90.0;
+
+/// The most bytes the centred scenes of a trace of `lights` lights over `res` texels at `spp`
+/// samples can hold ([`centred_pays`] with every sample covered): for the memory check
+/// before a bake, beside [`baker_bytes`].
+pub fn centred_bytes(res: [usize; 2], spp: u32, lights: usize) -> f64 {
+    let rays = res[0] as f64 * res[1] as f64 * spp as f64 * lights as f64;
+    (rays / 100.0).min(CENTRED_MAX_TRIANGLES as f64) * CENTRED_BYTES_PER_TRIANGLE
+}
 
 /// Whether a trace of `rays` shadow rays (covered samples × lights above the horizon) should
 /// build its `sets` scenes of copies centred ([`Device::centred_instance_scene`]) for a tile of
@@ -358,7 +372,8 @@ pub const CENTRED_MAX_TRIANGLES: usize = 1 << 21;
 /// `ours@centred` against `ours@instances`): rays/s +2.4 % on jersey (1,536 triangles, 35 sets),
 /// +6.5 % on the plain weave (49,152), +2 % on velvet (47,616), whose 35 builds took 0.16 s:
 /// about what the faster rays saved there, so the cut lies near one triangle per 100 rays
-/// (a build ran at about 10 M triangles/s, rays at 33–60 M/s).
+/// (a build ran at about 10 M triangles/s, rays at 33–60 M/s). The memory they may take is
+/// [`centred_bytes`].
 pub fn centred_pays(triangles: usize, sets: usize, rays: u64) -> bool {
     let built = triangles.saturating_mul(sets);
     built <= CENTRED_MAX_TRIANGLES && (built as u64).saturating_mul(100) <= rays
@@ -1417,6 +1432,18 @@ mod tests {
         assert!(centred_pays(CENTRED_MAX_TRIANGLES, 1, u64::MAX));
         // No overflow on absurd counts.
         assert!(!centred_pays(usize::MAX, usize::MAX, u64::MAX));
+        // What the memory check counts: a triangle per 100 possible rays, up to the cap.
+        let small = centred_bytes([64, 64], 4, 16);
+        assert_eq!(
+            small,
+            64.0 * 64.0 * 4.0 * 16.0 / 100.0 * CENTRED_BYTES_PER_TRIANGLE
+        );
+        let cap = CENTRED_MAX_TRIANGLES as f64 * CENTRED_BYTES_PER_TRIANGLE;
+        assert_eq!(centred_bytes([512, 512], 4, 256), cap);
+        assert_eq!(
+            centred_bytes([usize::MAX, usize::MAX], u32::MAX, usize::MAX),
+            cap
+        );
     }
 
     #[test]
