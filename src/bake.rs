@@ -1224,6 +1224,7 @@ fn bake_json(
         mrays_per_s: rays as f64 / 1e6 / t_trace.max(1e-9),
         rings: report.rings.clone(),
         copies: report.copies.clone(),
+        centred_scenes: report.centred_scenes,
         uncovered_texels: report.uncovered_texels,
         below_horizon: report.below_horizon.clone(),
         capped: report.capped.clone(),

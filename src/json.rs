@@ -283,6 +283,8 @@ pub struct Baked {
     pub rings: Vec<u32>,
     /// Per light, the tile copies in its scene.
     pub copies: Vec<usize>,
+    /// Scenes of copies built with the central copy as the tile's triangles, where that pays (0: instances only, or the GPU).
+    pub centred_scenes: usize,
     /// Texels that see no swatch (coverage 0).
     pub uncovered_texels: usize,
     /// Lights at or below the horizon (K = 1).

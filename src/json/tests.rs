@@ -216,6 +216,7 @@ impl Sample for Baked {
             mrays_per_s: s(),
             rings: s(),
             copies: s(),
+            centred_scenes: s(),
             uncovered_texels: s(),
             below_horizon: s(),
             capped: s(),
