@@ -184,9 +184,8 @@ impl Device {
         offsets: &[[f32; 3]],
     ) -> Result<Scene> {
         let scene = self.new_scene(sys::RTCBuildQuality::MEDIUM)?;
-        let (centre, others): (Vec<[f32; 3]>, Vec<[f32; 3]>) =
-            offsets.iter().partition(|o| **o == [0.0; 3]);
-        if !centre.is_empty() {
+        let others: Vec<[f32; 3]> = offsets.iter().copied().filter(|o| *o != [0.0; 3]).collect();
+        if others.len() < offsets.len() {
             self.attach_triangles(&scene, positions, triangles)?;
         }
         self.attach_instances(&scene, child, &others)?;

@@ -705,13 +705,13 @@ impl Baker {
     }
 
     /// The scene of `copies` of the tile, built if not cached yet: instances only, or with
-    /// the central copy as triangles where `centred` (and the tile's triangles are kept).
+    /// the central copy as triangles where `centred` (which asks for the tile's triangles to
+    /// be kept; without them a centred scene is one of instances, the same hits).
     fn scene_for(&mut self, copies: &[[i32; 2]], centred: bool) -> Result<&Scene> {
-        let centred = centred && self.tile_mesh.is_some();
         let cache = if centred {
-            &self.centred_scenes
+            &mut self.centred_scenes
         } else {
-            &self.shadow_scenes
+            &mut self.shadow_scenes
         };
         if !cache.contains_key(copies) {
             let offsets: Vec<[f32; 3]> = copies
@@ -725,22 +725,15 @@ impl Baker {
                 })
                 .collect();
             let (device, tile) = (&self.device, &self.tile_scene);
-            match &self.tile_mesh {
+            let scene = match &self.tile_mesh {
                 Some((positions, triangles)) if centred => {
-                    let s = device.centred_instance_scene(tile, positions, triangles, &offsets)?;
-                    self.centred_scenes.insert(copies.to_vec(), s);
+                    device.centred_instance_scene(tile, positions, triangles, &offsets)?
                 }
-                _ => {
-                    let s = device.instance_scene(tile, &offsets)?;
-                    self.shadow_scenes.insert(copies.to_vec(), s);
-                }
-            }
+                _ => device.instance_scene(tile, &offsets)?,
+            };
+            cache.insert(copies.to_vec(), scene);
         }
-        Ok(if centred {
-            &self.centred_scenes[copies]
-        } else {
-            &self.shadow_scenes[copies]
-        })
+        Ok(&cache[copies])
     }
 
     /// Primary pass: one `rtcIntersect1` straight down per footprint sample.
@@ -920,13 +913,14 @@ impl Baker {
         let t_scenes = t0.elapsed().as_secs_f64();
         rep.seconds_scene += t_scenes;
         let t0 = Instant::now();
+        let scenes = match centred {
+            true => &self.centred_scenes,
+            false => &self.shadow_scenes,
+        };
         let runs: Vec<Run> = plans
             .iter()
             .map(|(light, copies)| Run {
-                scene: light.map(|_| match centred {
-                    true => &self.centred_scenes[copies],
-                    false => &self.shadow_scenes[copies],
-                }),
+                scene: light.map(|_| &scenes[copies]),
                 light: *light,
                 z_cap: self.z_cap,
                 width: self.width,
