@@ -389,6 +389,30 @@ impl<const N: usize> Packet<N> {
     pub fn occluded(&self, lane: usize) -> bool {
         self.tfar[lane] == f32::NEG_INFINITY
     }
+
+    /// The lanes of a traced packet that hit nothing, bit `i` for lane `i` (inactive lanes
+    /// as their `tfar` reads): [`Packet::occluded`] of every lane at once, four lanes per SSE
+    /// compare where the target has SSE2 (every x86-64 CPU).
+    pub fn lit_mask(&self) -> u32 {
+        let mut m = 0u32;
+        let mut i = 0;
+        #[cfg(target_arch = "x86_64")]
+        while i + 4 <= N {
+            use std::arch::x86_64::*;
+            // SAFETY: 4 floats from lane i < N - 3 of `tfar`; SSE is part of x86-64.
+            // Not equal, or unordered: `!(tfar == −∞)`, as `occluded` reads it.
+            m |= unsafe {
+                let t = _mm_loadu_ps(self.tfar.as_ptr().add(i));
+                let lit = _mm_cmpneq_ps(t, _mm_set1_ps(f32::NEG_INFINITY));
+                (_mm_movemask_ps(lit) as u32) << i
+            };
+            i += 4;
+        }
+        for lane in i..N {
+            m |= (!self.occluded(lane) as u32) << lane;
+        }
+        m
+    }
 }
 
 /// The lane mask of an `N`-ray packet: −1 active, 0 inactive. Embree loads it with aligned

@@ -1,7 +1,8 @@
 //! A distant light's shadow rays of one texel block, compacted for packets: of a run of a
-//! block's samples, the origins and texel lanes of those whose normal faces the light (the
-//! others are occluded without a ray), one after another, so that every packet but a block's
-//! last is full.
+//! block's samples, the origins of those whose normal faces the light (the others are occluded
+//! without a ray), one after another, so that every packet but a block's last is full, and the
+//! run's facing samples as a bit mask (which texel a ray came from follows from the mask: no
+//! per-ray texel lane is carried).
 //!
 //! Three builds of the one kernel, chosen at run time ([`Isa::detect`]): AVX-512F, which tests
 //! 16 samples at a time and compresses the facing ones into place (`vcompressps`); AVX2, which
@@ -23,9 +24,9 @@ pub(crate) const MAX_RUN: usize = 64;
 pub(crate) enum Isa {
     /// Plain Rust, on any CPU.
     Portable,
-    /// AVX2, 8 lanes.
+    /// AVX2 (and popcnt, which every CPU with AVX2 has), 8 lanes.
     Avx2,
-    /// AVX-512F, 16 lanes.
+    /// AVX-512F (and popcnt), 16 lanes.
     Avx512,
 }
 
@@ -34,10 +35,10 @@ impl Isa {
     pub(crate) fn detect() -> Isa {
         #[cfg(target_arch = "x86_64")]
         {
-            if std::arch::is_x86_feature_detected!("avx512f") {
+            if Isa::Avx512.supported() {
                 return Isa::Avx512;
             }
-            if std::arch::is_x86_feature_detected!("avx2") {
+            if Isa::Avx2.supported() {
                 return Isa::Avx2;
             }
         }
@@ -49,9 +50,15 @@ impl Isa {
         match self {
             Isa::Portable => true,
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
+            Isa::Avx2 => {
+                std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("popcnt")
+            }
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 => std::arch::is_x86_feature_detected!("avx512f"),
+            Isa::Avx512 => {
+                std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("popcnt")
+            }
             #[cfg(not(target_arch = "x86_64"))]
             _ => false,
         }
@@ -67,10 +74,9 @@ impl Isa {
     }
 }
 
-/// The rays waiting for a packet: origins and the texel lane (0..16) of each.
+/// The rays waiting for a packet: their origins.
 pub(crate) struct Compact {
     pub(crate) org: [[f32; CAP]; 3],
-    pub(crate) lane: [u8; CAP],
     pub(crate) len: usize,
 }
 
@@ -78,27 +84,22 @@ impl Default for Compact {
     fn default() -> Self {
         Self {
             org: [[0.0; CAP]; 3],
-            lane: [0; CAP],
             len: 0,
         }
     }
 }
 
 impl Compact {
-    /// Appends the samples of `org`, `n` (per component) and `lane` whose normal faces the
-    /// light `l` (l·n > 0), in their order, with `isa`'s build; returns how many. At most
-    /// [`MAX_RUN`] samples, onto fewer than 32 waiting. `lane` runs on to a whole number of
-    /// 16 entries ([`lanes_room`]): the vector builds load it 16 or 8 bytes at a time without
-    /// a copy of the tail (a copy stalled the load after it on store forwarding), and what
-    /// lies past the samples is never kept.
+    /// Appends the samples of `org`, `n` (per component) whose normal faces the light `l`
+    /// (l·n > 0), in their order, with `isa`'s build; returns which did, bit `i` for sample
+    /// `i`. At most [`MAX_RUN`] samples, onto fewer than 32 waiting.
     pub(crate) fn push_facing(
         &mut self,
         org: [&[f32]; 3],
         n: [&[f32]; 3],
-        lane: &[u8],
         l: [f32; 3],
         isa: Isa,
-    ) -> usize {
+    ) -> u64 {
         let m = org[0].len();
         assert!(
             m <= MAX_RUN && self.len < 32,
@@ -106,26 +107,19 @@ impl Compact {
             self.len
         );
         assert!(org.iter().chain(&n).all(|c| c.len() == m));
-        assert!(
-            lane.len() >= lanes_room(m),
-            "{} lanes for {m} samples",
-            lane.len()
-        );
-        let before = self.len;
         match isa {
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx512 if std::arch::is_x86_feature_detected!("avx512f") => {
-                // SAFETY: the CPU has AVX-512F (checked just above).
-                unsafe { push_avx512(self, org, n, lane, l) }
+            Isa::Avx512 if Isa::Avx512.supported() => {
+                // SAFETY: the CPU has AVX-512F and popcnt (checked just above).
+                unsafe { push_avx512(self, org, n, l) }
             }
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 if std::arch::is_x86_feature_detected!("avx2") => {
-                // SAFETY: the CPU has AVX2 (checked just above).
-                unsafe { push_avx2(self, org, n, lane, l) }
+            Isa::Avx2 if Isa::Avx2.supported() => {
+                // SAFETY: the CPU has AVX2 and popcnt (checked just above).
+                unsafe { push_avx2(self, org, n, l) }
             }
-            _ => push_portable(self, org, n, lane, l),
+            _ => push_portable(self, org, n, l),
         }
-        self.len - before
     }
 
     /// Drops the first `at` rays, of which fewer than 16 remain after them. (16 are moved
@@ -136,46 +130,42 @@ impl Compact {
         for a in 0..3 {
             self.org[a].copy_within(at..at + 16, 0);
         }
-        self.lane.copy_within(at..at + 16, 0);
         self.len -= at;
     }
 }
 
-/// The length the texel lanes of `m` samples run on to for [`Compact::push_facing`]: `m` to a
-/// whole number of 16.
-pub(crate) const fn lanes_room(m: usize) -> usize {
-    m.div_ceil(16) * 16
-}
-
 /// The facing test in straight lines, then the compaction without branches: each sample is
 /// written at the end, and the end moves past it only if it faces the light.
-fn push_portable(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8], l: [f32; 3]) {
+fn push_portable(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], l: [f32; 3]) -> u64 {
     let mut up = [0u8; MAX_RUN];
     let normals = n[0].iter().zip(n[1]).zip(n[2]);
     for (((&x, &y), &z), up) in normals.zip(&mut up) {
         *up = (l[0] * x + l[1] * y + l[2] * z > 0.0) as u8;
     }
+    let mut mask = 0u64;
     let origins = org[0].iter().zip(org[1]).zip(org[2]);
-    for ((((&px, &py), &pz), &lane), &up) in origins.zip(lane).zip(&up) {
+    for (i, (((&px, &py), &pz), &up)) in origins.zip(&up).enumerate() {
         let k = c.len & (CAP - 1);
         c.org[0][k] = px;
         c.org[1][k] = py;
         c.org[2][k] = pz;
-        c.lane[k] = lane;
         c.len += up as usize;
+        mask |= (up as u64) << i;
     }
+    mask
 }
 
 /// 16 samples at a time: the test as a lane mask, the facing lanes compressed to the front of
 /// each register and stored at the end (16 lanes wide: the rest is overwritten later).
 ///
 /// # Safety
-/// The CPU must have AVX-512F.
+/// The CPU must have AVX-512F and popcnt.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8], l: [f32; 3]) {
+#[target_feature(enable = "avx512f,popcnt")]
+unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], l: [f32; 3]) -> u64 {
     use std::arch::x86_64::*;
     let m = org[0].len();
+    let mut mask = 0u64;
     let (lx, ly, lz) = (
         _mm512_set1_ps(l[0]),
         _mm512_set1_ps(l[1]),
@@ -184,9 +174,8 @@ unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &
     for s in (0..m).step_by(16) {
         let k = (m - s).min(16);
         let tail: __mmask16 = if k == 16 { !0 } else { (1 << k) - 1 };
-        // SAFETY: masked loads read only the `k` elements from `s` of slices of length `m`,
-        // the lanes 16 bytes from `s`, a multiple of 16 below `m` (`lane` runs on to
-        // `lanes_room(m)`); stores write 16 lanes from `len` < 32 + MAX_RUN, within CAP.
+        // SAFETY: masked loads read only the `k` elements from `s` of slices of length `m`;
+        // stores write 16 lanes from `len` < 32 + MAX_RUN, within CAP.
         unsafe {
             let load = |v: &[f32]| _mm512_maskz_loadu_ps(tail, v.as_ptr().add(s));
             let d = _mm512_add_ps(
@@ -199,12 +188,11 @@ unsafe fn push_avx512(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &
                 let v = _mm512_maskz_compress_ps(up, load(src));
                 _mm512_storeu_ps(dst.as_mut_ptr().add(at), v);
             }
-            let lanes = _mm512_cvtepu8_epi32(_mm_loadu_si128(lane.as_ptr().add(s).cast()));
-            let packed = _mm512_cvtepi32_epi8(_mm512_maskz_compress_epi32(up, lanes));
-            _mm_storeu_si128(c.lane.as_mut_ptr().add(at).cast(), packed);
             c.len = at + up.count_ones() as usize;
+            mask |= (up as u64) << s;
         }
     }
+    mask
 }
 
 /// For each 8-bit mask, the lanes whose bit is set, in order, then the others: the
@@ -238,15 +226,16 @@ static FRONT: [[u32; 8]; 256] = {
 
 /// 8 samples at a time: the test as a lane mask (`vmovmskps`), the facing lanes moved to the
 /// front of each register by the permutation [`FRONT`] holds for the mask and stored at the
-/// end (8 lanes wide: the rest is overwritten later); the texel lanes alike, as bytes.
+/// end (8 lanes wide: the rest is overwritten later).
 ///
 /// # Safety
-/// The CPU must have AVX2.
+/// The CPU must have AVX2 and popcnt.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn push_avx2(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u8], l: [f32; 3]) {
+#[target_feature(enable = "avx2,popcnt")]
+unsafe fn push_avx2(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], l: [f32; 3]) -> u64 {
     use std::arch::x86_64::*;
     let m = org[0].len();
+    let mut mask = 0u64;
     let (lx, ly, lz) = (
         _mm256_set1_ps(l[0]),
         _mm256_set1_ps(l[1]),
@@ -287,22 +276,11 @@ unsafe fn push_avx2(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], lane: &[u
                 let v = _mm256_permutevar8x32_ps(load(src), idx);
                 _mm256_storeu_ps(dst.as_mut_ptr().add(at), v);
             }
-            // 8 bytes from `s`, a multiple of 8 below `m`: within `lanes_room(m)`.
-            let lanes = _mm256_cvtepu8_epi32(_mm_loadl_epi64(lane.as_ptr().add(s).cast()));
-            let moved = _mm256_permutevar8x32_epi32(lanes, idx);
-            // The low byte of each 32-bit lane, in order: 8 bytes.
-            let pick = _mm256_setr_epi8(
-                0, 4, 8, 12, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, -1, 0, 4, 8, 12, -1, -1,
-                -1, -1, -1, -1, -1, -1, -1, -1, -1, -1,
-            );
-            let b = _mm256_shuffle_epi8(moved, pick);
-            let lo = _mm_cvtsi128_si32(_mm256_castsi256_si128(b)) as u32;
-            let hi = _mm_cvtsi128_si32(_mm256_extracti128_si256::<1>(b)) as u32;
-            let out = (lo as u64) | ((hi as u64) << 32);
-            c.lane[at..at + 8].copy_from_slice(&out.to_le_bytes());
         }
         c.len = at + up.count_ones() as usize;
+        mask |= (up as u64) << s;
     }
+    mask
 }
 
 #[cfg(test)]
@@ -310,8 +288,9 @@ mod tests {
     use super::*;
 
     /// Random runs (lengths 0 to 64, onto 0 to 31 waiting rays) with normals that face the
-    /// light, face away, lie in its plane (n·l = 0 exactly), or are ±0 and NaN: both builds
-    /// keep exactly the samples whose l·n > 0, in order, with their origins and lanes.
+    /// light, face away, lie in its plane (n·l = 0 exactly), or are ±0 and NaN: every build
+    /// keeps exactly the samples whose l·n > 0, in order, with their origins, and says which
+    /// in its mask.
     #[test]
     fn builds_keep_the_facing_samples_in_order() {
         let mut state = 0x2545_f491_4f6c_dd1du64;
@@ -346,10 +325,6 @@ mod tests {
                     org[a].push(round as f32 + i as f32 * 0.25 + a as f32 * 1e-3);
                 }
             }
-            // Past the samples, lanes that must never be kept.
-            let lane: Vec<u8> = (0..lanes_room(m))
-                .map(|i| if i < m { (i % 16) as u8 } else { 0xee })
-                .collect();
             let expected: Vec<usize> = (0..m)
                 .filter(|&i| l[0] * n[0][i] + l[1] * n[1][i] + l[2] * n[2][i] > 0.0)
                 .collect();
@@ -359,23 +334,16 @@ mod tests {
                     ..Compact::default()
                 };
                 c.org[0][..waiting].fill(-7.0);
-                let got = c.push_facing(
-                    [&org[0], &org[1], &org[2]],
-                    [&n[0], &n[1], &n[2]],
-                    &lane,
-                    l,
-                    isa,
-                );
-                assert_eq!(got, expected.len(), "{isa:?}, round {round}");
+                let got = c.push_facing([&org[0], &org[1], &org[2]], [&n[0], &n[1], &n[2]], l, isa);
+                let want = expected.iter().fold(0u64, |m, &i| m | 1 << i);
+                assert_eq!(got, want, "{isa:?}, round {round}");
+                assert_eq!(c.len, waiting + expected.len(), "{isa:?}, round {round}");
                 assert!(c.org[0][..waiting].iter().all(|&x| x == -7.0));
                 for (j, &i) in expected.iter().enumerate() {
                     for (got, want) in c.org.iter().zip(&org) {
                         assert_eq!(got[waiting + j].to_bits(), want[i].to_bits());
                     }
-                    assert_eq!(c.lane[waiting + j], lane[i], "{isa:?}, round {round}");
                 }
-                let kept = &c.lane[..waiting + expected.len()];
-                assert!(!kept.contains(&0xee), "{isa:?}, round {round}");
             }
         }
     }
@@ -385,12 +353,10 @@ mod tests {
         let mut c = Compact::default();
         for i in 0..20 {
             c.org[0][i] = i as f32;
-            c.lane[i] = i as u8;
         }
         c.len = 20;
         c.shift(16);
         assert_eq!(c.len, 4);
         assert_eq!(&c.org[0][..4], &[16.0, 17.0, 18.0, 19.0]);
-        assert_eq!(&c.lane[..4], &[16, 17, 18, 19]);
     }
 }

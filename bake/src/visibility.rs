@@ -14,8 +14,9 @@ use ptm_format::hash::splitmix64;
 use ptm_format::LightSet;
 use rayon::prelude::*;
 
+use crate::counts;
 use crate::embree::{self, Device, Packet, Scene, Valid};
-use crate::facing::{lanes_room, Compact, Isa, MAX_RUN};
+use crate::facing::{Compact, Isa, MAX_RUN};
 use crate::maps::{Surface, SurfaceHit};
 use crate::swatch::PreparedMesh;
 use crate::tiling;
@@ -248,6 +249,9 @@ struct Blocks {
     lane: Vec<u8>,
     /// Per block: covered samples of each texel (the block's first entries, texel by texel).
     covered: Vec<[u32; 16]>,
+    /// Per block: the entries up to each texel's end, the running sums of `covered` (set by
+    /// [`Blocks::seal`] once the blocks are filled).
+    ends: Vec<[u32; 16]>,
 }
 
 impl Blocks {
@@ -258,7 +262,21 @@ impl Blocks {
             data: vec![0.0; blocks * 6 * cap],
             lane: vec![0; blocks * cap],
             covered: vec![[0; 16]; blocks],
+            ends: Vec::new(),
         }
+    }
+
+    /// Sums up each block's texel ends, once its samples are in.
+    fn seal(&mut self) {
+        self.ends = (self.covered.iter())
+            .map(|covered| {
+                let mut sum = 0;
+                covered.map(|c| {
+                    sum += c;
+                    sum
+                })
+            })
+            .collect();
     }
 
     /// The blocks' shares, in block order, to fill.
@@ -287,8 +305,8 @@ impl Blocks {
             org: [run(0), run(1), run(2)],
             n: [run(3), run(4), run(5)],
             lane: &self.lane[b * cap..b * cap + len],
-            lanes_room: &self.lane[b * cap..(b + 1) * cap],
             covered,
+            ends: &self.ends[b],
         }
     }
 }
@@ -319,10 +337,9 @@ struct BlockView<'a> {
     org: [&'a [f32]; 3],
     n: [&'a [f32]; 3],
     lane: &'a [u8],
-    /// `lane` and the rest of the block's share (16·spp entries, a whole number of 16), for
-    /// the vector loads of [`Compact::push_facing`].
-    lanes_room: &'a [u8],
     covered: &'a [u32; 16],
+    /// The running sums of `covered`.
+    ends: &'a [u32; 16],
 }
 
 /// Bytes a [`Baker`] holds for `res` texels at `spp` samples per texel: the primary samples
@@ -836,6 +853,7 @@ impl Baker {
         };
         self.report.primary_rays = (traced * spp) as u64;
         self.report.uncovered_texels = uncovered - (nx * ny - traced);
+        samples.seal();
         self.samples = samples;
         self.coverage = coverage;
     }
@@ -973,7 +991,13 @@ impl Baker {
                                 let rows_in = k_rows.len() / nx;
                                 for j in 0..rows_in.min(4) {
                                     let at = j * nx + i;
-                                    k_rows[at..at + w].copy_from_slice(&r.k[j * 4..j * 4 + w]);
+                                    // A whole row of the block in one 16-byte move (a copy
+                                    // of `w` floats was a `memmove` call).
+                                    if w == 4 {
+                                        k_rows[at..at + 4].copy_from_slice(&r.k[j * 4..j * 4 + 4]);
+                                    } else {
+                                        k_rows[at..at + w].copy_from_slice(&r.k[j * 4..j * 4 + w]);
+                                    }
                                     if let Some(uv) = &r.uv {
                                         uv_rows[at..at + w].copy_from_slice(&uv[j * 4..j * 4 + w]);
                                     }
@@ -1091,13 +1115,13 @@ impl Run<'_> {
     fn block(&self, block: &BlockView, q: &mut Queues) -> BlockResult {
         match (self.light, self.scene, self.width) {
             (Some(Light::Distant(l)), Some(scene), 16) => {
-                self.distant_w(block, l, scene, &mut q.w16, &mut q.compact)
+                self.distant_w(block, l, scene, &mut q.w16, &mut q.marks)
             }
             (Some(Light::Distant(l)), Some(scene), 8) => {
-                self.distant_w(block, l, scene, &mut q.w8, &mut q.compact)
+                self.distant_w(block, l, scene, &mut q.w8, &mut q.marks)
             }
             (Some(Light::Distant(l)), Some(scene), 4) => {
-                self.distant_w(block, l, scene, &mut q.w4, &mut q.compact)
+                self.distant_w(block, l, scene, &mut q.w4, &mut q.marks)
             }
             (_, _, 16) => self.block_w(block, &mut q.w16),
             (_, _, 8) => self.block_w(block, &mut q.w8),
@@ -1111,7 +1135,11 @@ impl Run<'_> {
     /// the packet once per block (Embree writes back only `tfar`); the facing test and the
     /// compaction of the facing samples run over up to 64 entries at a time, in AVX-512F,
     /// AVX2 or branch-free portable code ([`crate::facing`]); `tfar` is computed a packet at a
-    /// time; and nothing of a point light (per-ray direction, its (u, v) sums) is looked at.
+    /// time; nothing of a point light (per-ray direction, its (u, v) sums) is looked at; and
+    /// the lit rays are counted per texel once per block from two bit masks, which entries
+    /// faced the light and which rays came back lit ([`counts::block_k`], in AVX-512, AVX2 or
+    /// portable code; [`lit_per_texel`] above spp 4), instead of an add into the ray's texel
+    /// per ray, so no texel lane travels with the rays.
     /// The same rays in the same packets with the same `tfar` as [`Run::block_w`], so the same
     /// K to the bit (`tests/widths.rs`). Timed with the Embree calls left out (a local build),
     /// a jersey bake at 512² × 256 lights runs its shadow pass in 0.25–0.28 s, where the loop
@@ -1123,39 +1151,55 @@ impl Run<'_> {
         l: [f32; 3],
         scene: &Scene,
         queue: &mut Queue<W>,
-        compact: &mut Compact,
+        marks: &mut Marks,
     ) -> BlockResult {
-        let mut lit = [0u32; 16];
-        let mut traced = 0u64;
         queue.toward(l);
         let z_cap = self.z_cap as f32;
         let len = block.lane.len();
+        let Marks {
+            compact,
+            facing,
+            lit,
+        } = marks;
+        facing.clear(len);
+        lit.clear(len);
         // The rays to trace, compacted 64 entries at a time, then handed over a packet at a
-        // time; fewer than a packet's wait for the next entries.
+        // time; fewer than a packet's wait for the next entries. `done`: the block's rays
+        // traced so far, the bit of `lit` where the next packet's lanes go.
+        let mut done = 0;
         compact.len = 0;
-        for start in (0..len).step_by(MAX_RUN) {
-            let end = (start + MAX_RUN).min(len);
-            let r = start..end;
+        for (word, start) in (0..len).step_by(MAX_RUN).enumerate() {
+            let r = start..(start + MAX_RUN).min(len);
             let ([ox, oy, oz], [nx, ny, nz]) = (block.org, block.n);
-            traced += compact.push_facing(
+            facing.words[word] = compact.push_facing(
                 [&ox[r.clone()], &oy[r.clone()], &oz[r.clone()]],
                 [&nx[r.clone()], &ny[r.clone()], &nz[r.clone()]],
-                &block.lanes_room[start..start + lanes_room(end - start)],
                 l,
                 self.isa,
-            ) as u64;
+            );
             let mut at = 0;
             while compact.len - at >= W {
                 queue.load(compact, at, W, z_cap, l[2]);
-                queue.trace(scene, &mut lit);
-                at += W;
+                lit.put(done, queue.trace_lit(scene));
+                (at, done) = (at + W, done + W);
             }
             compact.shift(at);
         }
         if compact.len > 0 {
             queue.load(compact, 0, compact.len, z_cap, l[2]);
-            queue.trace(scene, &mut lit);
+            lit.put(done, queue.trace_lit(scene));
+            done += compact.len;
         }
+        let traced = done as u64;
+        if let ([f], [l]) = (&facing.words[..], &lit.words[..]) {
+            return BlockResult {
+                k: counts::block_k(*f, *l, block.covered, block.ends, self.isa),
+                uv: None,
+                traced,
+                skipped: len as u64 - traced,
+            };
+        }
+        let lit = lit_per_texel(facing, lit, block.covered);
         finish(&lit, block.covered, None, traced, len as u64 - traced)
     }
 
@@ -1221,7 +1265,7 @@ fn finish(
     };
     // Uncovered texels: 0 / 1.
     for ((k, &lit), &covered) in out.k.iter_mut().zip(lit).zip(covered) {
-        *k = (covered - lit) as f32 / covered.max(1) as f32;
+        *k = counts::k_of(covered, lit);
     }
     if let Some(dir_sum) = dir_sum {
         let mut uv = [[0.0; 2]; 16];
@@ -1246,8 +1290,61 @@ struct Queues {
     w4: Queue<4>,
     /// Holds nothing: single rays go straight to `rtcOccluded1`.
     w1: Queue<1>,
-    /// A distant light's rays of the block, compacted ([`Run::distant_w`]), whatever the width.
+    marks: Marks,
+}
+
+/// What [`Run::distant_w`] keeps of a block, whatever the width: its rays compacted, which
+/// entries faced the light, and which rays came back lit.
+#[derive(Default)]
+struct Marks {
     compact: Box<Compact>,
+    facing: Bits,
+    lit: Bits,
+}
+
+/// A bit set of a block's entries or rays (16·spp at most).
+#[derive(Default)]
+struct Bits {
+    words: Vec<u64>,
+}
+
+impl Bits {
+    /// Room for `n` bits, all clear.
+    fn clear(&mut self, n: usize) {
+        self.words.clear();
+        self.words.resize(n.div_ceil(64).max(1), 0);
+    }
+
+    /// Sets the bits from `at` on to those of `m` (a packet's lanes: `at` is a multiple of the
+    /// packet width, which divides 64, so they all fall in one word).
+    fn put(&mut self, at: usize, m: u32) {
+        self.words[at / 64] |= (m as u64) << (at % 64);
+    }
+
+    /// The ones below bit `at`, word by word.
+    fn ones_below(&self, at: usize) -> u32 {
+        let (w, b) = (at / 64, at % 64);
+        let whole: u32 = self.words[..w].iter().map(|x| x.count_ones()).sum();
+        whole
+            + self
+                .words
+                .get(w)
+                .map_or(0, |x| counts::ones_below(*x, b as u32))
+    }
+}
+
+/// Per texel of a block of more than 64 entries (spp above 4), its rays that came back lit:
+/// [`counts::block_k`]'s counts, word by word.
+fn lit_per_texel(facing: &Bits, lit: &Bits, covered: &[u32; 16]) -> [u32; 16] {
+    let mut out = [0; 16];
+    let (mut end, mut below) = (0, 0);
+    for (out, &c) in out.iter_mut().zip(covered) {
+        end += c as usize;
+        let upto = lit.ones_below(facing.ones_below(end) as usize);
+        *out = upto - below;
+        below = upto;
+    }
+    out
 }
 
 /// Shadow rays of one block waiting for a full packet of `W` lanes. The block's rays to be
@@ -1303,7 +1400,6 @@ impl<const W: usize> Queue<W> {
         for (t, &z) in p.tfar.iter_mut().zip(&p.org_z) {
             *t = ((z_cap - z) / lz).max(0.0);
         }
-        self.lane.copy_from_slice(&c.lane[at..at + W]);
         self.len = n;
     }
 
@@ -1324,8 +1420,17 @@ impl<const W: usize> Queue<W> {
 
     /// Traces the queued rays (if any) and counts the unoccluded ones into their texels.
     fn trace(&mut self, scene: &Scene, lit: &mut [u32; 16]) {
+        let (n, m) = (self.len, self.trace_lit(scene));
+        for (i, &lane) in self.lane[..n].iter().enumerate() {
+            lit[lane as usize] += (m >> i) & 1;
+        }
+    }
+
+    /// Traces the queued rays (if any) and empties the queue; returns which came back lit
+    /// (unoccluded), bit `i` for lane `i`.
+    fn trace_lit(&mut self, scene: &Scene) -> u32 {
         if self.len == 0 {
-            return;
+            return 0;
         }
         // Every packet of a block but its last is full: the mask changes only for that one.
         if self.active != self.len {
@@ -1335,10 +1440,8 @@ impl<const W: usize> Queue<W> {
             self.active = self.len;
         }
         scene.occluded_packet(&self.valid, &mut self.packet);
-        for i in 0..self.len {
-            lit[self.lane[i] as usize] += !self.packet.occluded(i) as u32;
-        }
-        self.len = 0;
+        let n = std::mem::take(&mut self.len);
+        self.packet.lit_mask() & (u32::MAX >> (32 - n))
     }
 }
 
