@@ -266,24 +266,29 @@ impl Blocks {
         }
     }
 
-    /// Asks the CPU to bring part `part` of `parts` of block `b`'s samples (if there is
-    /// such a block) into the nearest cache ahead of their use: a few lines at a time, since
-    /// a burst of a whole block's 24 lines waited on the CPU's fill buffers.
-    fn prefetch(&self, b: usize, part: usize, parts: usize) {
+    /// The cache lines of a block's samples to prefetch per light of a pass of `lights`
+    /// ([`Blocks::prefetch`]).
+    fn lines_per_light(&self, lights: usize) -> usize {
+        (6 * self.cap).div_ceil(16).div_ceil(lights.max(1))
+    }
+
+    /// Asks the CPU to bring cache lines `lines` of block `b`'s samples (if there is such a
+    /// block) into the nearest cache ahead of their use: a few lines per light of the block
+    /// before it ([`Blocks::lines_per_light`]), since a burst of a whole block's 24 lines waited
+    /// on the CPU's fill buffers.
+    fn prefetch(&self, b: usize, lines: Range<usize>) {
         #[cfg(target_arch = "x86_64")]
         if b < self.covered.len() {
             use std::arch::x86_64::*;
             let data = &self.data[b * 6 * self.cap..(b + 1) * 6 * self.cap];
-            let lines = data.len().div_ceil(16);
-            let per = lines.div_ceil(parts);
-            for line in (part * per..((part + 1) * per).min(lines)).map(|l| l * 16) {
+            for line in lines.map(|l| l * 16).take_while(|&at| at < data.len()) {
                 // SAFETY: a prefetch of memory of `data` (SSE, part of x86-64); it reads
                 // nothing into the program.
                 unsafe { _mm_prefetch::<_MM_HINT_T0>(data.as_ptr().add(line).cast()) };
             }
         }
         #[cfg(not(target_arch = "x86_64"))]
-        let _ = (b, part, parts);
+        let _ = (b, lines);
     }
 
     /// Sums up each block's texel ends, once its samples are in.
@@ -997,22 +1002,23 @@ impl Baker {
                     .map(|(bj, mut planes)| {
                         let (mut traced, mut skipped) = (0u64, 0u64);
                         let mut queues = Queues::default();
+                        let per = samples.lines_per_light(pass.len());
+                        // The task's image rows: 4, or fewer at the bottom.
+                        let rows_in = planes.first().map_or(0, |p| (p.0.len() / nx).min(4));
                         for bi in 0..bx {
                             let block = samples.view(bj * bx + bi);
                             // Every light of the pass over this block while its samples are
                             // in the nearest cache.
-                            let parts = pass.len();
                             let lights = pass.iter().zip(planes.iter_mut()).enumerate();
-                            for (part, (run, (k_rows, uv_rows))) in lights {
-                                samples.prefetch(bj * bx + bi + 1, part, parts);
+                            for (li, (run, (k_rows, uv_rows))) in lights {
+                                samples.prefetch(bj * bx + bi + 1, li * per..(li + 1) * per);
                                 let r = run.block(&block, &mut queues);
                                 traced += r.traced;
                                 skipped += r.skipped;
                                 // The block's texels in the task's rows: 4 or fewer of
-                                // each row, and rows while the image has them.
+                                // each row.
                                 let (i, w) = (bi * 4, 4.min(nx - bi * 4));
-                                let rows_in = k_rows.len() / nx;
-                                for j in 0..rows_in.min(4) {
+                                for j in 0..rows_in {
                                     let at = j * nx + i;
                                     // A whole row of the block in one 16-byte move (a copy
                                     // of `w` floats was a `memmove` call).
