@@ -10,12 +10,12 @@
 //! Conventions (docs/FORMAT.md): tile [0, W]×[0, H], z up; image row 0 at y = H; K = 0 lit,
 //! 1 occluded; lights are unit vectors towards the light.
 
-mod counts;
 pub mod dome;
 pub mod embree;
 mod facing;
 pub mod maps;
 pub mod swatch;
+mod tally;
 pub mod tiling;
 pub mod visibility;
 

@@ -14,11 +14,11 @@ use ptm_format::hash::splitmix64;
 use ptm_format::LightSet;
 use rayon::prelude::*;
 
-use crate::counts;
 use crate::embree::{self, Device, Packet, Scene, Valid};
 use crate::facing::{Compact, Isa, MAX_RUN};
 use crate::maps::{Surface, SurfaceHit};
 use crate::swatch::PreparedMesh;
+use crate::tally;
 use crate::tiling;
 use crate::{Error, Result};
 
@@ -1166,7 +1166,7 @@ impl Run<'_> {
     /// AVX2 or branch-free portable code ([`crate::facing`]); `tfar` is computed a packet at a
     /// time; nothing of a point light (per-ray direction, its (u, v) sums) is looked at; and
     /// the lit rays are counted per texel once per block from two bit masks, which entries
-    /// faced the light and which rays came back lit ([`counts::block_k`], in AVX-512, AVX2 or
+    /// faced the light and which rays came back lit ([`tally::block_k`], in AVX-512, AVX2 or
     /// portable code; [`lit_per_texel`] above spp 4), instead of an add into the ray's texel
     /// per ray, so no texel lane travels with the rays.
     /// The same rays in the same packets with the same `tfar` as [`Run::block_w`], so the same
@@ -1222,7 +1222,7 @@ impl Run<'_> {
         let traced = done as u64;
         if let ([f], [l]) = (&facing.words[..], &lit.words[..]) {
             return BlockResult {
-                k: counts::block_k(*f, *l, block.covered, block.ends, self.isa),
+                k: tally::block_k(*f, *l, block.covered, block.ends, self.isa),
                 uv: None,
                 traced,
                 skipped: len as u64 - traced,
@@ -1294,7 +1294,7 @@ fn finish(
     };
     // Uncovered texels: 0 / 1.
     for ((k, &lit), &covered) in out.k.iter_mut().zip(lit).zip(covered) {
-        *k = counts::k_of(covered, lit);
+        *k = tally::k_of(covered, lit);
     }
     if let Some(dir_sum) = dir_sum {
         let mut uv = [[0.0; 2]; 16];
@@ -1358,12 +1358,12 @@ impl Bits {
             + self
                 .words
                 .get(w)
-                .map_or(0, |x| counts::ones_below(*x, b as u32))
+                .map_or(0, |x| tally::ones_below(*x, b as u32))
     }
 }
 
 /// Per texel of a block of more than 64 entries (spp above 4), its rays that came back lit:
-/// [`counts::block_k`]'s counts, word by word.
+/// [`tally::block_k`]'s counts, word by word.
 fn lit_per_texel(facing: &Bits, lit: &Bits, covered: &[u32; 16]) -> [u32; 16] {
     let mut out = [0; 16];
     let (mut end, mut below) = (0, 0);
