@@ -64,6 +64,16 @@ impl Isa {
         }
     }
 
+    /// Every build this CPU runs, narrowest first (for tests that check each against the
+    /// others).
+    #[cfg(test)]
+    pub(crate) fn every_supported() -> Vec<Isa> {
+        let isas = [Isa::Portable, Isa::Avx2, Isa::Avx512].into_iter();
+        let isas: Vec<Isa> = isas.filter(|isa| isa.supported()).collect();
+        eprintln!("builds checked on this CPU: {isas:?}");
+        isas
+    }
+
     /// The build's name, as `Baker::simd` reports it.
     pub(crate) fn name(self) -> &'static str {
         match self {
@@ -283,6 +293,18 @@ unsafe fn push_avx2(c: &mut Compact, org: [&[f32]; 3], n: [&[f32]; 3], l: [f32; 
     mask
 }
 
+/// A xorshift64 generator from `seed` (non-zero), for tests' random inputs.
+#[cfg(test)]
+pub(crate) fn xorshift(seed: u64) -> impl FnMut() -> u64 {
+    let mut state = seed;
+    move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        state
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -293,18 +315,8 @@ mod tests {
     /// in its mask.
     #[test]
     fn builds_keep_the_facing_samples_in_order() {
-        let mut state = 0x2545_f491_4f6c_dd1du64;
-        let mut rand = move || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
-        let isas: Vec<Isa> = [Isa::Portable, Isa::Avx2, Isa::Avx512]
-            .into_iter()
-            .filter(|isa| isa.supported())
-            .collect();
-        eprintln!("builds checked on this CPU: {isas:?}");
+        let mut rand = xorshift(0x2545_f491_4f6c_dd1d);
+        let isas = Isa::every_supported();
         for round in 0..2000 {
             let m = (rand() % (MAX_RUN as u64 + 1)) as usize;
             let waiting = (rand() % 32) as usize;
