@@ -59,7 +59,7 @@ pub(crate) fn ones_below(x: u64, n: u32) -> u32 {
     (x.wrapping_shl(64 - n) & 0u64.wrapping_sub((n != 0) as u64)).count_ones()
 }
 
-/// A block's K from its texels' lit rays: covered samples not found lit, over covered ones
+/// K of a texel from its lit rays: its covered samples not found lit, over its covered ones
 /// (0 / 1 for an uncovered texel).
 pub(crate) fn k_of(covered: u32, lit: u32) -> f32 {
     (covered - lit) as f32 / covered.max(1) as f32
