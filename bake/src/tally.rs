@@ -59,6 +59,28 @@ pub(crate) fn ones_below(x: u64, n: u32) -> u32 {
     (x.wrapping_shl(64 - n) & 0u64.wrapping_sub((n != 0) as u64)).count_ones()
 }
 
+/// Per texel of a block of any size (the baker's path above 64 entries, spp above 4), its rays
+/// that came back lit: [`block_k`]'s counts over sets of words (bit `i` is bit `i % 64` of
+/// word `i / 64`; words past the end count as clear), a texel at a time.
+pub(crate) fn block_lit(facing: &[u64], lit: &[u64], ends: &[u32; 16]) -> [u32; 16] {
+    let ones_below_at = |bits: &[u64], at: usize| {
+        let (w, b) = (at / 64, at % 64);
+        let whole: u32 = bits[..w.min(bits.len())]
+            .iter()
+            .map(|x| x.count_ones())
+            .sum();
+        whole + bits.get(w).map_or(0, |&x| ones_below(x, b as u32))
+    };
+    let mut out = [0; 16];
+    let mut below = 0;
+    for (out, &end) in out.iter_mut().zip(ends) {
+        let upto = ones_below_at(lit, ones_below_at(facing, end as usize) as usize);
+        *out = upto - below;
+        below = upto;
+    }
+    out
+}
+
 /// K of a texel from its lit rays: its covered samples not found lit, over its covered ones
 /// (0 / 1 for an uncovered texel).
 pub(crate) fn k_of(covered: u32, lit: u32) -> f32 {
@@ -204,18 +226,27 @@ mod tests {
     use super::*;
 
     /// The definition: per texel, its facing entries in order, and of those its rays' lit bits.
-    fn reference(facing: u64, lit: u64, covered: &[u32; 16]) -> [f32; 16] {
+    fn reference(facing: &[u64], lit: &[u64], covered: &[u32; 16]) -> [f32; 16] {
+        let bit = |bits: &[u64], i: usize| bits[i / 64] >> (i % 64) & 1;
         let (mut e, mut r) = (0, 0);
         covered.map(|c| {
             let mut lit_here = 0;
             for _ in 0..c {
-                if facing >> e & 1 == 1 {
-                    lit_here += (lit >> r & 1) as u32;
+                if bit(facing, e) == 1 {
+                    lit_here += bit(lit, r) as u32;
                     r += 1;
                 }
                 e += 1;
             }
             k_of(c, lit_here)
+        })
+    }
+
+    fn ends(covered: &[u32; 16]) -> [u32; 16] {
+        let mut sum = 0;
+        covered.map(|c| {
+            sum += c;
+            sum
         })
     }
 
@@ -252,12 +283,8 @@ mod tests {
                 0 => rays,
                 _ => rand() & rays,
             };
-            let want = reference(facing, lit, &covered);
-            let mut sum = 0;
-            let ends = covered.map(|c| {
-                sum += c;
-                sum
-            });
+            let want = reference(&[facing], &[lit], &covered);
+            let ends = ends(&covered);
             for &isa in &isas {
                 let got = block_k(facing, lit, &covered, &ends, isa);
                 assert_eq!(
@@ -272,6 +299,45 @@ mod tests {
                 got.map(f32::to_bits),
                 want.map(f32::to_bits),
                 "round {round}"
+            );
+        }
+    }
+
+    /// Random blocks of up to 16 samples a texel (256 entries, four words), the word sets
+    /// as the baker keeps them: [`block_lit`] gives the definition's K to the bit.
+    #[test]
+    fn word_sets_count_as_the_definition() {
+        let mut rand = crate::facing::xorshift(0x2545_f491_4f6c_dd1d);
+        for round in 0..5_000 {
+            let spp = [5, 9, 16][round % 3];
+            let covered: [u32; 16] = std::array::from_fn(|_| (rand() % (spp + 1)) as u32);
+            let n = covered.iter().sum::<u32>() as usize;
+            let words = n.div_ceil(64).max(1);
+            let clear_past = |bits: &mut Vec<u64>, n: usize| {
+                for (w, x) in bits.iter_mut().enumerate() {
+                    let keep = n.saturating_sub(64 * w).min(64) as u32;
+                    *x &= if keep == 64 {
+                        u64::MAX
+                    } else {
+                        (1u64 << keep) - 1
+                    };
+                }
+            };
+            let mut facing: Vec<u64> = (0..words).map(|_| rand()).collect();
+            if round % 4 == 0 {
+                facing.fill(u64::MAX);
+            }
+            clear_past(&mut facing, n);
+            let rays = facing.iter().map(|x| x.count_ones() as usize).sum();
+            let mut lit: Vec<u64> = (0..words).map(|_| rand()).collect();
+            clear_past(&mut lit, rays);
+            let want = reference(&facing, &lit, &covered);
+            let got = block_lit(&facing, &lit, &ends(&covered));
+            let got: Vec<f32> = (0..16).map(|t| k_of(covered[t], got[t])).collect();
+            assert_eq!(
+                got.iter().map(|k| k.to_bits()).collect::<Vec<_>>(),
+                want.map(f32::to_bits).to_vec(),
+                "round {round}: covered {covered:?}"
             );
         }
     }

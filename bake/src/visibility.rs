@@ -1167,7 +1167,7 @@ impl Run<'_> {
     /// time; nothing of a point light (per-ray direction, its (u, v) sums) is looked at; and
     /// the lit rays are counted per texel once per block from two bit masks, which entries
     /// faced the light and which rays came back lit ([`tally::block_k`], in AVX-512, AVX2 or
-    /// portable code; [`lit_per_texel`] above spp 4), instead of an add into the ray's texel
+    /// portable code; [`tally::block_lit`] above spp 4), instead of an add into the ray's texel
     /// per ray, so no texel lane travels with the rays.
     /// The same rays in the same packets with the same `tfar` as [`Run::block_w`], so the same
     /// K to the bit (`tests/widths.rs`). Timed with the Embree calls left out (a local build),
@@ -1228,7 +1228,7 @@ impl Run<'_> {
                 skipped: len as u64 - traced,
             };
         }
-        let lit = lit_per_texel(facing, lit, block.covered);
+        let lit = tally::block_lit(&facing.words, &lit.words, block.ends);
         finish(&lit, block.covered, None, traced, len as u64 - traced)
     }
 
@@ -1349,31 +1349,6 @@ impl Bits {
     fn put(&mut self, at: usize, m: u32) {
         self.words[at / 64] |= (m as u64) << (at % 64);
     }
-
-    /// The ones below bit `at`, word by word.
-    fn ones_below(&self, at: usize) -> u32 {
-        let (w, b) = (at / 64, at % 64);
-        let whole: u32 = self.words[..w].iter().map(|x| x.count_ones()).sum();
-        whole
-            + self
-                .words
-                .get(w)
-                .map_or(0, |x| tally::ones_below(*x, b as u32))
-    }
-}
-
-/// Per texel of a block of more than 64 entries (spp above 4), its rays that came back lit:
-/// [`tally::block_k`]'s counts, word by word.
-fn lit_per_texel(facing: &Bits, lit: &Bits, covered: &[u32; 16]) -> [u32; 16] {
-    let mut out = [0; 16];
-    let (mut end, mut below) = (0, 0);
-    for (out, &c) in out.iter_mut().zip(covered) {
-        end += c as usize;
-        let upto = lit.ones_below(facing.ones_below(end) as usize);
-        *out = upto - below;
-        below = upto;
-    }
-    out
 }
 
 /// Shadow rays of one block waiting for a full packet of `W` lanes. The block's rays to be
