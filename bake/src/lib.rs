@@ -14,6 +14,7 @@ pub mod dome;
 pub mod embree;
 mod facing;
 pub mod maps;
+mod ring;
 pub mod swatch;
 mod tally;
 pub mod tiling;

@@ -8,6 +8,7 @@
 //! is bit-identical for any thread count and for packets versus single rays.
 use std::collections::HashMap;
 use std::ops::Range;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use ptm_format::hash::splitmix64;
@@ -17,6 +18,7 @@ use rayon::prelude::*;
 use crate::embree::{self, Device, Packet, Scene, Valid};
 use crate::facing::{Compact, Isa, MAX_RUN};
 use crate::maps::{Surface, SurfaceHit};
+use crate::ring::{self, Ring};
 use crate::swatch::PreparedMesh;
 use crate::tally;
 use crate::tiling;
@@ -368,21 +370,21 @@ struct BlockView<'a> {
 }
 
 /// Bytes a [`Baker`] holds for `res` texels at `spp` samples per texel: the primary samples
-/// (padded to whole 4×4 blocks), coverage, and the K planes of one pass of lights
-/// ([`lights_per_pass`]) with their (u, v) planes, excluding the swatch's own scenes. What the
-/// sink keeps comes on top.
+/// (padded to whole 4×4 blocks), coverage, and the K planes of two passes of lights
+/// ([`lights_per_pass`]: one traced while the sink reads the other) with their (u, v) planes,
+/// excluding the swatch's own scenes. What the sink keeps comes on top.
 /// In f64: absurd requests must be measured, not overflow.
 pub fn baker_bytes(res: [usize; 2], spp: u32) -> f64 {
     let blocks = res[0].div_ceil(4) as f64 * res[1].div_ceil(4) as f64;
     let texels = res[0] as f64 * res[1] as f64;
-    let planes = lights_per_pass(res) as f64;
+    let planes = (ring::SLOTS * lights_per_pass(res)) as f64;
     blocks * (16.0 * spp as f64 * 25.0 + 64.0) + texels * (4.0 + planes * (4.0 + 8.0))
 }
 
 /// Lights traced in one pass over the texel blocks ([`Baker::trace`]): each block's samples
-/// are read once per pass, not once per light, and the threads meet once per pass. Planes of a
-/// pass are held together, so large images take fewer lights at a time (at most 32 MiB of K
-/// planes, at least one light).
+/// are read once per pass, not once per light. Planes of a pass are held together (and those
+/// of the pass before, which the sink reads meanwhile), so large images take fewer lights at a
+/// time (at most 32 MiB of K planes a pass, at least one light).
 pub fn lights_per_pass(res: [usize; 2]) -> usize {
     const MAX: f64 = 8.0;
     let plane = res[0] as f64 * res[1] as f64 * 4.0;
@@ -883,7 +885,8 @@ impl Baker {
         self.coverage = coverage;
     }
 
-    /// Traces every light of `lights` in order and hands each K plane to `sink`.
+    /// Traces every light of `lights` in order and hands each K plane to `sink`, on the
+    /// calling thread, while the pool already traces the next pass of lights.
     pub fn trace(&mut self, lights: &LightSet, sink: &mut Sink) -> Result<BakeReport> {
         let t0 = Instant::now();
         let (nx, ny) = (self.width_traced(), self.rows.len());
@@ -972,78 +975,62 @@ impl Baker {
             .collect();
         let point = self.light_distance.is_some();
         let batch = lights_per_pass([nx, ny]);
-        let mut k_planes = vec![vec![0.0f32; nx * ny]; batch.min(runs.len())];
-        let mut uv_planes =
-            vec![vec![[0.0f32; 2]; if point { nx * ny } else { 0 }]; k_planes.len()];
-        let bx = self.blocks[0];
-        for (b, pass) in runs.chunks(batch).enumerate() {
+        let passes: Vec<&[Run]> = runs.chunks(batch).collect();
+        // Two passes' planes: the threads trace one while the sink reads the one before, so
+        // they never meet between passes ([`ring`]).
+        let ring = Ring::new(
+            passes.len().min(ring::SLOTS),
+            batch.min(runs.len()),
+            [nx, ny],
+            point,
+        );
+        let (traced, skipped) = (AtomicU64::new(0), AtomicU64::new(0));
+        let (samples, [bx, by]) = (&self.samples, self.blocks);
+        self.pool.in_place_scope(|s| -> Result<()> {
             // One task per row of blocks: its samples are contiguous and it owns 4 image rows
             // of every plane of the pass, so results go straight into the planes (no serial
-            // scatter). Counts are integer sums, independent of the reduction order.
-            let mut rows: Vec<Vec<RowPlanes>> = (0..self.blocks[1])
-                .map(|_| Vec::with_capacity(pass.len()))
-                .collect();
-            for (k, uv) in k_planes
-                .iter_mut()
-                .zip(uv_planes.iter_mut())
-                .take(pass.len())
-            {
-                let uv_rows = uv
-                    .chunks_mut(4 * nx)
-                    .chain(std::iter::repeat_with(|| &mut [][..]));
-                for (row, (k, uv)) in rows.iter_mut().zip(k.chunks_mut(4 * nx).zip(uv_rows)) {
-                    row.push((k, uv));
+            // scatter). Counts are integer sums, independent of the order tasks finish in.
+            let spawn = |p: usize| {
+                let (slot, pass) = (p % ring::SLOTS, passes[p]);
+                ring.start(slot, by);
+                for bj in 0..by {
+                    let (ring, traced, skipped) = (&ring, &traced, &skipped);
+                    s.spawn(move |_| {
+                        let _done = ring.finisher(slot);
+                        let mut planes: Vec<RowPlanes> = (0..pass.len())
+                            // SAFETY: this task is the only one of the slot's pass with
+                            // band `bj`, and it drops the rows before `_done`.
+                            .map(|j| unsafe { ring.rows_mut(slot, j, bj) })
+                            .collect();
+                        let (t, k) = trace_band(samples, pass, &mut planes, bj, bx, nx);
+                        traced.fetch_add(t, Ordering::Relaxed);
+                        skipped.fetch_add(k, Ordering::Relaxed);
+                    });
+                }
+            };
+            for p in 0..passes.len().min(ring::SLOTS) {
+                spawn(p);
+            }
+            for (p, pass) in passes.iter().enumerate() {
+                let slot = p % ring::SLOTS;
+                if !ring.wait(slot) {
+                    // A task panicked: the scope re-raises it.
+                    return Ok(());
+                }
+                for (j, run) in pass.iter().enumerate() {
+                    // SAFETY: the slot's pass is done, and its next starts after the sink.
+                    let (k, uv) = unsafe { ring.plane(slot, j) };
+                    let uv = uv.filter(|_| matches!(run.light, Some(Light::Point(_))));
+                    sink(p * batch + j, k, uv)?;
+                }
+                if p + ring::SLOTS < passes.len() {
+                    spawn(p + ring::SLOTS);
                 }
             }
-            let samples = &self.samples;
-            let (traced, skipped) = self.pool.install(|| {
-                rows.into_par_iter()
-                    .enumerate()
-                    .map(|(bj, mut planes)| {
-                        let (mut traced, mut skipped) = (0u64, 0u64);
-                        let mut queues = Queues::default();
-                        let per = samples.lines_per_light(pass.len());
-                        // The task's image rows: 4, or fewer at the bottom.
-                        let rows_in = planes.first().map_or(0, |p| (p.0.len() / nx).min(4));
-                        for bi in 0..bx {
-                            let block = samples.view(bj * bx + bi);
-                            // Every light of the pass over this block while its samples are
-                            // in the nearest cache.
-                            let lights = pass.iter().zip(planes.iter_mut()).enumerate();
-                            for (li, (run, (k_rows, uv_rows))) in lights {
-                                samples.prefetch(bj * bx + bi + 1, li * per..(li + 1) * per);
-                                let r = run.block(&block, &mut queues);
-                                traced += r.traced;
-                                skipped += r.skipped;
-                                // The block's texels in the task's rows: 4 or fewer of
-                                // each row.
-                                let (i, w) = (bi * 4, 4.min(nx - bi * 4));
-                                for j in 0..rows_in {
-                                    let at = j * nx + i;
-                                    // A whole row of the block in one 16-byte move (a copy
-                                    // of `w` floats was a `memmove` call).
-                                    if w == 4 {
-                                        k_rows[at..at + 4].copy_from_slice(&r.k[j * 4..j * 4 + 4]);
-                                    } else {
-                                        k_rows[at..at + w].copy_from_slice(&r.k[j * 4..j * 4 + w]);
-                                    }
-                                    if let Some(uv) = &r.uv {
-                                        uv_rows[at..at + w].copy_from_slice(&uv[j * 4..j * 4 + w]);
-                                    }
-                                }
-                            }
-                        }
-                        (traced, skipped)
-                    })
-                    .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
-            });
-            rep.shadow_rays += traced;
-            rep.shadow_rays_skipped += skipped;
-            for (j, run) in pass.iter().enumerate() {
-                let uv = matches!(run.light, Some(Light::Point(_))).then_some(&uv_planes[j][..]);
-                sink(b * batch + j, &k_planes[j], uv)?;
-            }
-        }
+            Ok(())
+        })?;
+        rep.shadow_rays += traced.into_inner();
+        rep.shadow_rays_skipped += skipped.into_inner();
         rep.seconds_shadow = t0.elapsed().as_secs_f64();
         Ok(rep)
     }
@@ -1275,6 +1262,50 @@ impl Run<'_> {
             skipped,
         )
     }
+}
+
+/// Traces every light of `pass` over row `bj` of texel blocks (`bx` blocks, `nx` texels
+/// wide) into that row's bands of the pass's planes; returns the rays traced and skipped.
+fn trace_band(
+    samples: &Blocks,
+    pass: &[Run],
+    planes: &mut [RowPlanes],
+    bj: usize,
+    bx: usize,
+    nx: usize,
+) -> (u64, u64) {
+    let (mut traced, mut skipped) = (0u64, 0u64);
+    let mut queues = Queues::default();
+    let per = samples.lines_per_light(pass.len());
+    // The task's image rows: 4, or fewer at the bottom.
+    let rows_in = planes.first().map_or(0, |p| (p.0.len() / nx).min(4));
+    for bi in 0..bx {
+        let block = samples.view(bj * bx + bi);
+        // Every light of the pass over this block while its samples are in the nearest cache.
+        let lights = pass.iter().zip(planes.iter_mut()).enumerate();
+        for (li, (run, (k_rows, uv_rows))) in lights {
+            samples.prefetch(bj * bx + bi + 1, li * per..(li + 1) * per);
+            let r = run.block(&block, &mut queues);
+            traced += r.traced;
+            skipped += r.skipped;
+            // The block's texels in the task's rows: 4 or fewer of each row.
+            let (i, w) = (bi * 4, 4.min(nx - bi * 4));
+            for j in 0..rows_in {
+                let at = j * nx + i;
+                // A whole row of the block in one 16-byte move (a copy of `w` floats was a
+                // `memmove` call).
+                if w == 4 {
+                    k_rows[at..at + 4].copy_from_slice(&r.k[j * 4..j * 4 + 4]);
+                } else {
+                    k_rows[at..at + w].copy_from_slice(&r.k[j * 4..j * 4 + w]);
+                }
+                if let Some(uv) = &r.uv {
+                    uv_rows[at..at + w].copy_from_slice(&uv[j * 4..j * 4 + w]);
+                }
+            }
+        }
+    }
+    (traced, skipped)
 }
 
 /// A block's K (occluded over covered samples per texel: the covered ones not found lit) and,
