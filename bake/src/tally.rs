@@ -168,7 +168,6 @@ unsafe fn k_avx2(facing: u64, lit: u64, covered: &[u32; 16], ends: &[u32; 16]) -
     let mut k = [0.0f32; 16];
     // SAFETY: loads of 4 lanes within 16-element arrays, stores of 8 lanes within `k`.
     unsafe {
-        // x & the bits below n, counted per 64-bit lane (`below_avx2`).
         let (f, l) = (
             _mm256_set1_epi64x(facing as i64),
             _mm256_set1_epi64x(lit as i64),
