@@ -1292,10 +1292,12 @@ fn trace_band(
             let (i, w) = (bi * 4, 4.min(nx - bi * 4));
             for j in 0..rows_in {
                 let at = j * nx + i;
-                // A whole row of the block in one 16-byte move (a copy of `w` floats was a
-                // `memmove` call).
+                // A whole row of the block in one 16-byte move (a copy of `w` floats is a
+                // `memcpy` call). Read out as an array: two `copy_from_slice`s, of 4 and of
+                // `w`, were merged by LLVM into that one call of a run-time length.
                 if w == 4 {
-                    k_rows[at..at + 4].copy_from_slice(&r.k[j * 4..j * 4 + 4]);
+                    let row: [f32; 4] = std::array::from_fn(|c| r.k[j * 4 + c]);
+                    k_rows[at..at + 4].copy_from_slice(&row);
                 } else {
                     k_rows[at..at + w].copy_from_slice(&r.k[j * 4..j * 4 + w]);
                 }
